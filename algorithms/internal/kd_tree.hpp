@@ -1,0 +1,68 @@
+// kd-tree over a contiguous array of 3D points (nanoflann), for kNN and radius queries in
+// hot loops. Internal to algorithms/: public headers never expose it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nanoflann.hpp>
+
+namespace rgbd::internal {
+
+/// Borrowed view of points; the array must outlive the tree.
+class KdTree {
+public:
+    explicit KdTree(const std::vector<Eigen::Vector3d>& points, int leaf_size = 16)
+        : adaptor_{&points},
+          index_(3, adaptor_, nanoflann::KDTreeSingleIndexAdaptorParams(leaf_size)) {
+        if (!points.empty()) index_.buildIndex();
+    }
+
+    std::size_t size() const { return adaptor_.points->size(); }
+
+    /// k nearest neighbours of q (q itself included if it is in the tree). Returns the count
+    /// found (<= k); indices and squared distances are written to the caller's buffers.
+    std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
+                    double* sq_dists) const {
+        if (size() == 0 || k == 0) return 0;
+        nanoflann::KNNResultSet<double, std::uint32_t> result(k);
+        result.init(indices, sq_dists);
+        index_.findNeighbors(result, q.data(), nanoflann::SearchParams());
+        return result.size();
+    }
+
+    /// Nearest neighbour; returns false on an empty tree.
+    bool nearest(const Eigen::Vector3d& q, std::uint32_t& index, double& sq_dist) const {
+        return knn(q, 1, &index, &sq_dist) == 1;
+    }
+
+    /// All points within `radius` (not squared) of q, sorted by distance. `out` is reused.
+    std::size_t radius(const Eigen::Vector3d& q, double radius,
+                       std::vector<std::pair<std::uint32_t, double>>& out) const {
+        out.clear();
+        if (size() == 0) return 0;
+        nanoflann::SearchParams params;
+        params.sorted = true;
+        return index_.radiusSearch(q.data(), radius * radius, out, params);
+    }
+
+private:
+    struct Adaptor {
+        const std::vector<Eigen::Vector3d>* points;
+        std::size_t kdtree_get_point_count() const { return points->size(); }
+        double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*points)[i][d]; }
+        template <class Box>
+        bool kdtree_get_bbox(Box&) const {
+            return false;
+        }
+    };
+    using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
+                                                      Adaptor, 3, std::uint32_t>;
+    Adaptor adaptor_;
+    Index index_;
+};
+
+}  // namespace rgbd::internal

@@ -1,0 +1,123 @@
+// Capture folders (DESIGN.md §3): capture folder v1 (rig.json, framesets.csv, per-sensor
+// frames.csv with depth/ and color/ images, gt/ for synthetic captures), plus read-only
+// layouts: TUM RGB-D, Open3D/Redwood (intrinsic JSON + .log trajectory) and the
+// "frames with OpenCV camera xml" layout of shared/data/multiview/uva_cv2_person_kinect1.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "toolkit/camera.hpp"
+#include "toolkit/pose.hpp"
+#include "toolkit/rgbd_frame.hpp"
+
+namespace rgbd::io {
+
+/// One sensor of rig.json.
+struct SensorSpec {
+    std::string id;
+    std::string model;  ///< "kinect_v2", "sr300", ... (free text)
+    PinholeIntrinsics depth;
+    PinholeIntrinsics color;
+    double depth_scale = 1000.0;  ///< stored value / depth_scale = metres
+    double range_min_m = 0.0;     ///< valid depth range (0 = unknown)
+    double range_max_m = 0.0;
+    Pose color_from_depth = Pose::Identity();
+    Pose world_from_depth = Pose::Identity();
+    std::string noise_model;           ///< noise.model ("" = none given)
+    std::int64_t clock_offset_ns = 0;  ///< clock.offset_ns
+    nlohmann::json extra = nlohmann::json::object();  ///< unknown keys, kept verbatim
+};
+
+/// rig.json.
+struct Rig {
+    std::vector<SensorSpec> sensors;
+    nlohmann::json extra = nlohmann::json::object();  ///< unknown top-level keys
+
+    /// Throws InputError naming the id when absent.
+    const SensorSpec& sensor(const std::string& id) const;
+};
+
+/// Reads and validates rig.json. Errors name the file and the problem (InputError/IoError).
+Rig read_rig(const std::filesystem::path& path);
+/// Writes rig.json atomically (temporary file, then rename).
+void write_rig(const std::filesystem::path& path, const Rig& rig);
+
+/// One line of <sensor>/frames.csv.
+struct FrameRecord {
+    std::int64_t index = 0;
+    std::int64_t time_ns = 0;  ///< the sensor's own clock
+    std::string depth;         ///< path relative to the sensor folder (or absolute)
+    std::string color;         ///< may be empty: no colour image
+    std::optional<Pose> world_from_depth;  ///< per-frame pose (turntable, hand-held)
+};
+
+/// One line of framesets.csv: the frame index per sensor (same order as Rig::sensors), -1 = missing.
+struct FrameSet {
+    std::int64_t set = 0;
+    std::int64_t time_ns = 0;    ///< hub time
+    std::int64_t spread_ns = 0;
+    std::vector<std::int64_t> frames;
+};
+
+/// An opened capture: the rig, the frame lists and the frame sets.
+struct Capture {
+    std::filesystem::path root;
+    std::string layout;  ///< "rgbd-capture", "tum", "redwood", "uva"
+    Rig rig;
+    std::map<std::string, std::vector<FrameRecord>> frames;  ///< by sensor id, in file order
+    std::vector<FrameSet> framesets;  ///< empty for single-sensor layouts without framesets.csv
+
+    /// Position in frames.at(sensor_id) of the record with that index, or nullopt.
+    std::optional<std::size_t> find_frame(const std::string& sensor_id, std::int64_t index) const;
+};
+
+/// Opens a capture folder of any supported layout (detected from its files). Reads only
+/// the small files; images are read by load_frame. Throws InputError/IoError naming the file.
+Capture open_capture(const std::filesystem::path& root);
+
+/// Loads one frame (depth in metres with NaN for invalid, colour BGR, mask if the layout has
+/// one) with the sensor's intrinsics, extrinsics, range and the frame's pose (per-frame pose
+/// overrides the sensor's). Hub time = time_ns - clock_offset_ns. Errors name the file.
+RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::size_t position);
+
+/// Writes a capture folder v1. Files are written atomically; csv lines are appended and
+/// flushed one by one, so an interrupted recording stays readable.
+class CaptureWriter {
+public:
+    /// Creates root (must not exist or be empty) and writes rig.json.
+    CaptureWriter(const std::filesystem::path& root, const Rig& rig);
+    ~CaptureWriter();
+    CaptureWriter(const CaptureWriter&) = delete;
+    CaptureWriter& operator=(const CaptureWriter&) = delete;
+
+    /// Writes depth (CV_32FC1 metres, NaN/0 = invalid; stored as uint16 PNG with the
+    /// sensor's depth_scale) and colour (CV_8UC3 BGR, JPEG; may be empty) and appends the
+    /// frames.csv line. `world_from_depth` is written as the 12 optional columns.
+    void add_frame(const std::string& sensor_id, std::int64_t index, std::int64_t time_ns,
+                   const cv::Mat& depth_m, const cv::Mat& color_bgr,
+                   const std::optional<Pose>& world_from_depth = std::nullopt);
+    /// Appends a framesets.csv line (frames in Rig::sensors order, -1 = missing).
+    void add_frameset(const FrameSet& set);
+    const std::filesystem::path& root() const { return root_; }
+
+private:
+    std::filesystem::path root_;
+    Rig rig_;
+    bool framesets_header_written_ = false;
+};
+
+/// Writes an image atomically (temporary file in the same folder, then rename); the format
+/// follows the extension (.png, .jpg). Throws IoError naming the file.
+void write_image_atomic(const std::filesystem::path& path, const cv::Mat& image,
+                        const std::vector<int>& params = {});
+/// Writes text atomically. Throws IoError naming the file.
+void write_text_atomic(const std::filesystem::path& path, const std::string& text);
+
+}  // namespace rgbd::io

@@ -1,0 +1,26 @@
+// Rigid poses. Named target_from_source (STYLE.md §3): p_in_world = world_from_sensor * p_in_sensor.
+#pragma once
+
+#include <array>
+
+#include <Eigen/Geometry>
+
+namespace rgbd {
+
+using Pose = Eigen::Isometry3d;
+
+/// Angle of the rotation between two poses, in degrees: acos((trace(R_a R_b^T) - 1) / 2).
+double rotation_error_deg(const Pose& a, const Pose& b);
+/// Distance between the translations of two poses, in metres.
+double translation_error_m(const Pose& a, const Pose& b);
+/// Builds a pose from 12 numbers (3x4, row-major). Throws InputError if the rotation part
+/// is not a rotation (orthonormal within 1e-4, det +1) or a value is not finite.
+Pose pose_from_3x4(const std::array<double, 12>& rows);
+/// Same from 16 numbers (4x4 row-major); the last row must be 0 0 0 1.
+Pose pose_from_4x4(const std::array<double, 16>& rows);
+/// The 12 numbers of the 3x4 row-major form.
+std::array<double, 12> pose_to_3x4(const Pose& pose);
+/// Re-orthonormalises the rotation part (nearest rotation, by SVD).
+Pose orthonormalized(const Pose& pose);
+
+}  // namespace rgbd
