@@ -7,11 +7,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "toolkit/camera.hpp"
 #include "toolkit/pose.hpp"
@@ -30,8 +29,11 @@ struct SensorSpec {
     double range_max_m = 0.0;
     Pose color_from_depth = Pose::Identity();
     Pose world_from_depth = Pose::Identity();
-    std::string noise_model;           ///< noise.model ("" = none given)
-    std::int64_t clock_offset_ns = 0;  ///< clock.offset_ns
+    /// world_from_depth is known (rig.json has the key). Layouts without poses set false;
+    /// write_rig omits the key then.
+    bool has_world_from_depth = true;
+    std::string noise_model;                          ///< noise.model ("" = none given)
+    std::int64_t clock_offset_ns = 0;                 ///< clock.offset_ns
     nlohmann::json extra = nlohmann::json::object();  ///< unknown keys, kept verbatim
 };
 
@@ -55,13 +57,14 @@ struct FrameRecord {
     std::int64_t time_ns = 0;  ///< the sensor's own clock
     std::string depth;         ///< path relative to the sensor folder (or absolute)
     std::string color;         ///< may be empty: no colour image
+    std::string mask;  ///< optional object mask on the depth grid (uva layout); may be empty
     std::optional<Pose> world_from_depth;  ///< per-frame pose (turntable, hand-held)
 };
 
-/// One line of framesets.csv: the frame index per sensor (same order as Rig::sensors), -1 = missing.
+/// One line of framesets.csv: the frame index per sensor (in Rig::sensors order; -1 = missing).
 struct FrameSet {
     std::int64_t set = 0;
-    std::int64_t time_ns = 0;    ///< hub time
+    std::int64_t time_ns = 0;  ///< hub time
     std::int64_t spread_ns = 0;
     std::vector<std::int64_t> frames;
 };

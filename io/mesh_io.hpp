@@ -17,7 +17,8 @@ Mesh read_mesh(const std::filesystem::path& path);
 
 /// Writes .ply (binary little-endian, vertex colours as red green blue uchar when present),
 /// .off or .obj, atomically. `view` metadata goes into PLY comments when given.
-void write_mesh(const std::filesystem::path& path, const Mesh& mesh, const ViewInfo* view = nullptr);
+void write_mesh(const std::filesystem::path& path, const Mesh& mesh,
+                const ViewInfo* view = nullptr);
 
 /// Reads a point cloud from .ply (first document), .xyz/.pwn, .pcd, or a mesh file's vertices.
 PointCloud read_point_cloud(const std::filesystem::path& path);

@@ -1,0 +1,749 @@
+#include "io/mesh_io.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/internal/atomic_file.hpp"
+#include "io/internal/mesh_soup.hpp"
+#include "io/ply_stream.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::io {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string lower_extension(const fs::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+[[noreturn]] void fail(const fs::path& path, const std::string& problem) {
+    throw InputError(path.string() + ": " + problem);
+}
+
+std::ifstream open_input(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) fail(path, "no such file");
+    if (fs::is_directory(path, ec)) fail(path, "is a folder, not a file");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(path.string() + ": cannot open for reading");
+    return in;
+}
+
+std::vector<std::string_view> split(std::string_view s) {
+    std::vector<std::string_view> out;
+    std::size_t i = 0;
+    while (i < s.size()) {
+        while (i < s.size() && (s[i] == ' ' || s[i] == '\t' || s[i] == '\r')) ++i;
+        const std::size_t start = i;
+        while (i < s.size() && s[i] != ' ' && s[i] != '\t' && s[i] != '\r') ++i;
+        if (i > start) out.push_back(s.substr(start, i - start));
+    }
+    return out;
+}
+
+bool parse_double(std::string_view s, double& v) {
+    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && ptr == s.data() + s.size();
+}
+
+bool parse_long(std::string_view s, long long& v) {
+    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && ptr == s.data() + s.size();
+}
+
+std::string fmt(double v) {
+    char buf[64];
+    const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
+    return std::string(buf, ptr);
+}
+
+/// Reads the whole file as lines without comments ('#') and blank lines, with line numbers.
+struct Lines {
+    std::vector<std::string> text;
+    std::vector<std::size_t> number;
+};
+
+Lines read_lines(const fs::path& path, bool strip_comments) {
+    std::ifstream in = open_input(path);
+    Lines lines;
+    std::string line;
+    std::size_t n = 0;
+    while (std::getline(in, line)) {
+        ++n;
+        if (strip_comments) {
+            const auto hash = line.find('#');
+            if (hash != std::string::npos) line.erase(hash);
+        }
+        if (split(line).empty()) continue;
+        lines.text.push_back(line);
+        lines.number.push_back(n);
+    }
+    return lines;
+}
+
+Point_3 finite_point(const fs::path& path, std::size_t line, double x, double y, double z) {
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+        fail(path, "line " + std::to_string(line) + ": coordinate is not finite");
+    return {x, y, z};
+}
+
+std::uint8_t color_component(std::string_view token, double v) {
+    // OFF/OBJ colours: integers are 0..255, decimals are 0..1.
+    if (token.find_first_of(".eE") != std::string_view::npos) v *= 255.0;
+    return static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+}
+
+// ------------------------------------------------------------------------------ OFF
+
+internal::MeshSoup read_off_soup(const fs::path& path) {
+    const Lines lines = read_lines(path, /*strip_comments=*/true);
+    if (lines.text.empty()) fail(path, "empty file");
+    auto head = split(lines.text[0]);
+    std::string_view magic = head[0];
+    const bool has_color = magic.find('C') != std::string_view::npos;
+    const bool has_normal = magic.find('N') != std::string_view::npos;
+    const bool has_tex = magic.find("ST") != std::string_view::npos;
+    if (magic.size() < 3 || magic.substr(magic.size() - 3) != "OFF" ||
+        magic.find('4') != std::string_view::npos || magic.find("nOFF") != std::string_view::npos)
+        fail(path, "not an OFF file (header '" + std::string(magic.substr(0, 20)) + "')");
+    std::size_t line = 1;
+    std::vector<std::string_view> counts(head.begin() + 1, head.end());
+    if (counts.empty()) {
+        if (lines.text.size() < 2) fail(path, "missing vertex and face counts");
+        counts = split(lines.text[1]);
+        line = 2;
+    }
+    long long nv = 0, nf = 0;
+    if (counts.size() < 2 || !parse_long(counts[0], nv) || !parse_long(counts[1], nf) || nv < 0 ||
+        nf < 0)
+        fail(path, "bad vertex and face counts");
+    if (lines.text.size() < line + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+        fail(path, "truncated: header announces " + std::to_string(nv) + " vertices and " +
+                       std::to_string(nf) + " faces, the file has fewer lines");
+    internal::MeshSoup soup;
+    soup.points.reserve(static_cast<std::size_t>(nv));
+    for (long long i = 0; i < nv; ++i, ++line) {
+        const auto t = split(lines.text[line]);
+        const std::size_t ln = lines.number[line];
+        const std::size_t need = 3 + (has_normal ? 3 : 0) + (has_color ? 3 : 0);
+        if (t.size() < need) fail(path, "line " + std::to_string(ln) + ": too few values");
+        double v[10] = {};
+        for (std::size_t k = 0; k < std::min<std::size_t>(t.size(), 10); ++k)
+            if (!parse_double(t[k], v[k]))
+                fail(path, "line " + std::to_string(ln) + ": bad number '" +
+                               std::string(t[k].substr(0, 30)) + "'");
+        soup.points.push_back(finite_point(path, ln, v[0], v[1], v[2]));
+        std::size_t k = 3;
+        if (has_normal) {
+            soup.normals.emplace_back(v[3], v[4], v[5]);
+            k = 6;
+        }
+        if (has_color)
+            soup.colors.emplace_back(color_component(t[k], v[k]),
+                                     color_component(t[k + 1], v[k + 1]),
+                                     color_component(t[k + 2], v[k + 2]));
+        (void)has_tex;
+    }
+    std::vector<std::uint32_t> polygon;
+    for (long long f = 0; f < nf; ++f, ++line) {
+        const auto t = split(lines.text[line]);
+        const std::size_t ln = lines.number[line];
+        long long n = 0;
+        if (!parse_long(t[0], n) || n < 0 || static_cast<std::size_t>(n) + 1 > t.size())
+            fail(path, "line " + std::to_string(ln) + ": bad face");
+        polygon.clear();
+        for (long long k = 1; k <= n; ++k) {
+            long long idx = 0;
+            if (!parse_long(t[static_cast<std::size_t>(k)], idx) || idx < 0 || idx >= nv)
+                fail(path, "line " + std::to_string(ln) + ": vertex index '" +
+                               std::string(t[static_cast<std::size_t>(k)]) + "' out of range (" +
+                               std::to_string(nv) + " vertices)");
+            polygon.push_back(static_cast<std::uint32_t>(idx));
+        }
+        if (polygon.size() >= 3) soup.add_face(polygon);
+    }
+    return soup;
+}
+
+// ------------------------------------------------------------------------------ OBJ
+
+/// Parses an OBJ index ("3", "-1") relative to `count` elements seen so far.
+bool obj_index(std::string_view s, std::size_t count, std::size_t& out) {
+    long long v = 0;
+    if (s.empty() || !parse_long(s, v) || v == 0) return false;
+    const long long idx = v > 0 ? v - 1 : static_cast<long long>(count) + v;
+    if (idx < 0 || idx >= static_cast<long long>(count)) return false;
+    out = static_cast<std::size_t>(idx);
+    return true;
+}
+
+internal::MeshSoup read_obj_soup(const fs::path& path) {
+    const Lines lines = read_lines(path, /*strip_comments=*/true);
+    internal::MeshSoup soup;
+    std::vector<Vector_3> normals;
+    std::vector<Vector_3> vertex_normals;
+    std::vector<bool> has_vertex_normal;
+    bool any_color = false, any_normal = false;
+    std::vector<std::uint32_t> polygon;
+    for (std::size_t l = 0; l < lines.text.size(); ++l) {
+        const auto t = split(lines.text[l]);
+        const std::size_t ln = lines.number[l];
+        const auto number = [&](std::size_t k) {
+            double v = 0;
+            if (k >= t.size() || !parse_double(t[k], v))
+                fail(path, "line " + std::to_string(ln) + ": bad or missing number");
+            return v;
+        };
+        if (t[0] == "v") {
+            soup.points.push_back(finite_point(path, ln, number(1), number(2), number(3)));
+            if (t.size() >= 7) {
+                if (!any_color)
+                    soup.colors.assign(soup.points.size() - 1, MeshColor(128, 128, 128));
+                any_color = true;
+                // OBJ vertex colours are 0..1 floats; some writers use 0..255.
+                const double r = number(4), g = number(5), b = number(6);
+                const double scale = std::max({r, g, b}) > 1.0 ? 1.0 : 255.0;
+                const auto channel = [scale](double v) {
+                    return static_cast<std::uint8_t>(std::clamp(std::lround(v * scale), 0L, 255L));
+                };
+                soup.colors.emplace_back(channel(r), channel(g), channel(b));
+            } else if (any_color) {
+                soup.colors.emplace_back(128, 128, 128);
+            }
+        } else if (t[0] == "vn") {
+            normals.emplace_back(number(1), number(2), number(3));
+        } else if (t[0] == "f") {
+            polygon.clear();
+            for (std::size_t k = 1; k < t.size(); ++k) {
+                const std::string_view corner = t[k];
+                const std::size_t s1 = corner.find('/');
+                std::size_t v = 0;
+                if (!obj_index(corner.substr(0, s1), soup.points.size(), v))
+                    fail(path, "line " + std::to_string(ln) + ": vertex index '" +
+                                   std::string(corner) + "' out of range (" +
+                                   std::to_string(soup.points.size()) + " vertices so far)");
+                polygon.push_back(static_cast<std::uint32_t>(v));
+                if (s1 == std::string_view::npos) continue;
+                const std::size_t s2 = corner.find('/', s1 + 1);
+                if (s2 == std::string_view::npos) continue;
+                std::size_t n = 0;
+                if (s2 + 1 < corner.size()) {
+                    if (!obj_index(corner.substr(s2 + 1), normals.size(), n))
+                        fail(path, "line " + std::to_string(ln) + ": normal index in '" +
+                                       std::string(corner) + "' out of range");
+                    if (vertex_normals.size() < soup.points.size()) {
+                        vertex_normals.resize(soup.points.size(), CGAL::NULL_VECTOR);
+                        has_vertex_normal.resize(soup.points.size(), false);
+                    }
+                    vertex_normals[v] = normals[n];
+                    has_vertex_normal[v] = true;
+                    any_normal = true;
+                }
+            }
+            if (polygon.size() >= 3) soup.add_face(polygon);
+        }
+        // vt, g, o, s, usemtl, mtllib, l, p: not needed for geometry.
+    }
+    if (any_normal) {
+        vertex_normals.resize(soup.points.size(), CGAL::NULL_VECTOR);
+        soup.normals = std::move(vertex_normals);
+    }
+    return soup;
+}
+
+// ------------------------------------------------------------------------------ PLY
+
+Document read_first_ply(const fs::path& path) {
+    std::ifstream in = open_input(path);
+    PlyStreamReader reader(in, path.string());
+    Document doc;
+    if (!reader.next(doc)) fail(path, "empty file (no PLY document)");
+    return doc;
+}
+
+// ------------------------------------------------------------------------------ PCD
+
+/// LZF decompression (liblzf format, as used by PCL's binary_compressed PCD).
+bool lzf_decompress(const unsigned char* in, std::size_t in_size, unsigned char* out,
+                    std::size_t out_size) {
+    const unsigned char* ip = in;
+    const unsigned char* const in_end = in + in_size;
+    unsigned char* op = out;
+    unsigned char* const out_end = out + out_size;
+    while (ip < in_end) {
+        std::size_t ctrl = *ip++;
+        if (ctrl < 32) {  // literal run of ctrl + 1 bytes
+            ++ctrl;
+            if (op + ctrl > out_end || ip + ctrl > in_end) return false;
+            std::memcpy(op, ip, ctrl);
+            op += ctrl;
+            ip += ctrl;
+        } else {  // back reference
+            std::size_t len = ctrl >> 5;
+            if (len == 7) {
+                if (ip >= in_end) return false;
+                len += *ip++;
+            }
+            if (ip >= in_end) return false;
+            const std::size_t back = ((ctrl & 0x1f) << 8) + *ip++ + 1;
+            len += 2;
+            if (back > static_cast<std::size_t>(op - out) || op + len > out_end) return false;
+            const unsigned char* ref = op - back;
+            for (std::size_t k = 0; k < len; ++k) *op++ = *ref++;  // may overlap
+        }
+    }
+    return op == out_end;
+}
+
+struct PcdField {
+    std::string name;
+    char type = 'F';
+    std::size_t size = 4;
+    std::size_t count = 1;
+    std::size_t offset = 0;  ///< byte offset in a row (binary layout)
+};
+
+double pcd_value(const unsigned char* p, char type, std::size_t size) {
+    switch (type) {
+        case 'F':
+            if (size == 4) {
+                float v;
+                std::memcpy(&v, p, 4);
+                return v;
+            } else {
+                double v;
+                std::memcpy(&v, p, 8);
+                return v;
+            }
+        case 'U': {
+            std::uint64_t v = 0;
+            std::memcpy(&v, p, size);
+            return static_cast<double>(v);
+        }
+        default: {
+            std::int64_t v = 0;
+            std::memcpy(&v, p, size);
+            if (size < 8) {  // sign-extend
+                const int shift = 64 - static_cast<int>(size) * 8;
+                v = (v << shift) >> shift;
+            }
+            return static_cast<double>(v);
+        }
+    }
+}
+
+std::uint32_t pcd_packed_color(const unsigned char* p, std::size_t size) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, p, std::min<std::size_t>(size, 4));
+    return v;
+}
+
+PointCloud read_pcd(const fs::path& path) {
+    std::ifstream in = open_input(path);
+    std::vector<PcdField> fields;
+    std::size_t width = 0, height = 1, points = 0;
+    bool have_points = false;
+    std::string data;
+    std::string line;
+    std::size_t header_lines = 0;
+    while (data.empty()) {
+        if (!std::getline(in, line)) fail(path, "truncated PCD header (no DATA line)");
+        if (++header_lines > 1000 || line.size() > 100000) fail(path, "not a PCD file");
+        const auto t = split(line);
+        if (t.empty() || t[0].front() == '#') continue;
+        const std::string_view key = t[0];
+        if (key == "VERSION" || key == "VIEWPOINT") continue;
+        if (key == "FIELDS") {
+            fields.clear();
+            for (std::size_t k = 1; k < t.size(); ++k) fields.push_back({std::string(t[k])});
+        } else if (key == "SIZE" || key == "TYPE" || key == "COUNT") {
+            if (t.size() != fields.size() + 1)
+                fail(path, std::string(key) + " has " + std::to_string(t.size() - 1) +
+                               " entries for " + std::to_string(fields.size()) + " fields");
+            for (std::size_t k = 0; k < fields.size(); ++k) {
+                long long v = 0;
+                if (key == "TYPE") {
+                    if (t[k + 1].size() != 1 ||
+                        std::string_view("FUI").find(t[k + 1][0]) == std::string_view::npos)
+                        fail(path, "bad TYPE '" + std::string(t[k + 1]) + "'");
+                    fields[k].type = t[k + 1][0];
+                } else if (!parse_long(t[k + 1], v) || v <= 0 || v > 1 << 20) {
+                    fail(path,
+                         "bad " + std::string(key) + " entry '" + std::string(t[k + 1]) + "'");
+                } else if (key == "SIZE") {
+                    if (v != 1 && v != 2 && v != 4 && v != 8) fail(path, "bad SIZE entry");
+                    fields[k].size = static_cast<std::size_t>(v);
+                } else {
+                    fields[k].count = static_cast<std::size_t>(v);
+                }
+            }
+        } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
+            long long v = 0;
+            if (t.size() != 2 || !parse_long(t[1], v) || v < 0)
+                fail(path, "bad " + std::string(key) + " line");
+            if (key == "WIDTH") width = static_cast<std::size_t>(v);
+            if (key == "HEIGHT") height = static_cast<std::size_t>(v);
+            if (key == "POINTS") {
+                points = static_cast<std::size_t>(v);
+                have_points = true;
+            }
+        } else if (key == "DATA") {
+            if (t.size() != 2) fail(path, "bad DATA line");
+            data = std::string(t[1]);
+        } else {
+            fail(path, "not a PCD file (unexpected header line '" + line.substr(0, 40) + "')");
+        }
+    }
+    if (!have_points) points = width * height;
+    if (fields.empty()) fail(path, "PCD header has no FIELDS");
+    std::size_t stride = 0;
+    for (PcdField& f : fields) {
+        if (f.type == 'F' && f.size != 4 && f.size != 8) fail(path, "bad float SIZE");
+        f.offset = stride;
+        stride += f.size * f.count;
+    }
+    const auto find = [&](std::string_view n) -> const PcdField* {
+        for (const PcdField& f : fields)
+            if (f.name == n) return &f;
+        return nullptr;
+    };
+    const PcdField* fx = find("x");
+    const PcdField* fy = find("y");
+    const PcdField* fz = find("z");
+    if (!fx || !fy || !fz) fail(path, "PCD has no x y z fields");
+    const PcdField* frgb = find("rgb");
+    if (!frgb) frgb = find("rgba");
+    const PcdField* fnx = find("normal_x");
+    const PcdField* fny = find("normal_y");
+    const PcdField* fnz = find("normal_z");
+    const bool normals = fnx && fny && fnz;
+
+    // Bring the data into the binary row layout (row-major, `stride` bytes per point).
+    std::vector<unsigned char> rows(points * stride);
+    if (data == "ascii") {
+        std::string token;
+        for (std::size_t i = 0; i < points; ++i) {
+            for (const PcdField& f : fields) {
+                for (std::size_t c = 0; c < f.count; ++c) {
+                    if (!(in >> token))
+                        fail(path, "truncated: " + std::to_string(i) + " of " +
+                                       std::to_string(points) + " points");
+                    unsigned char* p = rows.data() + i * stride + f.offset + c * f.size;
+                    double v = 0;
+                    if (!parse_double(token, v))
+                        fail(path, "point " + std::to_string(i) + ": bad number '" +
+                                       token.substr(0, 30) + "'");
+                    if (f.type == 'F' && f.size == 4) {
+                        const float fv = static_cast<float>(v);
+                        std::memcpy(p, &fv, 4);
+                    } else if (f.type == 'F') {
+                        std::memcpy(p, &v, 8);
+                    } else if (f.type == 'U') {
+                        const auto u = static_cast<std::uint64_t>(v < 0 ? 0 : v);
+                        std::memcpy(p, &u, f.size);
+                    } else {
+                        const auto s = static_cast<std::int64_t>(v);
+                        std::memcpy(p, &s, f.size);
+                    }
+                }
+            }
+        }
+    } else if (data == "binary") {
+        in.read(reinterpret_cast<char*>(rows.data()), static_cast<std::streamsize>(rows.size()));
+        if (static_cast<std::size_t>(in.gcount()) != rows.size())
+            fail(path, "truncated binary data (" + std::to_string(in.gcount()) + " of " +
+                           std::to_string(rows.size()) + " bytes)");
+    } else if (data == "binary_compressed") {
+        std::uint32_t sizes[2] = {0, 0};
+        in.read(reinterpret_cast<char*>(sizes), 8);
+        if (in.gcount() != 8) fail(path, "truncated compressed data header");
+        if (sizes[1] != rows.size())
+            fail(path, "compressed data decompresses to " + std::to_string(sizes[1]) +
+                           " bytes, expected " + std::to_string(rows.size()));
+        std::vector<unsigned char> compressed(sizes[0]);
+        in.read(reinterpret_cast<char*>(compressed.data()), sizes[0]);
+        if (static_cast<std::size_t>(in.gcount()) != sizes[0])
+            fail(path, "truncated compressed data");
+        std::vector<unsigned char> columns(sizes[1]);
+        if (!lzf_decompress(compressed.data(), compressed.size(), columns.data(), columns.size()))
+            fail(path, "corrupt LZF data");
+        // Decompressed data is column-major: all values of field 1, then field 2, ...
+        std::size_t at = 0;
+        for (const PcdField& f : fields) {
+            const std::size_t bytes = f.size * f.count;
+            for (std::size_t i = 0; i < points; ++i, at += bytes)
+                std::memcpy(rows.data() + i * stride + f.offset, columns.data() + at, bytes);
+        }
+    } else {
+        fail(path, "unsupported PCD DATA '" + data + "'");
+    }
+
+    PointCloud cloud;
+    const bool organised = height > 1 && width * height == points;
+    if (normals) cloud.points.add_normal_map();
+    std::optional<PointCloud::ColorMaps> colors;
+    if (frgb) colors = cloud.add_colors();
+    std::optional<PointCloud::Uint32Map> pixel;
+    if (organised) {
+        pixel = cloud.add_pixel_map();
+        cloud.view.grid_width = static_cast<int>(width);
+        cloud.view.grid_height = static_cast<int>(height);
+    }
+    cloud.points.reserve(points);
+    for (std::size_t i = 0; i < points; ++i) {
+        const unsigned char* row = rows.data() + i * stride;
+        const double x = pcd_value(row + fx->offset, fx->type, fx->size);
+        const double y = pcd_value(row + fy->offset, fy->type, fy->size);
+        const double z = pcd_value(row + fz->offset, fz->type, fz->size);
+        if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;  // no return
+        const auto idx = *cloud.points.insert(Point_3(x, y, z));
+        if (normals)
+            cloud.points.normal(idx) = {pcd_value(row + fnx->offset, fnx->type, fnx->size),
+                                        pcd_value(row + fny->offset, fny->type, fny->size),
+                                        pcd_value(row + fnz->offset, fnz->type, fnz->size)};
+        if (colors) {
+            const std::uint32_t c = pcd_packed_color(row + frgb->offset, frgb->size);
+            colors->set(idx, {static_cast<std::uint8_t>((c >> 16) & 0xff),
+                              static_cast<std::uint8_t>((c >> 8) & 0xff),
+                              static_cast<std::uint8_t>(c & 0xff)});
+        }
+        if (pixel) (*pixel)[idx] = static_cast<std::uint32_t>(i);
+    }
+    return cloud;
+}
+
+// ------------------------------------------------------------------------------ XYZ
+
+PointCloud read_xyz(const fs::path& path) {
+    const Lines lines = read_lines(path, /*strip_comments=*/true);
+    PointCloud cloud;
+    std::size_t columns = 0;
+    cloud.points.reserve(lines.text.size());
+    for (std::size_t l = 0; l < lines.text.size(); ++l) {
+        const auto t = split(lines.text[l]);
+        const std::size_t ln = lines.number[l];
+        if (columns == 0) {
+            columns = t.size();
+            if (columns != 3 && columns != 6)
+                fail(path, "line " + std::to_string(ln) +
+                               ": expected 3 (x y z) or 6 (x y z nx "
+                               "ny nz) columns, got " +
+                               std::to_string(columns));
+            if (columns == 6) cloud.points.add_normal_map();
+        }
+        if (t.size() != columns)
+            fail(path, "line " + std::to_string(ln) + ": expected " + std::to_string(columns) +
+                           " columns, got " + std::to_string(t.size()));
+        double v[6];
+        for (std::size_t k = 0; k < columns; ++k)
+            if (!parse_double(t[k], v[k]))
+                fail(path, "line " + std::to_string(ln) + ": bad number '" +
+                               std::string(t[k].substr(0, 30)) + "'");
+        const auto idx = *cloud.points.insert(finite_point(path, ln, v[0], v[1], v[2]));
+        if (columns == 6) cloud.points.normal(idx) = {v[3], v[4], v[5]};
+    }
+    return cloud;
+}
+
+// ------------------------------------------------------------------------------ writers
+
+void check_point(const fs::path& path, const Point_3& p, std::size_t i) {
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y()) || !std::isfinite(p.z()))
+        throw InputError(path.string() + ": point " + std::to_string(i) +
+                         " has a non-finite coordinate; nothing written");
+}
+
+void write_off(std::ostream& out, const fs::path& path, const Mesh& mesh) {
+    using V = Mesh::Vertex_index;
+    const auto colors = vertex_colors(mesh);
+    std::vector<std::size_t> index(mesh.num_vertices());
+    std::string text = colors ? "COFF\n" : "OFF\n";
+    text += std::to_string(mesh.number_of_vertices()) + " " +
+            std::to_string(mesh.number_of_faces()) + " 0\n";
+    std::size_t n = 0;
+    for (V v : mesh.vertices()) {
+        const Point_3& p = mesh.point(v);
+        check_point(path, p, n);
+        index[v.idx()] = n++;
+        text += fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+        if (colors) {
+            const MeshColor c = (*colors)[v];
+            text += " " + std::to_string(c.red()) + " " + std::to_string(c.green()) + " " +
+                    std::to_string(c.blue()) + " 255";
+        }
+        text += "\n";
+    }
+    for (auto f : mesh.faces()) {
+        std::string face;
+        std::size_t count = 0;
+        for (V v : CGAL::vertices_around_face(mesh.halfedge(f), mesh)) {
+            face.push_back(' ');
+            face.append(std::to_string(index[v.idx()]));
+            ++count;
+        }
+        text += std::to_string(count) + face + "\n";
+    }
+    out << text;
+}
+
+void write_obj(std::ostream& out, const fs::path& path, const Mesh& mesh) {
+    using V = Mesh::Vertex_index;
+    const auto colors = vertex_colors(mesh);
+    const auto [normals, has_normals] = mesh.property_map<V, Vector_3>(kVertexNormal);
+    std::vector<std::size_t> index(mesh.num_vertices());
+    std::string text = "# written by rgbd-toolkit\n";
+    std::size_t n = 0;
+    for (V v : mesh.vertices()) {
+        const Point_3& p = mesh.point(v);
+        check_point(path, p, n);
+        index[v.idx()] = ++n;
+        text += "v " + fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+        if (colors) {
+            const MeshColor c = (*colors)[v];
+            text += " " + fmt(c.red() / 255.0) + " " + fmt(c.green() / 255.0) + " " +
+                    fmt(c.blue() / 255.0);
+        }
+        text += "\n";
+    }
+    if (has_normals)
+        for (V v : mesh.vertices()) {
+            const Vector_3& nv = normals[v];
+            text += "vn " + fmt(nv.x()) + " " + fmt(nv.y()) + " " + fmt(nv.z()) + "\n";
+        }
+    for (auto f : mesh.faces()) {
+        text += "f";
+        for (V v : CGAL::vertices_around_face(mesh.halfedge(f), mesh)) {
+            const std::string i = std::to_string(index[v.idx()]);
+            text += " " + (has_normals ? i + "//" + i : i);
+        }
+        text += "\n";
+    }
+    out << text;
+}
+
+}  // namespace
+
+Mesh read_mesh(const fs::path& path) {
+    const std::string ext = lower_extension(path);
+    Mesh mesh;
+    if (ext == ".ply") {
+        Document doc = read_first_ply(path);
+        if (doc.kind != DocumentKind::kMesh) fail(path, "a point cloud, not a mesh (no faces)");
+        mesh = std::move(doc.mesh);
+    } else if (ext == ".off") {
+        internal::build_mesh(read_off_soup(path), mesh);
+    } else if (ext == ".obj") {
+        internal::build_mesh(read_obj_soup(path), mesh);
+    } else {
+        fail(path, "unsupported mesh format '" + ext + "' (expected .ply, .off or .obj)");
+    }
+    if (mesh.number_of_faces() == 0) fail(path, "mesh has no faces");
+    return mesh;
+}
+
+void write_mesh(const fs::path& path, const Mesh& mesh, const ViewInfo* view) {
+    const std::string ext = lower_extension(path);
+    if (ext != ".ply" && ext != ".off" && ext != ".obj")
+        throw InputError(path.string() + ": unsupported mesh format '" + ext +
+                         "' (expected .ply, .off or .obj)");
+    internal::write_file_atomic(path, [&](std::ostream& out) {
+        if (ext == ".ply") {
+            try {
+                io::write_mesh(out, mesh, view ? *view : ViewInfo{});
+            } catch (const InputError& e) {
+                throw InputError(path.string() + ": " + e.what());
+            }
+        } else if (ext == ".off") {
+            write_off(out, path, mesh);
+        } else {
+            write_obj(out, path, mesh);
+        }
+    });
+}
+
+PointCloud read_point_cloud(const fs::path& path) {
+    const std::string ext = lower_extension(path);
+    if (ext == ".ply") {
+        Document doc = read_first_ply(path);
+        if (doc.kind == DocumentKind::kPoints) return std::move(doc.cloud);
+        // A mesh document: its vertices, with colours and normals.
+        internal::MeshSoup soup;
+        const auto colors = vertex_colors(doc.mesh);
+        const auto [normals, has_normals] =
+            doc.mesh.property_map<Mesh::Vertex_index, Vector_3>(kVertexNormal);
+        for (auto v : doc.mesh.vertices()) {
+            soup.points.push_back(doc.mesh.point(v));
+            if (colors) soup.colors.push_back((*colors)[v]);
+            if (has_normals) soup.normals.push_back(normals[v]);
+        }
+        PointCloud cloud;
+        internal::soup_to_cloud(soup, cloud);
+        cloud.view = doc.cloud.view;
+        return cloud;
+    }
+    PointCloud cloud;
+    if (ext == ".xyz" || ext == ".pwn") return read_xyz(path);
+    if (ext == ".pcd") return read_pcd(path);
+    if (ext == ".off") {
+        internal::soup_to_cloud(read_off_soup(path), cloud);
+    } else if (ext == ".obj") {
+        internal::soup_to_cloud(read_obj_soup(path), cloud);
+    } else {
+        fail(path, "unsupported point cloud format '" + ext +
+                       "' (expected .ply, .xyz, .pwn, .pcd, .off or .obj)");
+    }
+    return cloud;
+}
+
+void write_point_cloud(const fs::path& path, const PointCloud& cloud) {
+    const std::string ext = lower_extension(path);
+    if (ext != ".ply" && ext != ".xyz")
+        throw InputError(path.string() + ": unsupported point cloud format '" + ext +
+                         "' (expected .ply or .xyz)");
+    internal::write_file_atomic(path, [&](std::ostream& out) {
+        if (ext == ".ply") {
+            try {
+                write_points(out, cloud);
+            } catch (const InputError& e) {
+                throw InputError(path.string() + ": " + e.what());
+            }
+            return;
+        }
+        const bool normals = cloud.points.has_normal_map();
+        std::string text;
+        std::size_t i = 0;
+        for (auto idx : cloud.points) {
+            const Point_3& p = cloud.points.point(idx);
+            check_point(path, p, i++);
+            text += fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+            if (normals) {
+                const Vector_3& n = cloud.points.normal(idx);
+                text += " " + fmt(n.x()) + " " + fmt(n.y()) + " " + fmt(n.z());
+            }
+            text += "\n";
+            if (text.size() > (1u << 20)) {
+                out << text;
+                text.clear();
+            }
+        }
+        out << text;
+    });
+}
+
+}  // namespace rgbd::io
