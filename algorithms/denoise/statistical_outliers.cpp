@@ -1,0 +1,277 @@
+#include "algorithms/denoise/statistical_outliers.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "algorithms/internal/kd_tree.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::denoise {
+
+void StatisticalOptions::check() const {
+    RGBD_CHECK(k >= 1 && k <= 10000, "statistical outliers: k must be in [1, 10000]");
+    RGBD_CHECK(std::isfinite(std_ratio) && std_ratio >= 0.0 && std_ratio <= 1e6,
+               "statistical outliers: std_ratio must be finite and >= 0");
+}
+
+void RadiusOptions::check() const {
+    RGBD_CHECK(min_points >= 0 && min_points <= 100000,
+               "radius outliers: min_points must be in [0, 100000]");
+    RGBD_CHECK(std::isfinite(radius_m) && radius_m >= 0.0,
+               "radius outliers: radius_m must be finite and >= 0 (0 = from spacing)");
+    RGBD_CHECK(std::isfinite(radius_spacing_factor) && radius_spacing_factor > 0.0 &&
+                   radius_spacing_factor <= 1e4,
+               "radius outliers: radius_spacing_factor must be in (0, 10000]");
+}
+
+namespace {
+
+const char* convention_name(OutlierConvention c) {
+    return c == OutlierConvention::kOpen3d ? "open3d" : "pcl";
+}
+
+std::string view_name(const PointCloud& cloud) {
+    std::string name = "view " + std::to_string(cloud.view.id);
+    if (!cloud.view.sensor.empty()) name += " (sensor " + cloud.view.sensor + ")";
+    return name;
+}
+
+/// Live points of the cloud in iteration order; throws on a non-finite coordinate.
+struct Gathered {
+    std::vector<Eigen::Vector3d> xyz;
+    std::vector<PointSet::Index> ids;
+};
+
+Gathered gather(const PointCloud& cloud) {
+    Gathered g;
+    g.xyz.reserve(cloud.size());
+    g.ids.reserve(cloud.size());
+    std::size_t i = 0;
+    for (PointSet::Index idx : cloud.points) {
+        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
+        RGBD_CHECK(p.allFinite(), view_name(cloud) + ": point " + std::to_string(i) +
+                                      " has a non-finite coordinate");
+        g.xyz.push_back(p);
+        g.ids.push_back(idx);
+        ++i;
+    }
+    return g;
+}
+
+/// Marks or deletes the points with outlier[i] != 0 (i = position in `g`); returns the count.
+std::size_t apply(PointCloud& cloud, const Gathered& g, const std::vector<std::uint8_t>& outlier,
+                  bool mark) {
+    const std::size_t count =
+        static_cast<std::size_t>(std::count(outlier.begin(), outlier.end(), std::uint8_t{1}));
+    if (mark) {
+        auto noise = cloud.add_flag(prop::kNoise);
+        for (std::size_t i = 0; i < g.ids.size(); ++i)
+            if (outlier[i]) noise[g.ids[i]] = 1;
+        return count;
+    }
+    if (count == 0) return 0;
+    std::size_t slots = 0;
+    for (PointSet::Index idx : g.ids) slots = std::max<std::size_t>(slots, std::size_t(idx) + 1);
+    std::vector<std::uint8_t> drop(slots, 0);
+    for (std::size_t i = 0; i < g.ids.size(); ++i) drop[std::size_t(g.ids[i])] = outlier[i];
+    // Stable partition keeps the order of the survivors; removing a tail range is the
+    // Point_set_3 idiom (CGAL 5.5's remove of an inner range prints to stderr).
+    auto first_removed =
+        std::stable_partition(cloud.points.begin(), cloud.points.end(),
+                              [&](PointSet::Index idx) { return drop[std::size_t(idx)] == 0; });
+    cloud.points.remove(first_removed, cloud.points.end());
+    cloud.points.collect_garbage();
+    return count;
+}
+
+Report cancelled(Report report, const Stopwatch& watch) {
+    report["cancelled"] = true;
+    report["removed"] = 0;
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+}  // namespace
+
+double robust_spacing(const PointCloud& cloud, std::uint64_t seed, std::size_t max_samples) {
+    const Gathered g = gather(cloud);
+    const std::size_t n = g.xyz.size();
+    if (n < 2 || max_samples == 0) return 0.0;
+    std::vector<std::uint32_t> sample(n);
+    std::iota(sample.begin(), sample.end(), 0u);
+    if (n > max_samples) {
+        std::mt19937_64 rng(seed);
+        for (std::size_t i = 0; i < max_samples; ++i) {
+            std::uniform_int_distribution<std::size_t> pick(i, n - 1);
+            std::swap(sample[i], sample[pick(rng)]);
+        }
+        sample.resize(max_samples);
+    }
+    const internal::KdTree tree(g.xyz);
+    std::vector<double> nn(sample.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sample.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::uint32_t ids[2];
+                          double sq[2];
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const std::size_t found = tree.knn(g.xyz[sample[i]], 2, ids, sq);
+                              nn[i] = found == 2 ? std::sqrt(sq[1]) : 0.0;
+                          }
+                      });
+    const auto mid = nn.begin() + static_cast<std::ptrdiff_t>((nn.size() - 1) / 2);
+    std::nth_element(nn.begin(), mid, nn.end());
+    return *mid;
+}
+
+Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& options,
+                                   const Progress& progress) {
+    Stopwatch watch;
+    options.check();
+    Report report;
+    report["method"] = "statistical";
+    report["convention"] = convention_name(options.convention);
+    report["k_requested"] = options.k;
+    report["std_ratio"] = options.std_ratio;
+    report["mark"] = options.mark;
+    const Gathered g = gather(cloud);
+    const std::size_t n = g.xyz.size();
+    report["input_points"] = n;
+    if (!report_progress(progress, 0.0)) return cancelled(report, watch);
+
+    const bool open3d = options.convention == OutlierConvention::kOpen3d;
+    // Open3D counts the point itself among its k; PCL searches k + 1 and drops the first.
+    const std::size_t k_max = open3d ? n : (n > 0 ? n - 1 : 0);
+    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(options.k), k_max);
+    report["k"] = k;
+    report["k_clamped"] = k < static_cast<std::size_t>(options.k);
+    if (n == 0 || k == 0) {
+        report["removed"] = 0;
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+
+    const internal::KdTree tree(g.xyz);
+    std::vector<double> mean_distance(n);
+    const std::size_t search = open3d ? k : k + 1;
+    const std::size_t skip = open3d ? 0 : 1;
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 512), [&](const tbb::blocked_range<std::size_t>& r) {
+            std::vector<std::uint32_t> ids(search);
+            std::vector<double> sq(search);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const std::size_t found = tree.knn(g.xyz[i], search, ids.data(), sq.data());
+                double sum = 0.0;
+                for (std::size_t j = skip; j < found; ++j) sum += std::sqrt(sq[j]);
+                const std::size_t used = found - std::min(found, skip);
+                const double mean = used > 0 ? sum / double(used) : 0.0;
+                // PCL stores the per-point mean as float.
+                mean_distance[i] = open3d ? mean : double(float(mean));
+            }
+        });
+    if (!report_progress(progress, 0.8)) return cancelled(report, watch);
+
+    // Sequential reductions in index order: the result is independent of the thread count.
+    std::vector<std::uint8_t> outlier(n, 0);
+    double mean = 0.0, stddev = 0.0, threshold = 0.0;
+    if (open3d) {
+        double sum = 0.0;
+        for (double d : mean_distance)
+            if (d > 0.0) sum += d;
+        mean = sum / double(n);
+        double sq_sum = 0.0;
+        for (double d : mean_distance)
+            if (d > 0.0) sq_sum += (d - mean) * (d - mean);
+        stddev = n > 1 ? std::sqrt(sq_sum / double(n - 1)) : 0.0;
+        threshold = mean + options.std_ratio * stddev;
+        for (std::size_t i = 0; i < n; ++i)
+            outlier[i] = !(mean_distance[i] > 0.0 && mean_distance[i] < threshold);
+    } else {
+        double sum = 0.0, sq_sum = 0.0;
+        for (double d : mean_distance) {
+            const float f = static_cast<float>(d);
+            sum += f;
+            sq_sum += static_cast<double>(f * f);
+        }
+        mean = sum / double(n);
+        const double variance =
+            n > 1 ? std::max(0.0, (sq_sum - sum * sum / double(n)) / double(n - 1)) : 0.0;
+        stddev = std::sqrt(variance);
+        threshold = mean + options.std_ratio * stddev;
+        for (std::size_t i = 0; i < n; ++i) outlier[i] = mean_distance[i] > threshold;
+    }
+    report["mean_distance_m"] = mean;
+    report["std_distance_m"] = stddev;
+    report["threshold_m"] = threshold;
+    report[options.mark ? "marked" : "removed"] = apply(cloud, g, outlier, options.mark);
+    if (options.mark) report["removed"] = 0;
+    report_progress(progress, 1.0);
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
+                              const Progress& progress) {
+    Stopwatch watch;
+    options.check();
+    Report report;
+    report["method"] = "radius";
+    report["convention"] = convention_name(options.convention);
+    report["min_points"] = options.min_points;
+    report["mark"] = options.mark;
+    const Gathered g = gather(cloud);
+    const std::size_t n = g.xyz.size();
+    report["input_points"] = n;
+    if (!report_progress(progress, 0.0)) return cancelled(report, watch);
+    if (n == 0) {
+        report["radius_m"] = options.radius_m;
+        report["removed"] = 0;
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+
+    double radius = options.radius_m;
+    if (radius <= 0.0) {
+        const double spacing = robust_spacing(cloud, options.seed);
+        report["spacing_m"] = spacing;
+        report["radius_spacing_factor"] = options.radius_spacing_factor;
+        radius = options.radius_spacing_factor * spacing;
+        RGBD_CHECK(radius > 0.0, view_name(cloud) +
+                                     ": cannot derive a radius, the robust point spacing is 0 "
+                                     "(give radius_m)");
+    }
+    report["radius_m"] = radius;
+
+    // count(incl. self) > min_points  <=>  the (min_points + 1)-th nearest neighbour (self
+    // first) lies within the radius: strictly (Open3D, nanoflann radius search) or not (PCL).
+    const std::size_t need = static_cast<std::size_t>(options.min_points) + 1;
+    const double r2 = radius * radius;
+    const bool open3d = options.convention == OutlierConvention::kOpen3d;
+    const internal::KdTree tree(g.xyz);
+    std::vector<std::uint8_t> outlier(n, 0);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 512), [&](const tbb::blocked_range<std::size_t>& r) {
+            std::vector<std::uint32_t> ids(need);
+            std::vector<double> sq(need);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const std::size_t found = tree.knn(g.xyz[i], need, ids.data(), sq.data());
+                bool keep = found == need;
+                if (keep) keep = open3d ? sq[need - 1] < r2 : sq[need - 1] <= r2;
+                outlier[i] = !keep;
+            }
+        });
+    if (!report_progress(progress, 0.8)) return cancelled(report, watch);
+    report[options.mark ? "marked" : "removed"] = apply(cloud, g, outlier, options.mark);
+    if (options.mark) report["removed"] = 0;
+    report_progress(progress, 1.0);
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+}  // namespace rgbd::denoise

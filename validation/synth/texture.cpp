@@ -1,0 +1,76 @@
+#include "validation/synth/texture.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::synth {
+
+void TextureOptions::check() const {
+    RGBD_CHECK(std::isfinite(hue_period_m) && hue_period_m > 0, "texture hue period must be > 0");
+    RGBD_CHECK(std::isfinite(hue_offset_deg), "texture hue offset must be finite");
+    RGBD_CHECK(saturation >= 0 && saturation <= 1, "texture saturation must be in [0, 1]");
+    RGBD_CHECK(value >= 0 && value <= 1, "texture value must be in [0, 1]");
+    RGBD_CHECK(std::isfinite(checker_size_m) && checker_size_m >= 0,
+               "texture checker size must be >= 0");
+    RGBD_CHECK(checker_dark >= 0 && checker_dark <= 1, "texture checker_dark must be in [0, 1]");
+}
+
+nlohmann::json TextureOptions::to_json() const {
+    return {{"kind", "hue_gradient_z_times_checker_3d"},
+            {"frame", "object: metres, z up, origin at the bounding-box centre"},
+            {"hue_period_m", hue_period_m},
+            {"hue_offset_deg", hue_offset_deg},
+            {"saturation", saturation},
+            {"value", value},
+            {"checker_size_m", checker_size_m},
+            {"checker_dark", checker_dark},
+            {"formula",
+             "hue = hue_offset_deg + 360 z / hue_period_m; v = value * (checker_dark if "
+             "floor(x/s)+floor(y/s)+floor(z/s) is odd); rgb = round(255 * hsv_to_rgb)"}};
+}
+
+Rgb texture_color(const Eigen::Vector3d& p, const TextureOptions& t) {
+    double hue = std::fmod(t.hue_offset_deg + 360.0 * p.z() / t.hue_period_m, 360.0);
+    if (hue < 0) hue += 360.0;
+    double v = t.value;
+    if (t.checker_size_m > 0) {
+        const auto cell = [&](double x) {
+            return static_cast<long long>(std::floor(x / t.checker_size_m));
+        };
+        if (((cell(p.x()) + cell(p.y()) + cell(p.z())) & 1LL) != 0) v *= t.checker_dark;
+    }
+    // HSV -> RGB.
+    const double c = v * t.saturation;
+    const double h6 = hue / 60.0;
+    const double x = c * (1.0 - std::abs(std::fmod(h6, 2.0) - 1.0));
+    double r = 0, g = 0, b = 0;
+    switch (std::min(static_cast<int>(h6), 5)) {
+        case 0:
+            r = c, g = x;
+            break;
+        case 1:
+            r = x, g = c;
+            break;
+        case 2:
+            g = c, b = x;
+            break;
+        case 3:
+            g = x, b = c;
+            break;
+        case 4:
+            r = x, b = c;
+            break;
+        default:
+            r = c, b = x;
+            break;
+    }
+    const double m = v - c;
+    const auto to8 = [m](double f) {
+        return static_cast<std::uint8_t>(std::clamp(std::lround(255.0 * (f + m)), 0L, 255L));
+    };
+    return {to8(r), to8(g), to8(b)};
+}
+
+}  // namespace rgbd::synth
