@@ -806,6 +806,8 @@ std::vector<std::string> view_to_comments(const ViewInfo& view, DocumentKind kin
     if (view.id != -1) c.push_back("rgbd:view.id " + std::to_string(view.id));
     if (!view.sensor.empty()) c.push_back("rgbd:view.sensor " + one_line(view.sensor));
     if (view.time_ns) c.push_back("rgbd:view.time_ns " + std::to_string(*view.time_ns));
+    if (view.frame_index)
+        c.push_back("rgbd:view.frame_index " + std::to_string(*view.frame_index));
     c.push_back(std::string("rgbd:view.frame ") +
                 (view.frame == ViewFrame::kWorld ? "world" : "sensor"));
     if (view.intrinsics) {
@@ -886,6 +888,9 @@ ViewInfo view_from_comments(const std::vector<std::string>& comments) {
         } else if (key == "rgbd:view.time_ns") {
             expect(1);
             view.time_ns = integer(0);
+        } else if (key == "rgbd:view.frame_index") {
+            expect(1);
+            view.frame_index = integer(0);
         } else if (key == "rgbd:view.frame") {
             expect(1);
             if (values[0] == "sensor") {

@@ -35,6 +35,7 @@ ViewInfo full_view() {
     v.id = 42;
     v.sensor = "k2-3 left";
     v.time_ns = 1234567890123456789LL;
+    v.frame_index = 42;
     v.frame = ViewFrame::kWorld;
     PinholeIntrinsics k;
     k.width = 512;
@@ -62,6 +63,7 @@ void expect_same_view(const ViewInfo& a, const ViewInfo& b) {
     EXPECT_EQ(a.id, b.id);
     EXPECT_EQ(a.sensor, b.sensor);
     EXPECT_EQ(a.time_ns, b.time_ns);
+    EXPECT_EQ(a.frame_index, b.frame_index);
     EXPECT_EQ(a.frame, b.frame);
     ASSERT_EQ(a.intrinsics.has_value(), b.intrinsics.has_value());
     if (a.intrinsics) {

@@ -1,0 +1,356 @@
+#include "cli/common/tool.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <tbb/global_control.h>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::cli {
+
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------- ProgressBar
+
+ProgressBar::ProgressBar(std::string label, bool enabled)
+    : label_(std::move(label)), enabled_(enabled) {}
+
+ProgressBar::~ProgressBar() {
+    if (enabled_ && last_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
+}
+
+bool ProgressBar::update(double fraction) {
+    if (!enabled_) return true;
+    const int percent = static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 100.0));
+    if (percent == last_percent_) return true;
+    last_percent_ = percent;
+    const int width = 30, filled = percent * width / 100;
+    std::cerr << "\r" << label_ << " [" << std::string(filled, '=')
+              << std::string(width - filled, ' ') << "] " << percent << "%" << std::flush;
+    return true;
+}
+
+Progress ProgressBar::callback() {
+    return [this](double fraction) { return update(fraction); };
+}
+
+// ---------------------------------------------------------------- Context
+
+Context::Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::string> inputs,
+                 std::vector<std::string> args)
+    : spec_(spec), vm_(std::move(vm)), inputs_(std::move(inputs)), args_(std::move(args)) {
+    verbosity_ = vm_.count("verbose") ? static_cast<int>(vm_["verbose"].as<std::vector<bool>>().size()) : 0;
+    if (vm_.count("quiet")) verbosity_ = -1;
+    seed_ = vm_["seed"].as<std::uint64_t>();
+    if (vm_.count("output")) {
+        const std::string out = vm_["output"].as<std::string>();
+        if (out != "-") output_path_ = out;
+    }
+    std::string joined;
+    for (const auto& a : args_) joined += (joined.empty() ? "" : " ") + a;
+    metrics_ = Report::object();
+    metrics_["tool"] = spec_.name;
+    metrics_["version"] = kVersion;
+    metrics_["args"] = args_;
+    metrics_["inputs"] = inputs_;
+    metrics_["documents"] = Report::array();
+}
+
+Context::~Context() {
+    if (file_out_) {
+        file_out_.reset();
+        std::error_code ec;
+        if (!temp_path_.empty()) fs::remove(temp_path_, ec);  // not committed: leave nothing
+    }
+}
+
+void Context::warn(const std::string& message) const {
+    if (verbosity_ >= -1) std::cerr << spec_.name << ": warning: " << message << "\n";
+}
+void Context::info(const std::string& message) const {
+    if (verbosity_ >= 1) std::cerr << spec_.name << ": " << message << "\n";
+}
+void Context::note(const std::string& message) const {
+    if (verbosity_ >= 0) std::cerr << spec_.name << ": " << message << "\n";
+}
+
+ProgressBar Context::progress(const std::string& label) const {
+    return ProgressBar(spec_.name + ": " + label, verbosity_ >= 0 && isatty(STDERR_FILENO));
+}
+
+void Context::for_each_document(const std::function<void(io::Document&)>& handler) {
+    std::vector<std::string> inputs = inputs_;
+    if (inputs.empty()) inputs.push_back("-");
+    std::size_t total = 0;
+    for (const std::string& input : inputs) {
+        std::unique_ptr<std::ifstream> file;
+        std::istream* in = &std::cin;
+        std::string name = "<stdin>";
+        if (input != "-") {
+            RGBD_CHECK_AS(IoError, fs::exists(input), input + ": no such file");
+            file = std::make_unique<std::ifstream>(input, std::ios::binary);
+            RGBD_CHECK_AS(IoError, file->good(), input + ": cannot open for reading");
+            in = file.get();
+            name = input;
+        } else if (isatty(STDIN_FILENO)) {
+            throw UsageError("no input: give a file or pipe a PLY stream into stdin");
+        }
+        io::PlyStreamReader reader(*in, name);
+        io::Document document;
+        while (reader.next(document)) {
+            ++total;
+            handler(document);
+            document = io::Document{};
+        }
+        if (reader.count() == 0) throw InputError(name + ": empty input stream (no PLY document)");
+    }
+    if (total == 0) throw InputError("empty input stream (no PLY document)");
+}
+
+std::vector<io::Document> Context::read_all_documents() {
+    std::vector<io::Document> documents;
+    for_each_document([&](io::Document& d) { documents.push_back(std::move(d)); });
+    return documents;
+}
+
+std::ostream& Context::out() {
+    if (!output_path_.empty()) {
+        if (!file_out_) {
+            const fs::path target(output_path_);
+            const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+            RGBD_CHECK_AS(IoError, fs::is_directory(dir),
+                          output_path_ + ": folder " + dir.string() + " does not exist");
+            temp_path_ = (dir / ("." + target.filename().string() + ".tmp" +
+                                 std::to_string(::getpid())))
+                             .string();
+            file_out_ = std::make_unique<std::ofstream>(temp_path_, std::ios::binary);
+            RGBD_CHECK_AS(IoError, file_out_->good(), output_path_ + ": cannot open for writing");
+        }
+        return *file_out_;
+    }
+    if (!stdout_checked_) {
+        stdout_checked_ = true;
+        if (spec_.writes_stream && isatty(STDOUT_FILENO))
+            throw UsageError("refusing to write binary data to a terminal: use -o FILE or a pipe");
+    }
+    return std::cout;
+}
+
+std::string Context::output_path() const { return output_path_; }
+
+void Context::add_history(ViewInfo& view) const {
+    std::string line = spec_.name + " " + kVersion;
+    for (const auto& a : args_) line += " " + a;
+    view.history.push_back(line);
+}
+
+void Context::write(io::Document& document) {
+    add_history(document.cloud.view);
+    io::write_document(out(), document);
+    ++documents_written_;
+}
+
+void Context::add_document_metrics(Report result) { metrics_["documents"].push_back(std::move(result)); }
+
+void Context::commit() {
+    if (file_out_) {
+        file_out_->flush();
+        const bool ok = file_out_->good();
+        file_out_->close();
+        RGBD_CHECK_AS(IoError, ok, output_path_ + ": write failed (disk full?)");
+        std::error_code ec;
+        fs::rename(temp_path_, output_path_, ec);
+        RGBD_CHECK_AS(IoError, !ec, output_path_ + ": cannot rename into place: " + ec.message());
+        temp_path_.clear();
+        file_out_.reset();
+    } else if (output_path_.empty()) {
+        std::cout.flush();
+        RGBD_CHECK_AS(IoError, std::cout.good(), "<stdout>: write failed");
+    }
+    if (vm_.count("metrics")) {
+        const std::string path = vm_["metrics"].as<std::string>();
+        metrics_["status"] = "ok";
+        const std::string text = metrics_.dump(2) + "\n";
+        if (path == "-") {
+            std::cout << text << std::flush;
+        } else {
+            const std::string temp = path + ".tmp" + std::to_string(::getpid());
+            {
+                std::ofstream m(temp, std::ios::binary);
+                RGBD_CHECK_AS(IoError, m.good(), path + ": cannot open for writing");
+                m << text;
+                m.flush();
+                RGBD_CHECK_AS(IoError, m.good(), path + ": write failed");
+            }
+            std::error_code ec;
+            fs::rename(temp, path, ec);
+            RGBD_CHECK_AS(IoError, !ec, path + ": cannot rename into place: " + ec.message());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- helpers
+
+std::vector<long long> parse_range(const std::string& text, long long count) {
+    std::vector<long long> parts;
+    std::stringstream ss(text);
+    std::string item;
+    std::vector<std::string> fields;
+    while (std::getline(ss, item, ':')) fields.push_back(item);
+    if (text.empty() || fields.empty() || fields.size() > 3 || text.back() == ':' && fields.size() == 3)
+        throw UsageError("bad range '" + text + "' (expected N or A:B[:STEP])");
+    auto number = [&](const std::string& s, long long fallback) -> long long {
+        if (s.empty()) return fallback;
+        std::size_t used = 0;
+        long long v = 0;
+        try {
+            v = std::stoll(s, &used);
+        } catch (...) {
+            used = 0;
+        }
+        if (used != s.size() || v < 0)
+            throw UsageError("bad range '" + text + "' (numbers must be non-negative integers)");
+        return v;
+    };
+    if (fields.size() == 1) {
+        if (text.find(':') == std::string::npos) return {number(fields[0], 0)};
+    }
+    const long long a = number(fields[0], 0);
+    const long long b = fields.size() >= 2 ? number(fields[1], count) : count;
+    const long long step = fields.size() == 3 ? number(fields[2], 1) : 1;
+    if (step <= 0) throw UsageError("bad range '" + text + "' (step must be positive)");
+    std::vector<long long> out;
+    for (long long i = a; i < b; i += step) out.push_back(i);
+    return out;
+}
+
+std::vector<double> parse_doubles(const std::string& text, const std::string& option) {
+    std::vector<double> values;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        std::size_t used = 0;
+        double v = 0;
+        try {
+            v = std::stod(item, &used);
+        } catch (...) {
+            used = 0;
+        }
+        if (used != item.size() || !std::isfinite(v))
+            throw UsageError("--" + option + ": '" + item + "' is not a number");
+        values.push_back(v);
+    }
+    if (values.empty()) throw UsageError("--" + option + ": expected a comma-separated list");
+    return values;
+}
+
+// ---------------------------------------------------------------- run_tool
+
+namespace {
+
+std::string help_text(const ToolSpec& spec, const po::options_description& visible) {
+    std::ostringstream h;
+    h << "Usage: " << spec.usage << "\n\n" << spec.description << "\n";
+    if (spec.whole_stream) h << "\nThis tool reads the whole stream before it writes.\n";
+    h << "\n" << visible << "\nExample:\n  " << spec.example << "\n";
+    h << "\nExit codes: 0 ok, 1 runtime failure (bad input, I/O, algorithm), 2 usage error.\n";
+    return h.str();
+}
+
+}  // namespace
+
+int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) {
+    std::ios::sync_with_stdio(false);
+    po::options_description tool_options("Options");
+    if (spec.add_options) spec.add_options(tool_options);
+    po::options_description common("Common options");
+    common.add_options()("help,h", "print this help and exit")("version", "print the version and exit")(
+        "output,o", po::value<std::string>()->value_name("FILE"),
+        spec.writes_stream ? "output file (default: stdout; - = stdout)" : "output file")(
+        "metrics", po::value<std::string>()->value_name("FILE"),
+        "write a JSON object with the run's results (- = stdout, only with -o FILE)")(
+        "threads", po::value<int>()->default_value(0)->value_name("N"),
+        "worker threads (0 = all cores)")(
+        "seed", po::value<std::uint64_t>()->default_value(0)->value_name("N"),
+        "random seed")("verbose,v", po::value<std::vector<bool>>()->zero_tokens()->composing(),
+                       "more messages (repeatable)")("quiet,q", "only errors")(
+        "debug", "let exceptions escape (for a debugger)");
+    po::options_description hidden;
+    hidden.add_options()("input", po::value<std::vector<std::string>>(), "inputs");
+    po::options_description all;
+    all.add(tool_options).add(common).add(hidden);
+    po::options_description visible;
+    visible.add(tool_options).add(common);
+    po::positional_options_description positional;
+    positional.add("input", -1);
+
+    std::vector<std::string> args(argv + 1, argv + argc);
+    bool debug = false;
+    for (const auto& a : args)
+        if (a == "--debug") debug = true;
+
+    auto fail = [&](int code, const std::string& message) {
+        std::cerr << spec.name << ": error: " << message << "\n";
+        if (code == 2) std::cerr << "Try '" << spec.name << " --help' for more information.\n";
+        return code;
+    };
+
+    po::variables_map vm;
+    try {
+        po::store(po::command_line_parser(argc, argv).options(all).positional(positional).run(), vm);
+        if (vm.count("help")) {
+            std::cout << help_text(spec, visible);
+            return 0;
+        }
+        if (vm.count("version")) {
+            std::cout << spec.name << " " << kVersion << "\n";
+            return 0;
+        }
+        po::notify(vm);
+        if (vm.count("metrics") && vm["metrics"].as<std::string>() == "-" &&
+            (!vm.count("output") || vm["output"].as<std::string>() == "-") && spec.writes_stream)
+            throw UsageError("--metrics - needs -o FILE (stdout carries the data)");
+        if (vm["threads"].as<int>() < 0 || vm["threads"].as<int>() > 1024)
+            throw UsageError("--threads must be between 0 and 1024");
+    } catch (const po::error& e) {
+        return fail(2, e.what());
+    } catch (const UsageError& e) {
+        return fail(2, e.what());
+    }
+
+    std::vector<std::string> inputs;
+    if (vm.count("input")) inputs = vm["input"].as<std::vector<std::string>>();
+    std::unique_ptr<tbb::global_control> threads;
+    if (vm["threads"].as<int>() > 0)
+        threads = std::make_unique<tbb::global_control>(
+            tbb::global_control::max_allowed_parallelism,
+            static_cast<std::size_t>(vm["threads"].as<int>()));
+
+    try {
+        Context context(spec, vm, inputs, args);
+        body(context);
+        context.commit();
+        return 0;
+    } catch (const UsageError& e) {
+        if (debug) throw;
+        return fail(2, e.what());
+    } catch (const po::error& e) {
+        if (debug) throw;
+        return fail(2, e.what());
+    } catch (const rgbd::Error& e) {
+        if (debug) throw;
+        return fail(1, e.what());
+    } catch (const std::exception& e) {
+        if (debug) throw;
+        return fail(1, std::string("internal error: ") + e.what());
+    }
+}
+
+}  // namespace rgbd::cli

@@ -1,0 +1,137 @@
+// The driver every rgbd-<verb> tool runs through (STYLE.md §8): option parsing, --help,
+// --version, input/output handling (files or stdin/stdout, atomic output files), messages,
+// progress on a terminal only, --metrics, --threads, --seed, exit codes 0/1/2.
+// Modelled on PDAL's Kernel (parse, run, catch-all, exit codes).
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <boost/program_options.hpp>
+
+#include "io/ply_stream.hpp"
+#include "toolkit/progress.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::cli {
+
+namespace po = boost::program_options;
+
+inline constexpr const char* kVersion = "0.1.0";
+
+/// Thrown for usage errors (exit code 2).
+class UsageError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+/// What a tool declares about itself.
+struct ToolSpec {
+    std::string name;         ///< "rgbd-clean"
+    std::string usage;        ///< "rgbd-clean [options] [FILE...]"
+    std::string description;  ///< one paragraph
+    std::string example;      ///< an example pipeline
+    bool writes_stream = true;    ///< writes a binary PLY stream / mesh to stdout by default
+    bool reads_stream = true;     ///< positional inputs are PLY streams (none or - = stdin)
+    bool whole_stream = false;    ///< reads the whole stream before writing ("reads the whole stream")
+    std::function<void(po::options_description&)> add_options;  ///< tool-specific options
+};
+
+class Context;
+using ToolMain = std::function<void(Context&)>;
+
+/// Runs a tool: parses argv, handles the common options, calls `body`, maps errors to exit
+/// codes. Returns the exit code for main().
+int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body);
+
+/// A progress bar on stderr, drawn only when stderr is a terminal.
+class ProgressBar {
+public:
+    ProgressBar(std::string label, bool enabled);
+    ~ProgressBar();
+    /// Updates the bar; always returns true (no cancel from the terminal).
+    bool update(double fraction);
+    /// A Progress callback bound to this bar.
+    Progress callback();
+
+private:
+    std::string label_;
+    bool enabled_;
+    int last_percent_ = -1;
+};
+
+/// State of one tool run, handed to the tool's body.
+class Context {
+public:
+    Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::string> inputs,
+            std::vector<std::string> args);
+    ~Context();
+
+    const ToolSpec& spec() const { return spec_; }
+    const po::variables_map& options() const { return vm_; }
+    template <typename T>
+    T get(const std::string& name) const {
+        return vm_[name].as<T>();
+    }
+    bool has(const std::string& name) const { return vm_.count(name) > 0 && !vm_[name].defaulted(); }
+    const std::vector<std::string>& inputs() const { return inputs_; }
+    int verbosity() const { return verbosity_; }
+    std::uint64_t seed() const { return seed_; }
+
+    /// Messages on stderr: "rgbd-<verb>: warning: ...". info() only with -v.
+    void warn(const std::string& message) const;
+    void info(const std::string& message) const;
+    void note(const std::string& message) const;  ///< shown unless -q
+    ProgressBar progress(const std::string& label) const;
+
+    // ---- input ----
+    /// Calls `handler` for every document of every input (files or stdin), in order.
+    void for_each_document(const std::function<void(io::Document&)>& handler);
+    /// Reads every document of every input. Throws InputError for an empty stream.
+    std::vector<io::Document> read_all_documents();
+
+    // ---- output ----
+    /// The output stream (-o FILE written atomically at commit(), or stdout). Refuses to
+    /// write binary to a terminal (UsageError).
+    std::ostream& out();
+    /// Path given with -o, or empty for stdout.
+    std::string output_path() const;
+    /// Writes a document with this tool's history line appended.
+    void write(io::Document& document);
+    /// Appends "rgbd-<verb> <version> <args>" to the view's history.
+    void add_history(ViewInfo& view) const;
+
+    // ---- metrics ----
+    Report& metrics() { return metrics_; }
+    /// Appends one per-document result to metrics["documents"].
+    void add_document_metrics(Report result);
+
+    /// Called by run_tool after the body returned: renames the output and metrics files.
+    void commit();
+
+private:
+    const ToolSpec& spec_;
+    po::variables_map vm_;
+    std::vector<std::string> inputs_;
+    std::vector<std::string> args_;
+    int verbosity_ = 0;
+    std::uint64_t seed_ = 0;
+    Report metrics_;
+    std::unique_ptr<std::ofstream> file_out_;
+    std::string output_path_;
+    std::string temp_path_;
+    bool stdout_checked_ = false;
+    std::size_t documents_written_ = 0;
+};
+
+/// Parses "a:b[:step]" or a single integer into a list of non-negative integers (bounded by
+/// `count` for open ranges "a:"). Throws UsageError.
+std::vector<long long> parse_range(const std::string& text, long long count);
+/// Parses a comma-separated list of doubles. Throws UsageError naming the option.
+std::vector<double> parse_doubles(const std::string& text, const std::string& option);
+
+}  // namespace rgbd::cli

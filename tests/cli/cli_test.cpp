@@ -1,0 +1,223 @@
+// Contract tests of every tool (STYLE.md §8): --help, --version, exit codes 0/1/2, one-line
+// errors naming the file, no partial output, stdout purity, metadata through a chain, and the
+// pipeline end to end on a small synthetic capture rendered by rgbd-synth.
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kBin = RGBD_BINARY_DIR;
+
+struct Run {
+    int code = -1;
+    std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+fs::path temp_root() {
+    static const fs::path root = [] {
+        fs::path p = fs::temp_directory_path() / ("rgbd_cli_test_" + std::to_string(::getpid()));
+        fs::create_directories(p);
+        return p;
+    }();
+    return root;
+}
+
+/// Runs a shell command line (tools referenced as $BIN/rgbd-x), capturing stdout and stderr.
+Run run(const std::string& command) {
+    static int counter = 0;
+    const fs::path out = temp_root() / ("out" + std::to_string(counter) + ".txt");
+    const fs::path err = temp_root() / ("err" + std::to_string(counter++) + ".txt");
+    const std::string line = "BIN=" + kBin + "; cd " + temp_root().string() + " && ( " + command +
+                             " ) >" + out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(("bash -c '" + line + "'").c_str());
+    Run r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+int line_count(const std::string& s) {
+    int n = 0;
+    for (char c : s) n += c == '\n';
+    return n;
+}
+
+const char* kTools[] = {"rgbd-cloud", "rgbd-clean", "rgbd-align", "rgbd-mesh",
+                        "rgbd-eval",  "rgbd-reconstruct", "rgbd-info", "rgbd-synth"};
+
+/// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
+class Pipeline : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        const fs::path cap = temp_root() / "cap";
+        if (fs::exists(cap)) return;
+        // An icosphere-ish closed mesh written as OFF: a UV sphere scaled into an ellipsoid.
+        std::ofstream off(temp_root() / "blob.off");
+        const int nu = 48, nv = 24;
+        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (2 * nu * (nv - 1)) << " 0\n";
+        off << "0 0.5 0\n";
+        for (int j = 1; j < nv; ++j)
+            for (int i = 0; i < nu; ++i) {
+                const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
+                const double bump = 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th);
+                off << 0.3 * bump * std::sin(th) * std::cos(ph) << " " << 0.5 * std::cos(th) << " "
+                    << 0.25 * bump * std::sin(th) * std::sin(ph) << "\n";
+            }
+        off << "0 -0.5 0\n";
+        const int south = nu * (nv - 1) + 1;
+        auto id = [&](int j, int i) { return 1 + (j - 1) * nu + (i % nu); };
+        for (int i = 0; i < nu; ++i) off << "3 0 " << id(1, i + 1) << " " << id(1, i) << "\n";
+        for (int j = 1; j < nv - 1; ++j)
+            for (int i = 0; i < nu; ++i) {
+                off << "3 " << id(j, i) << " " << id(j, i + 1) << " " << id(j + 1, i + 1) << "\n";
+                off << "3 " << id(j, i) << " " << id(j + 1, i + 1) << " " << id(j + 1, i) << "\n";
+            }
+        for (int i = 0; i < nu; ++i)
+            off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
+        off.close();
+        const Run r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
+        ASSERT_EQ(r.code, 0) << r.err;
+    }
+};
+
+}  // namespace
+
+TEST(Contract, EveryToolHasHelpVersionAndUsageErrors) {
+    for (const char* tool : kTools) {
+        SCOPED_TRACE(tool);
+        Run help = run(std::string("$BIN/") + tool + " --help");
+        EXPECT_EQ(help.code, 0);
+        EXPECT_NE(help.out.find("Usage:"), std::string::npos);
+        EXPECT_NE(help.out.find("xample"), std::string::npos);
+        EXPECT_TRUE(help.err.empty()) << help.err;
+        Run version = run(std::string("$BIN/") + tool + " --version");
+        EXPECT_EQ(version.code, 0);
+        EXPECT_NE(version.out.find(tool), std::string::npos);
+        Run bad = run(std::string("$BIN/") + tool + " --no-such-option");
+        EXPECT_EQ(bad.code, 2);
+        EXPECT_EQ(bad.err.rfind(std::string(tool) + ": error: ", 0), 0u) << bad.err;
+        EXPECT_TRUE(bad.out.empty());
+    }
+}
+
+TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
+    std::ofstream(temp_root() / "garbage.ply") << "this is not a ply file\n";
+    for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh"}) {
+        SCOPED_TRACE(tool);
+        Run garbage = run(std::string("$BIN/") + tool + " garbage.ply -o never.ply");
+        EXPECT_EQ(garbage.code, 1);
+        EXPECT_NE(garbage.err.find("garbage.ply"), std::string::npos) << garbage.err;
+        EXPECT_EQ(line_count(garbage.err), 1) << garbage.err;
+        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+        Run empty = run(std::string("$BIN/") + tool + " - < /dev/null");
+        EXPECT_EQ(empty.code, 1) << empty.err;
+        Run missing = run(std::string("$BIN/") + tool + " does-not-exist.ply");
+        EXPECT_EQ(missing.code, 1);
+        EXPECT_NE(missing.err.find("does-not-exist.ply"), std::string::npos);
+    }
+    // Leftover temporary files would mean a half-written output.
+    for (const auto& e : fs::directory_iterator(temp_root()))
+        EXPECT_EQ(e.path().filename().string().find(".never.ply"), std::string::npos);
+}
+
+TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
+    Run r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > clean.ply && "
+                "$BIN/rgbd-info --json clean.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto info = nlohmann::json::parse(r.out);
+    const auto& docs = info[0]["documents"];
+    ASSERT_EQ(docs.size(), 6u);
+    for (const auto& d : docs) {
+        EXPECT_GT(d["points"].get<int>(), 1000);
+        ASSERT_TRUE(d.contains("history"));
+        EXPECT_EQ(d["history"].size(), 2u);
+        EXPECT_EQ(d["history"][0].get<std::string>().rfind("rgbd-cloud", 0), 0u);
+        EXPECT_EQ(d["history"][1].get<std::string>().rfind("rgbd-clean", 0), 0u);
+        EXPECT_TRUE(d.contains("sensor_position_m"));
+        EXPECT_EQ(d["grid"][0].get<int>(), 512);
+    }
+}
+
+TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
+    Run r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
+                "$BIN/rgbd-mesh -o piped.ply && $BIN/rgbd-eval piped.ply --reference cap/gt/mesh.ply "
+                "--samples 50000");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto m = nlohmann::json::parse(r.out);
+    EXPECT_GT(m["surface"]["fscore_5mm"].get<double>(), 0.9) << r.out;
+}
+
+TEST_F(Pipeline, ReconstructWritesMeshAndReport) {
+    Run r = run("$BIN/rgbd-reconstruct cap -o rec.ply --report rec_report -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(temp_root() / "rec.ply"));
+    ASSERT_TRUE(fs::exists(temp_root() / "rec_report" / "metrics.json"));
+    EXPECT_TRUE(fs::exists(temp_root() / "rec_report" / "index.html"));
+    const auto m = nlohmann::json::parse(slurp(temp_root() / "rec_report" / "metrics.json"));
+    EXPECT_GT(m["evaluation"]["surface"]["fscore_5mm"].get<double>(), 0.9);
+    EXPECT_LT(m["evaluation"]["poses"]["max_rotation_deg"].get<double>(), 0.5);
+}
+
+TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
+    fs::copy(temp_root() / "cap", temp_root() / "badrig", fs::copy_options::recursive);
+    std::ofstream(temp_root() / "badrig" / "rig.json") << "{ \"format\": \"rgbd-capture\", ";
+    Run bad = run("$BIN/rgbd-cloud badrig -o bad.ply");
+    EXPECT_EQ(bad.code, 1);
+    EXPECT_NE(bad.err.find("rig.json"), std::string::npos) << bad.err;
+    EXPECT_EQ(line_count(bad.err), 1) << bad.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "bad.ply"));
+
+    fs::copy(temp_root() / "cap", temp_root() / "noimage", fs::copy_options::recursive);
+    fs::path victim;
+    for (const auto& e : fs::recursive_directory_iterator(temp_root() / "noimage"))
+        if (e.path().extension() == ".png" && e.path().string().find("/gt/") == std::string::npos)
+            victim = e.path();
+    ASSERT_FALSE(victim.empty());
+    fs::remove(victim);
+    Run missing = run("$BIN/rgbd-cloud noimage -o missing.ply");
+    EXPECT_EQ(missing.code, 1);
+    EXPECT_NE(missing.err.find(victim.filename().string()), std::string::npos) << missing.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "missing.ply"));
+
+    Run nothing = run("$BIN/rgbd-cloud no-such-folder");
+    EXPECT_EQ(nothing.code, 1);
+    EXPECT_NE(nothing.err.find("no-such-folder"), std::string::npos);
+}
+
+TEST_F(Pipeline, TruncatedStreamIsAnErrorNamingTheDocument) {
+    Run r = run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
+                "full.ply > cut.ply && $BIN/rgbd-clean cut.ply -o cut_clean.ply");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("cut.ply"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("document"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "cut_clean.ply"));
+}
+
+TEST_F(Pipeline, AbsurdParametersAreUsageErrors) {
+    for (const std::string args : {"rgbd-clean --k 0", "rgbd-clean --std-ratio -1",
+                                   "rgbd-clean --convention matlab", "rgbd-cloud cap --frameset 99",
+                                   "rgbd-cloud cap --z-min 3 --z-max 1", "rgbd-eval x.ply"}) {
+        SCOPED_TRACE(args);
+        Run r = run("$BIN/" + args + " < /dev/null");
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_EQ(line_count(r.err), 2) << r.err;  // the error and the --help hint
+    }
+}
