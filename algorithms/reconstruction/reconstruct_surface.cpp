@@ -1,0 +1,249 @@
+#include "algorithms/reconstruction/reconstruct_surface.hpp"
+
+#include <CGAL/Advancing_front_surface_reconstruction.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/repair.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Random.h>
+#include <CGAL/boost/graph/helpers.h>
+#include <CGAL/compute_average_spacing.h>
+#include <CGAL/poisson_surface_reconstruction.h>
+#include <CGAL/property_map.h>
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/sampling/robust_spacing.hpp"
+#include "algorithms/sampling/voxel_downsample.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::reconstruction {
+
+namespace PMP = CGAL::Polygon_mesh_processing;
+
+void ReconstructionOptions::check() const {
+    RGBD_CHECK(
+        method == "poisson" || method == "advancing-front",
+        "reconstruction: unknown method '" + method + "' (use 'poisson' or 'advancing-front')");
+    RGBD_CHECK(max_points == 0 || max_points >= 100,
+               "reconstruction: max_points must be 0 or >= 100");
+    RGBD_CHECK(sm_angle_deg > 0 && sm_angle_deg <= 30,
+               "reconstruction: sm_angle_deg must be in (0, 30]");
+    RGBD_CHECK(sm_radius > 0 && sm_radius < 1e4, "reconstruction: sm_radius must be in (0, 1e4)");
+    RGBD_CHECK(sm_distance > 0 && sm_distance < 100,
+               "reconstruction: sm_distance must be in (0, 100)");
+    RGBD_CHECK(af_radius_ratio_bound > 0, "reconstruction: af_radius_ratio_bound must be > 0");
+    RGBD_CHECK(af_beta > 0 && af_beta < M_PI, "reconstruction: af_beta must be in (0, pi)");
+    RGBD_CHECK(color_k >= 1 && color_k <= 256, "reconstruction: color_k must be in [1, 256]");
+    RGBD_CHECK(color_original_radius >= 0, "reconstruction: color_original_radius must be >= 0");
+}
+
+namespace {
+
+using Pwn = std::pair<Point_3, Vector_3>;
+using PointOf = CGAL::First_of_pair_property_map<Pwn>;
+using NormalOf = CGAL::Second_of_pair_property_map<Pwn>;
+
+std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
+
+/// Voxel-downsamples until at most max_points remain (voxel grows from ŝ sqrt(n / max)).
+PointCloud bounded(const PointCloud& cloud, std::size_t max_points, double spacing, double& voxel) {
+    voxel = 0.0;
+    if (max_points == 0 || cloud.size() <= max_points) return cloud;
+    voxel = spacing * std::sqrt(static_cast<double>(cloud.size()) / max_points);
+    for (int attempt = 0; attempt < 60; ++attempt, voxel *= 1.1) {
+        PointCloud down = sampling::voxel_downsample(cloud, voxel);
+        if (down.size() <= max_points) return down;
+    }
+    throw AlgorithmError("reconstruction: " + view_name(cloud) +
+                         ": cannot down-sample to the point budget");
+}
+
+void poisson(const std::vector<Pwn>& pwn, double spacing, const ReconstructionOptions& o,
+             Mesh& mesh) {
+    // The surface mesher draws its initial points from CGAL's default generator, which is
+    // seeded from the clock: seed it for repeatable meshes, and restore it afterwards.
+    const CGAL::Random saved = CGAL::get_default_random();
+    CGAL::get_default_random() = CGAL::Random(0);
+    const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
+        pwn.begin(), pwn.end(), PointOf(), NormalOf(), mesh, spacing, o.sm_angle_deg, o.sm_radius,
+        o.sm_distance);
+    CGAL::get_default_random() = saved;
+    if (!ok) throw AlgorithmError("reconstruction: the Poisson solver failed");
+}
+
+void advancing_front(const std::vector<Pwn>& pwn, const ReconstructionOptions& o, Mesh& mesh) {
+    std::vector<Point_3> points;
+    points.reserve(pwn.size());
+    for (const Pwn& p : pwn) points.push_back(p.first);
+    std::vector<std::array<std::size_t, 3>> triangles;
+    CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
+                                                 std::back_inserter(triangles),
+                                                 o.af_radius_ratio_bound, o.af_beta);
+    std::vector<std::vector<std::size_t>> polygons;
+    polygons.reserve(triangles.size());
+    // Orient every triangle along the mean input normal of its corners, then make the soup
+    // consistently oriented (non-manifold vertices are duplicated) and build the mesh.
+    for (const auto& t : triangles) {
+        const Eigen::Vector3d a = to_eigen(points[t[0]]), b = to_eigen(points[t[1]]),
+                              c = to_eigen(points[t[2]]);
+        const Eigen::Vector3d n =
+            to_eigen(pwn[t[0]].second) + to_eigen(pwn[t[1]].second) + to_eigen(pwn[t[2]].second);
+        if ((b - a).cross(c - a).dot(n) >= 0)
+            polygons.push_back({t[0], t[1], t[2]});
+        else
+            polygons.push_back({t[0], t[2], t[1]});
+    }
+    PMP::repair_polygon_soup(points, polygons);
+    PMP::orient_polygon_soup(points, polygons);
+    PMP::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+    // orient_polygon_soup may flip whole components; restore agreement with the normals.
+    if (CGAL::is_closed(mesh) && !PMP::is_outward_oriented(mesh))
+        PMP::reverse_face_orientations(mesh);
+}
+
+/// IDW colours from the k nearest coloured points; measured points win when one is near.
+bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& o, double spacing) {
+    if (!cloud.has_colors()) return false;
+    const auto colors = cloud.colors();
+    const auto synthetic = cloud.flag(prop::kSynthetic);
+    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
+    std::vector<Rgb> all_rgb, orig_rgb;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
+        all_xyz.push_back(p);
+        all_rgb.push_back(colors.get(idx));
+        if (!synthetic || (*synthetic)[idx] == 0) {
+            orig_xyz.push_back(p);
+            orig_rgb.push_back(colors.get(idx));
+        }
+    }
+    const internal::KdTree all_tree(all_xyz);
+    const internal::KdTree orig_tree(orig_xyz);
+    const bool separate = synthetic.has_value() && !orig_xyz.empty();
+    const double near = o.color_original_radius * spacing;
+    const std::size_t k = static_cast<std::size_t>(o.color_k);
+
+    std::vector<Mesh::Vertex_index> vertices(mesh.vertices().begin(), mesh.vertices().end());
+    std::vector<MeshColor> result(vertices.size());
+    const double floor_d = std::max(1e-3 * spacing, 1e-12);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vertices.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<std::uint32_t> nn(k);
+                          std::vector<double> sq(k);
+                          for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                              const Eigen::Vector3d q = to_eigen(mesh.point(vertices[v]));
+                              const internal::KdTree* tree = &all_tree;
+                              const std::vector<Rgb>* rgb = &all_rgb;
+                              if (separate) {
+                                  std::uint32_t i;
+                                  double d2;
+                                  if (orig_tree.nearest(q, i, d2) && std::sqrt(d2) <= near) {
+                                      tree = &orig_tree;
+                                      rgb = &orig_rgb;
+                                  }
+                              }
+                              const std::size_t found = tree->knn(q, k, nn.data(), sq.data());
+                              double w_sum = 0, rs = 0, gs = 0, bs = 0;
+                              for (std::size_t j = 0; j < found; ++j) {
+                                  const double d = std::max(std::sqrt(sq[j]), floor_d);
+                                  const double w = 1.0 / (d * d);
+                                  const Rgb& c = (*rgb)[nn[j]];
+                                  w_sum += w;
+                                  rs += w * c.r;
+                                  gs += w * c.g;
+                                  bs += w * c.b;
+                              }
+                              auto channel = [w_sum](double s) {
+                                  return static_cast<unsigned char>(
+                                      std::lround(std::clamp(s / w_sum, 0.0, 255.0)));
+                              };
+                              result[v] = found ? MeshColor(channel(rs), channel(gs), channel(bs))
+                                                : MeshColor(128, 128, 128);
+                          }
+                      });
+    VertexColorMap map = add_vertex_colors(mesh);
+    for (std::size_t v = 0; v < vertices.size(); ++v) map[vertices[v]] = result[v];
+    return true;
+}
+
+}  // namespace
+
+Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& options,
+                         Report* report, const Progress& progress) {
+    options.check();
+    Stopwatch watch;
+    RGBD_CHECK(cloud.size() >= 100, "reconstruction: " + view_name(cloud) + " has " +
+                                        std::to_string(cloud.size()) +
+                                        " points; at least 100 are needed");
+    RGBD_CHECK(cloud.points.has_normal_map(),
+               "reconstruction: " + view_name(cloud) +
+                   " has no normals; estimate oriented normals first (rgbd::normals)");
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
+        const Eigen::Vector3d n = to_eigen(cloud.points.normal(idx));
+        RGBD_CHECK(p.allFinite() && n.allFinite(),
+                   "reconstruction: " + view_name(cloud) + " has a non-finite point or normal");
+    }
+    const double spacing = sampling::robust_spacing(cloud.points);
+    RGBD_CHECK(spacing > 0, "reconstruction: " + view_name(cloud) + " has zero point spacing");
+
+    double voxel = 0.0;
+    const PointCloud used = bounded(cloud, options.max_points, spacing, voxel);
+    std::vector<Pwn> pwn;
+    pwn.reserve(used.size());
+    for (auto idx : used.points) {
+        const Eigen::Vector3d n = to_eigen(used.points.normal(idx));
+        if (n.squaredNorm() < 1e-24) continue;  // no direction: useless to Poisson
+        pwn.emplace_back(used.points.point(idx), to_vector(n.normalized()));
+    }
+    RGBD_CHECK(pwn.size() >= 100, "reconstruction: " + view_name(cloud) +
+                                      " has fewer than 100 points with a non-zero normal");
+    if (!report_progress(progress, 0.05)) throw AlgorithmError("reconstruction: cancelled");
+
+    const double average_spacing = CGAL::compute_average_spacing<CGAL::Parallel_if_available_tag>(
+        pwn, 6, CGAL::parameters::point_map(PointOf()));
+    Mesh mesh;
+    if (options.method == "poisson")
+        poisson(pwn, average_spacing, options, mesh);
+    else
+        advancing_front(pwn, options, mesh);
+    if (!report_progress(progress, 0.85)) throw AlgorithmError("reconstruction: cancelled");
+
+    PMP::remove_isolated_vertices(mesh);
+    mesh.collect_garbage();
+    RGBD_CHECK_AS(
+        AlgorithmError, mesh.number_of_faces() > 0,
+        "reconstruction: " + view_name(cloud) + ": " + options.method + " produced no triangles");
+    const double mesh_time = watch.seconds();
+    Stopwatch color_watch;
+    const bool colored = colorize(mesh, cloud, options, spacing);
+    report_progress(progress, 1.0);
+
+    if (report) {
+        Report& r = *report;
+        r["method"] = options.method;
+        r["points_in"] = cloud.size();
+        r["points_used"] = pwn.size();
+        r["voxel_m"] = voxel;
+        r["spacing_m"] = spacing;
+        r["average_spacing_m"] = average_spacing;
+        r["vertices"] = mesh.number_of_vertices();
+        r["faces"] = mesh.number_of_faces();
+        r["closed"] = CGAL::is_closed(mesh);
+        r["colored"] = colored;
+        r["mesh_time_s"] = mesh_time;
+        r["color_time_s"] = color_watch.seconds();
+        r["time_s"] = watch.seconds();
+    }
+    return mesh;
+}
+
+}  // namespace rgbd::reconstruction

@@ -1,0 +1,164 @@
+// Point-to-plane ICP: pairwise (align_pair) and joint multi-view refinement (align_views)
+// (ALGORITHMS.md §6.1-§6.3, §7 fitness / inlier RMSE).
+// Sources: Chen and Medioni 1991 (point-to-plane, linearised 6x6 normal equations); Besl and
+// McKay 1992; Rusinkiewicz and Levoy 2001 (rejection, coarse-to-fine); robust IRLS kernels and
+// convergence criteria as in Open3D pipelines/registration (Registration.h, RobustKernel.h);
+// simultaneous multi-view registration as in Pulli 1999 / Neugebauer 1997 (all poses solved in one
+// linear system per iteration, one view held fixed as the gauge).
+// See also: algorithms/sampling/voxel_downsample.hpp, algorithms/normals/estimate_normals.hpp,
+// algorithms/sampling/merge_views.hpp.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "toolkit/point_cloud.hpp"
+#include "toolkit/pose.hpp"
+#include "toolkit/progress.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::registration {
+
+/// IRLS weight applied to the point-to-plane residual r (scale k, see IcpOptions).
+enum class RobustKernel {
+    kNone,   ///< w = 1
+    kHuber,  ///< w = k / max(|r|, k)
+    kTukey,  ///< w = (1 - min(1, |r| / k)^2)^2
+};
+
+/// When one coarse-to-fine stage stops (Open3D ICPConvergenceCriteria plus an update test).
+struct IcpCriteria {
+    int max_iterations = 30;                ///< iterations per stage (>= 1)
+    double relative_fitness = 1e-6;         ///< stop when |Δfitness| / fitness below this ...
+    double relative_rmse = 1e-6;            ///< ... and |Δinlier_rmse| / inlier_rmse below this
+    double min_rotation_deg = 1e-4;         ///< or when the update rotates less than this ...
+    double min_translation_spacing = 1e-4;  ///< ... and translates less than this × ŝ
+    void check() const;
+};
+
+struct IcpOptions {
+    /// Coarse-to-fine maximum correspondence distances in metres. Empty (default): the
+    /// `max_distance_factors` times ŝ (ŝ ~ 4 mm for Kinect v2 at 1.5 m gives 48/24/12/6 mm).
+    std::vector<double> max_distances_m;
+    /// Stage distances as multiples of ŝ, used when `max_distances_m` is empty.
+    std::vector<double> max_distance_factors = {12.0, 6.0, 3.0, 1.5};
+    /// ŝ in metres; 0 (default) = robust spacing of the source (align_pair) or the median of
+    /// the views' spacings (align_views).
+    double spacing_m = 0.0;
+    RobustKernel kernel = RobustKernel::kTukey;
+    /// Kernel scale k as a fraction of the stage's max distance (ALGORITHMS.md §6.2: d_max / 2).
+    double kernel_scale = 0.5;
+    /// Pairs whose normals differ by more than this are rejected (needs source normals;
+    /// >= 180 disables the gate).
+    double max_normal_angle_deg = 60.0;
+    IcpCriteria criteria;
+    void check() const;
+};
+
+/// Result of a pairwise alignment. Non-convergence is a result, not an exception.
+struct AlignResult {
+    Pose target_from_source = Pose::Identity();
+    double fitness = 0.0;             ///< matched source points / source points, final max distance
+    double inlier_rmse = 0.0;         ///< m, RMS point-to-point distance over matched pairs
+    double plane_rmse = 0.0;          ///< m, RMS point-to-plane distance over matched pairs
+    std::size_t correspondences = 0;  ///< matched pairs at the final pose
+    int iterations = 0;               ///< total over all stages
+    bool converged = false;           ///< the last stage met the criteria before max_iterations
+    Report to_json() const;
+};
+
+/// Pairwise point-to-plane ICP (Chen-Medioni, linearised, robust IRLS weights).
+/// @param source  points to move (normals optional: used for the normal-angle gate).
+/// @param target  fixed points; must have normals (InputError otherwise, estimate them first).
+/// @param initial_target_from_source  starting pose.
+/// Correspondence: nearest target point (kd-tree), rejected beyond the stage distance or over
+/// the normal angle. Coordinates are used as given (no down-sampling here: voxel_downsample
+/// first for speed). Bit-identical results for any TBB thread count (fixed chunks, ordered
+/// combine). Throws InputError on empty inputs, non-finite values or a missing target normal map.
+AlignResult align_pair(const PointCloud& source, const PointCloud& target,
+                       const Pose& initial_target_from_source, const IcpOptions& options);
+
+/// PASS / WARN / FAIL of one view or of a whole alignment.
+enum class Verdict { kPass, kWarn, kFail };
+const char* to_string(Verdict verdict);
+
+struct MultiViewOptions {
+    /// Voxel edge for the working copies, metres; 0 (default) = `voxel_factor` × ŝ.
+    double voxel_m = 0.0;
+    double voxel_factor = 1.25;  ///< voxel as a multiple of ŝ when voxel_m is 0
+    /// Neighbours for the normals of the working copies (oriented towards each sensor).
+    int normal_k = 24;
+    /// Index (position in the input vector) of the view held fixed: the gauge.
+    std::size_t fixed_view = 0;
+    /// Coarse-to-fine rounds; round r uses stage distance r of `icp` (the last one repeated
+    /// when there are more rounds than distances). Each round runs up to
+    /// icp.criteria.max_iterations joint iterations.
+    int rounds = 4;
+    /// Distances, kernel, normal gate and max_iterations (ŝ: median of the views' spacings).
+    IcpOptions icp;
+    /// A round has converged when no view's update moves any of its points by more than this
+    /// multiple of ŝ. (Re-matching makes joint updates jitter at a few µm, so the pairwise
+    /// rotation / translation thresholds of icp.criteria are not used here.)
+    double min_motion_spacing = 0.02;
+    /// Verdict thresholds: FAIL below fail_fitness or when a pose moved more than
+    /// max_rotation_deg / max_translation_m from its initial value; WARN below warn_fitness.
+    double fail_fitness = 0.1;
+    double warn_fitness = 0.3;
+    double max_rotation_deg = 20.0;
+    double max_translation_m = 0.2;
+    void check() const;
+};
+
+/// Outcome for one view of align_views.
+struct ViewAlignment {
+    int view_id = -1;  ///< view.id of the input
+    /// Refined world_from_sensor. For a world-frame view without a pose, equal to `correction`.
+    Pose world_from_sensor = Pose::Identity();
+    /// Rigid motion from the initial world placement to the refined one
+    /// (world_from_world_initial); apply it to a world-frame copy of the view.
+    Pose correction = Pose::Identity();
+    double fitness = 0.0;      ///< share of the view's working points matched to other views
+    double inlier_rmse = 0.0;  ///< m, over those matches
+    int iterations = 0;        ///< joint iterations in which this view moved
+    bool converged = false;
+    double rotation_change_deg = 0.0;   ///< |correction| rotation
+    double translation_change_m = 0.0;  ///< |correction| translation at the view's centroid
+    Verdict verdict = Verdict::kFail;
+};
+
+struct MultiViewResult {
+    std::vector<ViewAlignment> views;     ///< same order as the input
+    Verdict verdict = Verdict::kFail;     ///< the worst of the views' verdicts
+    double spacing_m = 0.0;               ///< ŝ used
+    double voxel_m = 0.0;                 ///< voxel used for the working copies
+    std::vector<double> max_distances_m;  ///< distance of each round
+    int iterations = 0;                   ///< joint iterations over all rounds
+    double time_s = 0.0;
+    Report to_json() const;
+};
+
+/// Joint multi-view point-to-plane refinement of N >= 2 views (a ring of sensors, a turntable
+/// sequence). Each view is either
+/// - in its sensor frame (view.frame == kSensor): its view.world_from_sensor (required) is the
+///   initial pose; or
+/// - already in the world frame: its current coordinates are the initial placement, and
+///   view.world_from_sensor (optional) tells where its sensor is (used to orient normals and
+///   to report the refined pose).
+/// Working copies are voxel-downsampled and get normals oriented to their sensor (MST when no
+/// sensor is known; the normal gate then ignores the sign). Every iteration matches each working
+/// point to the nearest point of any *other* view (one kd-tree over the union at the current
+/// poses, rebuilt per iteration), and solves one linear system for all poses but the fixed one,
+/// so errors are spread over the ring in one step instead of diffusing view by view.
+/// Views with fewer than 12 matches in an iteration keep their pose for that iteration.
+/// Verdicts as in MultiViewOptions. Deterministic for any thread count.
+/// Throws InputError for fewer than 2 views, an empty view, a sensor-frame view without pose,
+/// or fixed_view out of range; AlgorithmError("cancelled") when `progress` returns false.
+MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiViewOptions& options,
+                            const Progress& progress = {});
+
+/// Applies an align_views result: every view ends in the world frame at its refined placement,
+/// with view.world_from_sensor updated (set when it was known). Sizes must match (InputError).
+void apply_alignment(std::vector<PointCloud>& views, const MultiViewResult& result);
+
+}  // namespace rgbd::registration

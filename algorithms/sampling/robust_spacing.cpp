@@ -1,0 +1,67 @@
+#include "algorithms/sampling/robust_spacing.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "algorithms/internal/kd_tree.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::sampling {
+
+double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t seed) {
+    const std::size_t n = points.size();
+    RGBD_CHECK(n >= 2, "robust_spacing: needs at least 2 points, got " + std::to_string(n));
+    RGBD_CHECK(sample >= 1, "robust_spacing: sample size must be positive");
+
+    std::vector<Eigen::Vector3d> xyz;
+    xyz.reserve(n);
+    for (auto idx : points) {
+        const Eigen::Vector3d p = to_eigen(points.point(idx));
+        RGBD_CHECK(p.allFinite(), "robust_spacing: point " + std::to_string(xyz.size()) +
+                                      " has a non-finite coordinate");
+        xyz.push_back(p);
+    }
+
+    // Sample without replacement: partial Fisher-Yates with a fixed-seed generator.
+    std::vector<std::uint32_t> queries(n);
+    std::iota(queries.begin(), queries.end(), 0u);
+    const std::size_t m = std::min(sample, n);
+    if (m < n) {
+        std::mt19937_64 rng(seed);
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::size_t j = i + static_cast<std::size_t>(rng() % (n - i));
+            std::swap(queries[i], queries[j]);
+        }
+        queries.resize(m);
+    }
+
+    const internal::KdTree tree(xyz);
+    std::vector<double> dist(m, 0.0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 512),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          std::uint32_t idx[2];
+                          double sq[2];
+                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                              const std::size_t found = tree.knn(xyz[queries[i]], 2, idx, sq);
+                              // The query itself is in the tree; its nearest "other" point is
+                              // the second result (or the first, if a duplicate came first).
+                              double d2 = 0.0;
+                              if (found == 2) d2 = idx[0] == queries[i] ? sq[1] : sq[0];
+                              dist[i] = std::sqrt(d2);
+                          }
+                      });
+    auto mid = dist.begin() + static_cast<std::ptrdiff_t>(m / 2);
+    std::nth_element(dist.begin(), mid, dist.end());
+    if (m % 2 == 1) return *mid;
+    const double upper = *mid;
+    const double lower = *std::max_element(dist.begin(), mid);
+    return 0.5 * (lower + upper);
+}
+
+}  // namespace rgbd::sampling

@@ -1,0 +1,157 @@
+#include "algorithms/normals/estimate_normals.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <random>
+
+#include "toolkit/error.hpp"
+
+namespace {
+
+using rgbd::PointCloud;
+using rgbd::normals::NormalOptions;
+using rgbd::normals::NormalOrientation;
+
+constexpr double kRadius = 0.1;
+
+/// Fibonacci samples of a sphere (centre c, radius 0.1 m), optionally only the part with
+/// (p - c).dot(towards) > 0.
+PointCloud sphere(int n, const Eigen::Vector3d& c, const Eigen::Vector3d* towards = nullptr) {
+    PointCloud cloud;
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    for (int i = 0; i < n; ++i) {
+        const double y = 1.0 - 2.0 * (i + 0.5) / n;
+        const double r = std::sqrt(1.0 - y * y);
+        const Eigen::Vector3d u(r * std::cos(golden * i), y, r * std::sin(golden * i));
+        if (towards && u.dot(*towards) <= 0.2) continue;
+        cloud.points.insert(rgbd::to_point(c + kRadius * u));
+    }
+    return cloud;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+TEST(EstimateNormals, SphereOutward) {
+    const Eigen::Vector3d c(0.3, -0.2, 1.0);
+    PointCloud cloud = sphere(20000, c);
+    cloud.view.frame = rgbd::ViewFrame::kWorld;
+    NormalOptions options;
+    options.orientation = NormalOrientation::kOutward;
+    const rgbd::Report report = rgbd::normals::estimate_normals(cloud, options);
+    EXPECT_EQ(report["orientation"], "outward");
+    ASSERT_TRUE(cloud.points.has_normal_map());
+    double worst = 0;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
+        worst = std::max(worst, angle_deg(rgbd::to_eigen(cloud.points.normal(idx)), p - c));
+    }
+    EXPECT_LT(worst, 2.0);
+}
+
+TEST(EstimateNormals, SensorFrameViewPointsTowardsTheOrigin) {
+    // Sphere 0.8 m in front of the sensor; only the part facing the sensor is seen.
+    const Eigen::Vector3d c(0.05, 0.0, 0.8);
+    const Eigen::Vector3d towards = -c.normalized();
+    PointCloud cloud = sphere(40000, c, &towards);
+    cloud.view.frame = rgbd::ViewFrame::kSensor;
+    const rgbd::Report report = rgbd::normals::estimate_normals(cloud, NormalOptions{});
+    EXPECT_EQ(report["orientation"], "sensor");
+    double worst = 0;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
+        const Eigen::Vector3d n = rgbd::to_eigen(cloud.points.normal(idx));
+        EXPECT_GT(n.dot(-p), 0.0);
+        // Rim points have one-sided neighbourhoods; the truth check skips a 1 cm band.
+        if ((p - c).normalized().dot(towards) > 0.35) worst = std::max(worst, angle_deg(n, p - c));
+    }
+    EXPECT_LT(worst, 2.0);
+}
+
+TEST(EstimateNormals, WorldFrameViewUsesItsSensorPose) {
+    const Eigen::Vector3d c(0, 0, 0);
+    const Eigen::Vector3d camera(1.0, 0.2, 0.0);
+    const Eigen::Vector3d towards = camera.normalized();
+    PointCloud cloud = sphere(20000, c, &towards);
+    cloud.view.frame = rgbd::ViewFrame::kWorld;
+    rgbd::Pose pose = rgbd::Pose::Identity();
+    pose.translation() = camera;
+    cloud.view.world_from_sensor = pose;
+    rgbd::normals::estimate_normals(cloud, NormalOptions{});
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
+        EXPECT_GT(rgbd::to_eigen(cloud.points.normal(idx)).dot(camera - p), 0.0);
+    }
+}
+
+TEST(EstimateNormals, MergedCloudMstIsConsistentlyOutward) {
+    PointCloud cloud = sphere(8000, Eigen::Vector3d(0, 0, 0.5));
+    cloud.view.frame = rgbd::ViewFrame::kWorld;
+    cloud.view.sensor = "merged";
+    const rgbd::Report report = rgbd::normals::estimate_normals(cloud, NormalOptions{});
+    EXPECT_EQ(report["orientation"], "mst");
+    std::size_t outward = 0;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
+        if (rgbd::to_eigen(cloud.points.normal(idx)).dot(p - Eigen::Vector3d(0, 0, 0.5)) > 0)
+            ++outward;
+    }
+    EXPECT_EQ(outward, cloud.size());
+}
+
+TEST(EstimateNormals, NoisyPlane) {
+    PointCloud cloud;
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0.0, 0.0005);
+    const Eigen::Vector3d normal = Eigen::Vector3d(0.2, -0.3, 1.0).normalized();
+    const Eigen::Vector3d e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 100; ++x)
+            cloud.points.insert(rgbd::to_point(Eigen::Vector3d(0, 0, 1.2) + 0.005 * x * e1 +
+                                               0.005 * y * e2 + noise(rng) * normal));
+    cloud.view.frame = rgbd::ViewFrame::kSensor;
+    rgbd::normals::estimate_normals(cloud, NormalOptions{});
+    double sum = 0;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d n = rgbd::to_eigen(cloud.points.normal(idx));
+        sum += angle_deg(n, normal.z() < 0 ? normal : -normal);  // towards the origin
+    }
+    EXPECT_LT(sum / cloud.size(), 3.0);
+}
+
+TEST(EstimateNormals, SameResultForAnyThreadCount) {
+    PointCloud a = sphere(20000, Eigen::Vector3d(0, 0, 1));
+    a.view.frame = rgbd::ViewFrame::kSensor;
+    PointCloud b = a;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        rgbd::normals::estimate_normals(a, NormalOptions{});
+    }
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+        rgbd::normals::estimate_normals(b, NormalOptions{});
+    }
+    auto ib = b.points.begin();
+    for (auto idx : a.points) EXPECT_EQ(a.points.normal(idx), b.points.normal(*ib++));
+}
+
+TEST(EstimateNormals, BadInput) {
+    PointCloud cloud;
+    cloud.view.id = 9;
+    cloud.points.insert(rgbd::Point_3(0, 0, 0));
+    cloud.points.insert(rgbd::Point_3(1, 0, 0));
+    EXPECT_THROW(rgbd::normals::estimate_normals(cloud, NormalOptions{}), rgbd::InputError);
+    NormalOptions bad;
+    bad.k = 2;
+    EXPECT_THROW(bad.check(), rgbd::InputError);
+    PointCloud world = sphere(100, Eigen::Vector3d(0, 0, 0));
+    world.view.frame = rgbd::ViewFrame::kWorld;
+    NormalOptions sensor;
+    sensor.orientation = NormalOrientation::kSensor;
+    EXPECT_THROW(rgbd::normals::estimate_normals(world, sensor), rgbd::InputError);
+}
+
+}  // namespace

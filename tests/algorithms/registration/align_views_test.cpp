@@ -1,0 +1,137 @@
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <iostream>
+
+#include "algorithms/registration/icp.hpp"
+#include "synthetic_views.hpp"
+#include "toolkit/error.hpp"
+
+namespace {
+
+using rgbd::PointCloud;
+using rgbd::Pose;
+using rgbd::registration::Verdict;
+
+struct Ring {
+    std::vector<PointCloud> views;  // sensor frame, perturbed poses (view 0 exact)
+    std::vector<Pose> truth;        // true world_from_sensor
+};
+
+Ring make_ring(int n, int stride, std::uint32_t seed) {
+    const rgbd::test::BumpyEllipsoid shape;
+    std::mt19937 rng(seed);
+    Ring ring;
+    for (int i = 0; i < n; ++i) {
+        const double yaw = 2.0 * M_PI * i / n;
+        const Pose truth =
+            rgbd::test::look_at({0.8 * std::sin(yaw), 0.12, -0.8 * std::cos(yaw)}, shape.centre);
+        PointCloud view = rgbd::test::render_view(shape, truth, i, 0.0005, 100 + i, stride);
+        view.view.world_from_sensor =
+            i == 0 ? truth : Pose(truth * rgbd::test::random_motion(1.5, 0.015, rng));
+        ring.truth.push_back(truth);
+        ring.views.push_back(std::move(view));
+    }
+    return ring;
+}
+
+/// Rotation error and displacement of the object centre (world origin) between the refined
+/// and the true placement of a view.
+void expect_close(const Ring& ring, const rgbd::registration::MultiViewResult& result,
+                  double max_deg, double max_m) {
+    ASSERT_EQ(result.views.size(), ring.views.size());
+    for (std::size_t i = 0; i < ring.views.size(); ++i) {
+        const Pose& est = result.views[i].world_from_sensor;
+        const Pose& gt = ring.truth[i];
+        const Eigen::Vector3d centre_in_sensor = gt.inverse() * Eigen::Vector3d::Zero();
+        const double object_m = (est * centre_in_sensor).norm();
+        const double deg = rgbd::rotation_error_deg(est, gt);
+        std::cout << "  view " << i << ": " << deg << " deg, object " << object_m * 1000
+                  << " mm, camera " << rgbd::translation_error_m(est, gt) * 1000 << " mm, fitness "
+                  << result.views[i].fitness << "\n";
+        EXPECT_LT(deg, max_deg) << "view " << i;
+        EXPECT_LT(object_m, max_m) << "view " << i;
+    }
+}
+
+TEST(AlignViews, RingOfEightSensorFrameViews) {
+    const Ring ring = make_ring(8, 1, 7);
+    // Before: how far off are the perturbed poses at the object?
+    double before = 0;
+    for (std::size_t i = 0; i < ring.views.size(); ++i) {
+        const Eigen::Vector3d c = ring.truth[i].inverse() * Eigen::Vector3d::Zero();
+        before = std::max(before, (*ring.views[i].view.world_from_sensor * c).norm());
+    }
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    std::cout << "ring of 8: max object error before " << before * 1000 << " mm; " << result.time_s
+              << " s, " << result.iterations << " iterations, spacing " << result.spacing_m * 1000
+              << " mm\n";
+    expect_close(ring, result, 0.3, 0.002);
+    EXPECT_EQ(result.verdict, Verdict::kPass);
+    EXPECT_EQ(result.to_json()["views"].size(), 8u);
+}
+
+TEST(AlignViews, WorldFrameViewsAreRefinedToo) {
+    Ring ring = make_ring(6, 2, 9);
+    for (PointCloud& view : ring.views) rgbd::to_world_frame(view);
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    expect_close(ring, result, 0.3, 0.002);
+    // apply_alignment puts the points where the true poses would.
+    std::vector<PointCloud> aligned = ring.views;
+    rgbd::registration::apply_alignment(aligned, result);
+    const PointCloud& v3 = aligned[3];
+    const Pose truth_from_est = ring.truth[3] * result.views[3].world_from_sensor.inverse();
+    for (auto idx : v3.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(v3.points.point(idx));
+        EXPECT_LT((truth_from_est * p - p).norm(), 0.002);
+        break;
+    }
+}
+
+TEST(AlignViews, SameResultForOneAndTwoThreads) {
+    const Ring ring = make_ring(4, 2, 3);
+    rgbd::registration::MultiViewResult one, two;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        one = rgbd::registration::align_views(ring.views, {});
+    }
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+        two = rgbd::registration::align_views(ring.views, {});
+    }
+    for (std::size_t i = 0; i < ring.views.size(); ++i) {
+        EXPECT_TRUE(one.views[i].world_from_sensor.matrix() ==
+                    two.views[i].world_from_sensor.matrix());
+        EXPECT_EQ(one.views[i].fitness, two.views[i].fitness);
+    }
+}
+
+TEST(AlignViews, NonOverlappingPairFails) {
+    Ring ring = make_ring(2, 2, 5);
+    ring.views.resize(1);
+    PointCloud far = ring.views[0];
+    far.view.id = 1;
+    Pose shifted = *far.view.world_from_sensor;
+    shifted.translation() += Eigen::Vector3d(1.0, 0.0, 0.0);
+    far.view.world_from_sensor = shifted;
+    ring.views.push_back(far);
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    EXPECT_EQ(result.verdict, Verdict::kFail);
+    EXPECT_EQ(result.views[1].verdict, Verdict::kFail);
+    EXPECT_LT(result.views[1].fitness, 0.1);
+}
+
+TEST(AlignViews, BadInput) {
+    std::vector<PointCloud> views(1);
+    EXPECT_THROW(rgbd::registration::align_views(views, {}), rgbd::InputError);
+    Ring ring = make_ring(2, 4, 1);
+    ring.views[1].view.world_from_sensor.reset();
+    EXPECT_THROW(rgbd::registration::align_views(ring.views, {}), rgbd::InputError);
+    rgbd::registration::MultiViewOptions bad;
+    bad.fixed_view = 5;
+    ring = make_ring(2, 4, 1);
+    EXPECT_THROW(rgbd::registration::align_views(ring.views, bad), rgbd::InputError);
+}
+
+}  // namespace

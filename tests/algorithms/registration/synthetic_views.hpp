@@ -1,0 +1,109 @@
+// Synthetic depth views of a bumpy ellipsoid for the registration tests: ray-cast per pixel
+// of a Kinect-v2-like depth camera (512x424, f = 365.5) against an analytic star-shaped
+// surface, Gaussian depth noise, points in the sensor frame (x right, y down, z forward).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <optional>
+#include <random>
+
+#include "toolkit/point_cloud.hpp"
+
+namespace rgbd::test {
+
+/// Ellipsoid (semi-axes 0.12, 0.16, 0.10 m) with smooth non-symmetric bumps, centred at `centre`.
+struct BumpyEllipsoid {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+
+    /// Radius of the surface along unit direction u.
+    double radius(const Eigen::Vector3d& u) const {
+        const double e =
+            1.0 / std::sqrt(u.x() * u.x() / (0.12 * 0.12) + u.y() * u.y() / (0.16 * 0.16) +
+                            u.z() * u.z() / (0.10 * 0.10));
+        const double bumps = 0.06 * std::sin(5.0 * u.x() + 1.0) * std::cos(4.0 * u.y()) +
+                             0.04 * std::sin(7.0 * u.z() + 3.0 * u.x()) + 0.03 * u.y() * u.y();
+        return e * (1.0 + bumps);
+    }
+    /// Signed: > 0 outside.
+    double value(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d d = p - centre;
+        const double len = d.norm();
+        if (len < 1e-12) return -1.0;
+        return len - radius(d / len);
+    }
+    double max_radius() const { return 0.16 * 1.14; }
+};
+
+/// Camera looking at `target` from `eye`, with world "up" = +y (image y = down).
+inline Pose look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+    const Eigen::Vector3d z = (target - eye).normalized();
+    const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitY()).normalized();  // right
+    const Eigen::Vector3d y = z.cross(x);                                      // down
+    Pose pose = Pose::Identity();
+    pose.linear().col(0) = x;
+    pose.linear().col(1) = y;
+    pose.linear().col(2) = z;
+    pose.translation() = eye;
+    return pose;
+}
+
+/// Ray-cast view of the surface from the camera at `world_from_sensor`; every `stride`-th pixel.
+inline PointCloud render_view(const BumpyEllipsoid& shape, const Pose& world_from_sensor, int id,
+                              double noise_sigma_m, std::uint32_t seed, int stride = 1) {
+    PointCloud cloud;
+    cloud.view.id = id;
+    cloud.view.sensor = "synthetic-" + std::to_string(id);
+    cloud.view.frame = ViewFrame::kSensor;
+    cloud.view.world_from_sensor = world_from_sensor;
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0.0, noise_sigma_m);
+    const double f = 365.5, cx = 256.0, cy = 212.0;
+    const Eigen::Vector3d eye = world_from_sensor.translation();
+    const double rmax = shape.max_radius();
+    for (int v = 0; v < 424; v += stride)
+        for (int u = 0; u < 512; u += stride) {
+            const Eigen::Vector3d ray_s((u - cx) / f, (v - cy) / f, 1.0);
+            const Eigen::Vector3d dir = (world_from_sensor.linear() * ray_s).normalized();
+            // Bounding sphere.
+            const Eigen::Vector3d oc = eye - shape.centre;
+            const double b = oc.dot(dir), c = oc.squaredNorm() - rmax * rmax;
+            if (b * b - c < 0) continue;
+            double t0 = std::max(0.0, -b - std::sqrt(b * b - c));
+            const double t1 = -b + std::sqrt(b * b - c);
+            const double step = 0.002;
+            double prev = shape.value(eye + t0 * dir);
+            double hit = -1;
+            for (double t = t0 + step; t <= t1 + step; t += step) {
+                const double val = shape.value(eye + t * dir);
+                if (prev > 0 && val <= 0) {
+                    double lo = t - step, hi = t;
+                    for (int k = 0; k < 40; ++k) {
+                        const double mid = 0.5 * (lo + hi);
+                        (shape.value(eye + mid * dir) > 0 ? lo : hi) = mid;
+                    }
+                    hit = 0.5 * (lo + hi);
+                    break;
+                }
+                prev = val;
+            }
+            if (hit < 0) continue;
+            const double z = hit * dir.dot(world_from_sensor.linear().col(2)) + noise(rng);
+            cloud.points.insert(to_point(ray_s * z));
+        }
+    return cloud;
+}
+
+/// Rotation of `deg` degrees about a random axis, and a translation of `m` metres in a random
+/// direction.
+inline Pose random_motion(double deg, double m, std::mt19937& rng) {
+    std::normal_distribution<double> n(0.0, 1.0);
+    const Eigen::Vector3d axis = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+    const Eigen::Vector3d dir = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+    Pose pose = Pose::Identity();
+    pose.linear() = Eigen::AngleAxisd(deg * M_PI / 180.0, axis).toRotationMatrix();
+    pose.translation() = m * dir;
+    return pose;
+}
+
+}  // namespace rgbd::test
