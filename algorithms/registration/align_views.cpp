@@ -63,6 +63,8 @@ void MultiViewOptions::check() const {
     RGBD_CHECK(std::isfinite(voxel_factor) && voxel_factor > 0 && voxel_factor <= 100,
                "align_views: voxel_factor must be in (0, 100]");
     RGBD_CHECK(normal_k >= 3 && normal_k <= 1024, "align_views: normal_k must be in [3, 1024]");
+    RGBD_CHECK(max_points_per_view == 0 || max_points_per_view >= 100,
+               "align_views: max_points_per_view must be 0 (no bound) or at least 100");
     RGBD_CHECK(std::isfinite(min_motion_spacing) && min_motion_spacing >= 0,
                "align_views: min_motion_spacing must be >= 0");
     RGBD_CHECK(rounds >= 1 && rounds <= 1000, "align_views: rounds must be in [1, 1000]");
@@ -124,7 +126,19 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         spacing = s[nv / 2];
     }
     RGBD_CHECK(spacing > 0, "align_views: the views have zero point spacing");
-    const double voxel = options.voxel_m > 0 ? options.voxel_m : options.voxel_factor * spacing;
+    double voxel = options.voxel_m > 0 ? options.voxel_m : options.voxel_factor * spacing;
+    if (options.voxel_m <= 0 && options.max_points_per_view > 0) {
+        // On a surface, a voxel of edge e keeps about (ŝ / e)^2 of the points.
+        std::vector<std::size_t> sizes;
+        for (const PointCloud& v : views) sizes.push_back(v.size());
+        std::nth_element(sizes.begin(), sizes.begin() + nv / 2, sizes.end());
+        const double ratio = static_cast<double>(sizes[nv / 2]) /
+                             static_cast<double>(options.max_points_per_view);
+        if (ratio > 1.0) {
+            voxel = std::max(voxel, spacing * std::sqrt(ratio));
+            spacing = std::max(spacing, voxel / options.voxel_factor);
+        }
+    }
     std::vector<double> stage = options.icp.max_distances_m;
     if (stage.empty())
         for (double f : options.icp.max_distance_factors) stage.push_back(f * spacing);

@@ -87,6 +87,10 @@ struct MultiViewOptions {
     /// Voxel edge for the working copies, metres; 0 (default) = `voxel_factor` × ŝ.
     double voxel_m = 0.0;
     double voxel_factor = 1.25;  ///< voxel as a multiple of ŝ when voxel_m is 0
+    /// When voxel_m is 0, the voxel grows so that a view of median size keeps about this many
+    /// working points (0 = no bound): dense views (a 640x480 sequence of 50 frames) then cost
+    /// what a Kinect v2 ring costs, and the stage distances grow with the voxel.
+    std::size_t max_points_per_view = 8000;
     /// Neighbours for the normals of the working copies (oriented towards each sensor).
     int normal_k = 24;
     /// Index (position in the input vector) of the view held fixed: the gauge.
