@@ -18,7 +18,7 @@ namespace {
 
 const std::string kBin = RGBD_BINARY_DIR;
 
-struct Run {
+struct Outcome {
     int code = -1;
     std::string out, err;
 };
@@ -40,14 +40,14 @@ fs::path temp_root() {
 }
 
 /// Runs a shell command line (tools referenced as $BIN/rgbd-x), capturing stdout and stderr.
-Run run(const std::string& command) {
+Outcome run(const std::string& command) {
     static int counter = 0;
     const fs::path out = temp_root() / ("out" + std::to_string(counter) + ".txt");
     const fs::path err = temp_root() / ("err" + std::to_string(counter++) + ".txt");
     const std::string line = "BIN=" + kBin + "; cd " + temp_root().string() + " && ( " + command +
                              " ) >" + out.string() + " 2>" + err.string() + " </dev/null";
     const int status = std::system(("bash -c '" + line + "'").c_str());
-    Run r;
+    Outcome r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     r.out = slurp(out);
     r.err = slurp(err);
@@ -93,7 +93,7 @@ protected:
         for (int i = 0; i < nu; ++i)
             off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
         off.close();
-        const Run r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
+        const Outcome r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
         ASSERT_EQ(r.code, 0) << r.err;
     }
 };
@@ -103,15 +103,15 @@ protected:
 TEST(Contract, EveryToolHasHelpVersionAndUsageErrors) {
     for (const char* tool : kTools) {
         SCOPED_TRACE(tool);
-        Run help = run(std::string("$BIN/") + tool + " --help");
+        Outcome help = run(std::string("$BIN/") + tool + " --help");
         EXPECT_EQ(help.code, 0);
         EXPECT_NE(help.out.find("Usage:"), std::string::npos);
         EXPECT_NE(help.out.find("xample"), std::string::npos);
         EXPECT_TRUE(help.err.empty()) << help.err;
-        Run version = run(std::string("$BIN/") + tool + " --version");
+        Outcome version = run(std::string("$BIN/") + tool + " --version");
         EXPECT_EQ(version.code, 0);
         EXPECT_NE(version.out.find(tool), std::string::npos);
-        Run bad = run(std::string("$BIN/") + tool + " --no-such-option");
+        Outcome bad = run(std::string("$BIN/") + tool + " --no-such-option");
         EXPECT_EQ(bad.code, 2);
         EXPECT_EQ(bad.err.rfind(std::string(tool) + ": error: ", 0), 0u) << bad.err;
         EXPECT_TRUE(bad.out.empty());
@@ -122,14 +122,14 @@ TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
     std::ofstream(temp_root() / "garbage.ply") << "this is not a ply file\n";
     for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh"}) {
         SCOPED_TRACE(tool);
-        Run garbage = run(std::string("$BIN/") + tool + " garbage.ply -o never.ply");
+        Outcome garbage = run(std::string("$BIN/") + tool + " garbage.ply -o never.ply");
         EXPECT_EQ(garbage.code, 1);
         EXPECT_NE(garbage.err.find("garbage.ply"), std::string::npos) << garbage.err;
         EXPECT_EQ(line_count(garbage.err), 1) << garbage.err;
         EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
-        Run empty = run(std::string("$BIN/") + tool + " - < /dev/null");
+        Outcome empty = run(std::string("$BIN/") + tool + " - < /dev/null");
         EXPECT_EQ(empty.code, 1) << empty.err;
-        Run missing = run(std::string("$BIN/") + tool + " does-not-exist.ply");
+        Outcome missing = run(std::string("$BIN/") + tool + " does-not-exist.ply");
         EXPECT_EQ(missing.code, 1);
         EXPECT_NE(missing.err.find("does-not-exist.ply"), std::string::npos);
     }
@@ -139,7 +139,7 @@ TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
 }
 
 TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
-    Run r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > clean.ply && "
+    Outcome r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > clean.ply && "
                 "$BIN/rgbd-info --json clean.ply");
     ASSERT_EQ(r.code, 0) << r.err;
     const auto info = nlohmann::json::parse(r.out);
@@ -157,7 +157,7 @@ TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
 }
 
 TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
-    Run r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
+    Outcome r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
                 "$BIN/rgbd-mesh -o piped.ply && $BIN/rgbd-eval piped.ply --reference cap/gt/mesh.ply "
                 "--samples 50000");
     ASSERT_EQ(r.code, 0) << r.err;
@@ -166,7 +166,7 @@ TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
 }
 
 TEST_F(Pipeline, ReconstructWritesMeshAndReport) {
-    Run r = run("$BIN/rgbd-reconstruct cap -o rec.ply --report rec_report -q");
+    Outcome r = run("$BIN/rgbd-reconstruct cap -o rec.ply --report rec_report -q");
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_TRUE(fs::exists(temp_root() / "rec.ply"));
     ASSERT_TRUE(fs::exists(temp_root() / "rec_report" / "metrics.json"));
@@ -179,7 +179,7 @@ TEST_F(Pipeline, ReconstructWritesMeshAndReport) {
 TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
     fs::copy(temp_root() / "cap", temp_root() / "badrig", fs::copy_options::recursive);
     std::ofstream(temp_root() / "badrig" / "rig.json") << "{ \"format\": \"rgbd-capture\", ";
-    Run bad = run("$BIN/rgbd-cloud badrig -o bad.ply");
+    Outcome bad = run("$BIN/rgbd-cloud badrig -o bad.ply");
     EXPECT_EQ(bad.code, 1);
     EXPECT_NE(bad.err.find("rig.json"), std::string::npos) << bad.err;
     EXPECT_EQ(line_count(bad.err), 1) << bad.err;
@@ -192,18 +192,18 @@ TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
             victim = e.path();
     ASSERT_FALSE(victim.empty());
     fs::remove(victim);
-    Run missing = run("$BIN/rgbd-cloud noimage -o missing.ply");
+    Outcome missing = run("$BIN/rgbd-cloud noimage -o missing.ply");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.err.find(victim.filename().string()), std::string::npos) << missing.err;
     EXPECT_FALSE(fs::exists(temp_root() / "missing.ply"));
 
-    Run nothing = run("$BIN/rgbd-cloud no-such-folder");
+    Outcome nothing = run("$BIN/rgbd-cloud no-such-folder");
     EXPECT_EQ(nothing.code, 1);
     EXPECT_NE(nothing.err.find("no-such-folder"), std::string::npos);
 }
 
 TEST_F(Pipeline, TruncatedStreamIsAnErrorNamingTheDocument) {
-    Run r = run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
+    Outcome r = run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
                 "full.ply > cut.ply && $BIN/rgbd-clean cut.ply -o cut_clean.ply");
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("cut.ply"), std::string::npos) << r.err;
@@ -216,7 +216,7 @@ TEST_F(Pipeline, AbsurdParametersAreUsageErrors) {
                                    "rgbd-clean --convention matlab", "rgbd-cloud cap --frameset 99",
                                    "rgbd-cloud cap --z-min 3 --z-max 1", "rgbd-eval x.ply"}) {
         SCOPED_TRACE(args);
-        Run r = run("$BIN/" + args + " < /dev/null");
+        Outcome r = run("$BIN/" + args + " < /dev/null");
         EXPECT_EQ(r.code, 2) << r.err;
         EXPECT_EQ(line_count(r.err), 2) << r.err;  // the error and the --help hint
     }
