@@ -38,6 +38,7 @@ struct ViewInfo {
     int id = -1;                          ///< rgbd:view.id (-1 = unset)
     std::string sensor;                   ///< rgbd:view.sensor
     std::optional<std::int64_t> time_ns;  ///< rgbd:view.time_ns, hub time
+    std::optional<std::int64_t> frame_index;  ///< rgbd:view.frame_index, index in frames.csv
     ViewFrame frame = ViewFrame::kSensor; ///< rgbd:view.frame
     std::optional<PinholeIntrinsics> intrinsics;  ///< rgbd:camera.intrinsics (+ distortion), depth camera
     std::optional<Pose> world_from_sensor;        ///< rgbd:pose.world_from_sensor
