@@ -19,7 +19,8 @@ int main(int argc, char** argv) {
         "verdict (PASS / WARN / FAIL from its overlap and residual, and from how far it moved), "
         "printed on stderr and in --metrics. Output: the views in the world frame with their "
         "refined poses, or one merged view with --merge.";
-    spec.example = "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
+    spec.example =
+        "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
     spec.whole_stream = true;
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("merge", "emit one merged view instead of one document per view")(
@@ -41,29 +42,24 @@ int main(int argc, char** argv) {
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
-        std::vector<PointCloud> views;
-        for (auto& document : ctx.read_all_documents()) {
-            if (document.kind == io::DocumentKind::kMesh)
-                throw InputError("rgbd-align takes point views, not meshes (document " +
-                                 std::to_string(views.size()) + ")");
-            views.push_back(std::move(document.cloud));
-        }
+        std::vector<PointCloud> views = cli::read_point_views(ctx);
         if (options.fixed_view >= views.size())
             throw cli::UsageError("--fixed-view " + std::to_string(options.fixed_view) +
                                   " but the stream has " + std::to_string(views.size()) + " views");
         auto bar = ctx.progress("align");
         Report report = cli::align_stage(views, options, bar.callback());
         for (const auto& v : report["views"]) {
-            const std::string line = "view " + std::to_string(v["view"].get<int>()) + " (" +
-                                     v["sensor"].get<std::string>() + "): " +
-                                     v["verdict"].get<std::string>() + ", fitness " +
-                                     std::to_string(v["fitness"].get<double>()) + ", rmse " +
-                                     std::to_string(v["inlier_rmse_m"].get<double>() * 1000) +
-                                     " mm, moved " + std::to_string(v["rotation_change_deg"].get<double>()) +
-                                     " deg / " + std::to_string(v["translation_change_m"].get<double>() * 1000) +
-                                     " mm";
-            if (v["verdict"] == "PASS") ctx.info(line);
-            else ctx.warn(line);
+            const std::string line =
+                "view " + std::to_string(v["view"].get<int>()) + " (" +
+                v["sensor"].get<std::string>() + "): " + v["verdict"].get<std::string>() +
+                ", fitness " + std::to_string(v["fitness"].get<double>()) + ", rmse " +
+                std::to_string(v["inlier_rmse_m"].get<double>() * 1000) + " mm, moved " +
+                std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
+                std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm";
+            if (v["verdict"] == "PASS")
+                ctx.info(line);
+            else
+                ctx.warn(line);
         }
         ctx.metrics()["align"] = report;
         if (ctx.options().count("merge")) {

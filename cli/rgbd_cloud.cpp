@@ -38,7 +38,9 @@ int main(int argc, char** argv) {
         "the view's world_from_sensor pose travels in the metadata.\n\n"
         "Multi-sensor captures emit the sensors of one frame set (--frameset); single-sensor "
         "sequences (turntable, hand-held) emit every frame (--frames) as a view.";
-    spec.example = "rgbd-cloud cap/ --frameset 0 | rgbd-clean --statistical | rgbd-align | rgbd-mesh -o bust.ply";
+    spec.example =
+        "rgbd-cloud cap/ --frameset 0 | rgbd-clean --statistical | rgbd-align | rgbd-mesh -o "
+        "bust.ply";
     spec.reads_stream = false;
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
@@ -57,8 +59,7 @@ int main(int argc, char** argv) {
             "axes converge (0 = no crop; skipped when the poses do not tell a centre)");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
-        if (ctx.inputs().size() != 1)
-            throw cli::UsageError("expected exactly one capture folder");
+        if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
         const std::string root = ctx.inputs().front();
         const io::Capture capture = io::open_capture(root);
 
@@ -78,8 +79,8 @@ int main(int argc, char** argv) {
         }
         const auto jobs = cli::select_frames(
             capture, ctx.get<long long>("frameset"),
-            ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(),
-            sensors, &ctx);
+            ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), sensors,
+            &ctx);
 
         cli::ExtractionOptions extraction;
         extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
@@ -98,8 +99,8 @@ int main(int argc, char** argv) {
             if (document.cloud.empty())
                 ctx.warn("view " + std::to_string(view_id) + " (" + id + "): no points left");
             ctx.add_document_metrics(report);
-            ctx.info("view " + std::to_string(view_id) + " (" + id + "): " +
-                     std::to_string(document.cloud.size()) + " points");
+            ctx.info("view " + std::to_string(view_id) + " (" + id +
+                     "): " + std::to_string(document.cloud.size()) + " points");
             ctx.write(document);
             ++view_id;
             bar.update(static_cast<double>(view_id) / jobs.size());

@@ -1,4 +1,5 @@
-// rgbd-eval: metrics of a reconstructed mesh or cloud (and of estimated poses) against ground truth.
+// rgbd-eval: metrics of a reconstructed mesh or cloud (and of estimated poses) against ground
+// truth.
 #include <filesystem>
 #include <iostream>
 

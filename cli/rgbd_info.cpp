@@ -1,9 +1,9 @@
 // rgbd-info: a summary of capture folders, view streams, meshes and point files.
+#include <CGAL/Polygon_mesh_processing/border.h>
+
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-
-#include <CGAL/Polygon_mesh_processing/border.h>
 
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
@@ -22,7 +22,8 @@ Report bbox_of(const std::vector<Eigen::Vector3d>& points) {
         lo = lo.cwiseMin(p);
         hi = hi.cwiseMax(p);
     }
-    return {{"min_m", {lo.x(), lo.y(), lo.z()}}, {"max_m", {hi.x(), hi.y(), hi.z()}},
+    return {{"min_m", {lo.x(), lo.y(), lo.z()}},
+            {"max_m", {hi.x(), hi.y(), hi.z()}},
             {"diagonal_m", (hi - lo).norm()}};
 }
 
@@ -159,7 +160,8 @@ int main(int argc, char** argv) {
                                                                      : describe_cloud(d.cloud));
                     d = io::Document{};
                 }
-                if (docs.empty()) throw InputError(reader.name() + ": empty stream (no PLY document)");
+                if (docs.empty())
+                    throw InputError(reader.name() + ": empty stream (no PLY document)");
                 file["documents"] = docs;
             } else if (ext == ".off" || ext == ".obj") {
                 file["documents"] = Report::array({describe_mesh(io::read_mesh(input))});

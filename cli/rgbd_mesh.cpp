@@ -20,10 +20,12 @@ int main(int argc, char** argv) {
         "holes open. Vertices are coloured from the nearest measured points. -o FILE picks the "
         "format by extension (.ply binary with vertex colours, .obj, .off); without -o a mesh "
         "document goes to stdout.";
-    spec.example = "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json";
+    spec.example =
+        "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json";
     spec.whole_stream = true;
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("method", cli::po::value<std::string>()->default_value("poisson")->value_name("NAME"),
+        o.add_options()("method",
+                        cli::po::value<std::string>()->default_value("poisson")->value_name("NAME"),
                         "poisson or advancing-front")(
             "max-points", cli::po::value<std::size_t>()->default_value(60000)->value_name("N"),
             "down-sample the input to at most N points first");
@@ -37,13 +39,7 @@ int main(int argc, char** argv) {
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
-        std::vector<PointCloud> views;
-        for (auto& document : ctx.read_all_documents()) {
-            if (document.kind == io::DocumentKind::kMesh)
-                throw InputError("rgbd-mesh takes point views, not meshes (document " +
-                                 std::to_string(views.size()) + ")");
-            views.push_back(std::move(document.cloud));
-        }
+        std::vector<PointCloud> views = cli::read_point_views(ctx);
         auto bar = ctx.progress("mesh");
         Report report;
         ViewInfo info;

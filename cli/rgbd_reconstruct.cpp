@@ -5,6 +5,7 @@
 
 #include "algorithms/denoise/statistical_outliers.hpp"
 #include "algorithms/frames/depth_to_cloud.hpp"
+#include "algorithms/upsample/upsample_view.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
@@ -19,10 +20,14 @@ namespace {
 std::string html_escape(const std::string& s) {
     std::string out;
     for (char c : s) {
-        if (c == '<') out += "&lt;";
-        else if (c == '>') out += "&gt;";
-        else if (c == '&') out += "&amp;";
-        else out += c;
+        if (c == '<')
+            out += "&lt;";
+        else if (c == '>')
+            out += "&gt;";
+        else if (c == '&')
+            out += "&amp;";
+        else
+            out += c;
     }
     return out;
 }
@@ -40,7 +45,8 @@ std::string format_value(const Report& v) {
 void table_rows(std::ostringstream& html, const Report& r, const std::string& prefix) {
     for (auto it = r.begin(); it != r.end(); ++it) {
         const std::string key = prefix.empty() ? it.key() : prefix + "." + it.key();
-        if (it->is_object()) table_rows(html, *it, key);
+        if (it->is_object())
+            table_rows(html, *it, key);
         else if (!it->is_array())
             html << "<tr><td>" << html_escape(key) << "</td><td>" << html_escape(format_value(*it))
                  << "</td></tr>\n";
@@ -53,8 +59,8 @@ std::string report_html(const Report& report) {
             "</title><style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
             "td{border:1px solid #ccc;padding:2px 8px}td:last-child{text-align:right}"
             "</style></head><body>\n<h1>rgbd-reconstruct</h1>\n";
-    html << "<p>capture: " << html_escape(report["capture"].get<std::string>()) << "<br>mesh: "
-         << html_escape(report["mesh_file"].get<std::string>()) << "</p>\n";
+    html << "<p>capture: " << html_escape(report["capture"].get<std::string>())
+         << "<br>mesh: " << html_escape(report["mesh_file"].get<std::string>()) << "</p>\n";
     if (report.contains("evaluation")) {
         html << "<h2>Against the ground truth</h2>\n<table>\n";
         table_rows(html, report["evaluation"], "");
@@ -107,16 +113,20 @@ int main(int argc, char** argv) {
             "crop-radius-m", cli::po::value<double>()->default_value(0.6)->value_name("M"),
             "object extraction radius around the sensors' common centre (0 = no crop)")(
             "method", cli::po::value<std::string>()->default_value("poisson")->value_name("NAME"),
-            "surface reconstruction method (poisson or advancing-front)");
+            "surface reconstruction method (poisson or advancing-front)")(
+            "upsample", cli::po::value<int>()->default_value(0)->value_name("0|4|8"),
+            "colour-guided super-resolution per view before alignment (rgbd-upsample): 0 = off, "
+            "4 or 8 neighbours");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
         if (ctx.output_path().empty()) throw cli::UsageError("give the mesh file with -o MESH");
         const std::string root = ctx.inputs().front();
         const fs::path mesh_path = ctx.output_path();
-        const fs::path report_dir = ctx.options().count("report")
-                                        ? fs::path(ctx.get<std::string>("report"))
-                                        : fs::path(fs::path(mesh_path).replace_extension().string() + "_report");
+        const fs::path report_dir =
+            ctx.options().count("report")
+                ? fs::path(ctx.get<std::string>("report"))
+                : fs::path(fs::path(mesh_path).replace_extension().string() + "_report");
         reconstruction::ReconstructionOptions mesh_options;
         try {
             mesh_options.method = ctx.get<std::string>("method");
@@ -135,12 +145,19 @@ int main(int argc, char** argv) {
         const io::Capture capture = io::open_capture(root);
         const auto jobs = cli::select_frames(
             capture, ctx.get<long long>("frameset"),
-            ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), {}, &ctx);
+            ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), {},
+            &ctx);
         frames::CloudOptions cloud_options;
         cli::ExtractionOptions extraction;
         extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
         if (!(extraction.crop_radius_m >= 0)) throw cli::UsageError("--crop-radius-m must be >= 0");
         denoise::StatisticalOptions clean_options;
+        const int upsample_neighbors = ctx.get<int>("upsample");
+        upsample::UpsampleOptions upsample_options;
+        upsample_options.neighbors = upsample_neighbors;
+        if (upsample_neighbors != 0 && upsample_neighbors != 4 && upsample_neighbors != 8)
+            throw cli::UsageError("--upsample must be 0, 4 or 8");
+        double upsample_time = 0;
         std::vector<PointCloud> views;
         report["views"] = Report::array();
         double clean_time = 0;
@@ -149,13 +166,19 @@ int main(int argc, char** argv) {
             const auto centre = cli::object_centre(capture, jobs);
             for (const auto& [id, position] : jobs) {
                 Report v;
-                PointCloud cloud = cli::load_view(capture, id, position,
-                                                  static_cast<int>(views.size()), cloud_options,
-                                                  centre, extraction, v);
+                PointCloud cloud =
+                    cli::load_view(capture, id, position, static_cast<int>(views.size()),
+                                   cloud_options, centre, extraction, v);
                 Stopwatch clean_watch;
                 Report clean = denoise::remove_statistical_outliers(cloud, clean_options);
                 clean_time += clean_watch.seconds();
                 v["points_after_cleaning"] = cloud.size();
+                if (upsample_neighbors > 0) {
+                    Stopwatch upsample_watch;
+                    v["upsample"] = upsample::upsample_view(
+                        cloud, io::load_frame(capture, id, position), upsample_options);
+                    upsample_time += upsample_watch.seconds();
+                }
                 report["views"].push_back(v);
                 if (cloud.size() < 100)
                     throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
@@ -165,8 +188,9 @@ int main(int argc, char** argv) {
                 bar.update(static_cast<double>(views.size()) / jobs.size());
             }
         }
-        timings["clouds"] = watch.seconds() - clean_time;
+        timings["clouds"] = watch.seconds() - clean_time - upsample_time;
         timings["clean"] = clean_time;
+        timings["upsample"] = upsample_time;
         ctx.info("clouds: " + std::to_string(views.size()) + " views");
 
         // 3. alignment.
@@ -235,7 +259,8 @@ int main(int argc, char** argv) {
         io::write_text_atomic(report_dir / "metrics.json", report.dump(2) + "\n");
         io::write_text_atomic(report_dir / "index.html", report_html(report));
         ctx.metrics()["reconstruct"] = report;
-        ctx.note("mesh: " + mesh_path.string() + " (" + std::to_string(report["counts"]["mesh_faces"].get<std::size_t>()) + " faces)");
+        ctx.note("mesh: " + mesh_path.string() + " (" +
+                 std::to_string(report["counts"]["mesh_faces"].get<std::size_t>()) + " faces)");
         ctx.note("report: " + (report_dir / "index.html").string());
         if (report.contains("evaluation")) {
             const auto& s = report["evaluation"]["surface"];

@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "io/internal/text.hpp"
 #include "io/internal/atomic_file.hpp"
 #include "io/internal/mesh_soup.hpp"
 #include "io/ply_stream.hpp"
@@ -43,17 +44,7 @@ std::ifstream open_input(const fs::path& path) {
     return in;
 }
 
-std::vector<std::string_view> split(std::string_view s) {
-    std::vector<std::string_view> out;
-    std::size_t i = 0;
-    while (i < s.size()) {
-        while (i < s.size() && (s[i] == ' ' || s[i] == '\t' || s[i] == '\r')) ++i;
-        const std::size_t start = i;
-        while (i < s.size() && s[i] != ' ' && s[i] != '\t' && s[i] != '\r') ++i;
-        if (i > start) out.push_back(s.substr(start, i - start));
-    }
-    return out;
-}
+std::vector<std::string_view> split(std::string_view s) { return internal::split_whitespace(s); }
 
 bool parse_double(std::string_view s, double& v) {
     if (!s.empty() && s.front() == '+') s.remove_prefix(1);

@@ -15,6 +15,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "io/internal/text.hpp"
 #include "io/internal/mesh_soup.hpp"
 #include "toolkit/error.hpp"
 
@@ -35,17 +36,7 @@ std::string_view trim(std::string_view s) {
     return s;
 }
 
-std::vector<std::string_view> split(std::string_view s) {
-    std::vector<std::string_view> out;
-    std::size_t i = 0;
-    while (i < s.size()) {
-        while (i < s.size() && (s[i] == ' ' || s[i] == '\t' || s[i] == '\r')) ++i;
-        const std::size_t start = i;
-        while (i < s.size() && s[i] != ' ' && s[i] != '\t' && s[i] != '\r') ++i;
-        if (i > start) out.push_back(s.substr(start, i - start));
-    }
-    return out;
-}
+std::vector<std::string_view> split(std::string_view s) { return internal::split_whitespace(s); }
 
 std::optional<double> parse_double(std::string_view s) {
     double v = 0;

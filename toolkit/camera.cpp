@@ -16,7 +16,8 @@ bool Distortion::is_none() const {
 void Distortion::check() const {
     RGBD_CHECK(model == "none" || model == "brown",
                "unknown distortion model '" + model + "' (expected none or brown)");
-    RGBD_CHECK(coeffs.size() <= 5, "brown distortion takes at most 5 coefficients (k1 k2 p1 p2 k3)");
+    RGBD_CHECK(coeffs.size() <= 5,
+               "brown distortion takes at most 5 coefficients (k1 k2 p1 p2 k3)");
     for (double c : coeffs) RGBD_CHECK(std::isfinite(c), "distortion coefficient is not finite");
 }
 

@@ -3,10 +3,9 @@
 // the top-left pixel. See DESIGN.md §3 (rig.json) and ALGORITHMS.md §2.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace rgbd {
 

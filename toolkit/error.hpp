@@ -35,8 +35,8 @@ public:
 
 /// Validate a condition; throws rgbd::InputError with the message when it does not hold.
 /// Use for everything a release build must still check (CGAL preconditions vanish there).
-#define RGBD_CHECK(cond, message)                      \
-    do {                                               \
+#define RGBD_CHECK(cond, message)                       \
+    do {                                                \
         if (!(cond)) throw ::rgbd::InputError(message); \
     } while (0)
 

@@ -2,10 +2,10 @@
 // ("v:normal") properties (STYLE.md §3).
 #pragma once
 
-#include <optional>
-
 #include <CGAL/IO/Color.h>
 #include <CGAL/Surface_mesh.h>
+
+#include <optional>
 
 #include "toolkit/types.hpp"
 
@@ -28,8 +28,8 @@ inline std::optional<VertexColorMap> vertex_colors(const Mesh& mesh) {
 
 /// Adds (or returns) the vertex colour map, default grey.
 inline VertexColorMap add_vertex_colors(Mesh& mesh) {
-    return mesh.add_property_map<Mesh::Vertex_index, MeshColor>(kVertexColor,
-                                                                 MeshColor(128, 128, 128))
+    return mesh
+        .add_property_map<Mesh::Vertex_index, MeshColor>(kVertexColor, MeshColor(128, 128, 128))
         .first;
 }
 

@@ -2,12 +2,12 @@
 // DESIGN.md §4). Property names equal PLY property names; use the constants below.
 #pragma once
 
+#include <CGAL/Point_set_3.h>
+
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <CGAL/Point_set_3.h>
 
 #include "toolkit/camera.hpp"
 #include "toolkit/pose.hpp"
@@ -35,17 +35,18 @@ enum class ViewFrame { kSensor, kWorld };
 
 /// Metadata of one view (one PLY document of the stream). Serialised as `comment rgbd:` keys.
 struct ViewInfo {
-    int id = -1;                          ///< rgbd:view.id (-1 = unset)
-    std::string sensor;                   ///< rgbd:view.sensor
-    std::optional<std::int64_t> time_ns;  ///< rgbd:view.time_ns, hub time
+    int id = -1;                              ///< rgbd:view.id (-1 = unset)
+    std::string sensor;                       ///< rgbd:view.sensor
+    std::optional<std::int64_t> time_ns;      ///< rgbd:view.time_ns, hub time
     std::optional<std::int64_t> frame_index;  ///< rgbd:view.frame_index, index in frames.csv
-    ViewFrame frame = ViewFrame::kSensor; ///< rgbd:view.frame
-    std::optional<PinholeIntrinsics> intrinsics;  ///< rgbd:camera.intrinsics (+ distortion), depth camera
-    std::optional<Pose> world_from_sensor;        ///< rgbd:pose.world_from_sensor
-    int grid_width = 0;                   ///< rgbd:grid w h (0 = not organised)
+    ViewFrame frame = ViewFrame::kSensor;     ///< rgbd:view.frame
+    std::optional<PinholeIntrinsics>
+        intrinsics;                         ///< rgbd:camera.intrinsics (+ distortion), depth camera
+    std::optional<Pose> world_from_sensor;  ///< rgbd:pose.world_from_sensor
+    int grid_width = 0;                     ///< rgbd:grid w h (0 = not organised)
     int grid_height = 0;
-    std::string source;                   ///< rgbd:view.source, path of the source frame
-    std::vector<std::string> history;     ///< rgbd:history lines, oldest first
+    std::string source;                ///< rgbd:view.source, path of the source frame
+    std::vector<std::string> history;  ///< rgbd:history lines, oldest first
     /// Unknown rgbd: keys and foreign comments, verbatim (without "comment "), kept in order.
     std::vector<std::string> extra_comments;
 

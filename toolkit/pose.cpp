@@ -1,9 +1,8 @@
 #include "toolkit/pose.hpp"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-
-#include <Eigen/SVD>
 
 #include "toolkit/error.hpp"
 
@@ -36,7 +35,8 @@ Pose pose_from_4x4(const std::array<double, 16>& v) {
     RGBD_CHECK(std::abs(v[12]) < 1e-9 && std::abs(v[13]) < 1e-9 && std::abs(v[14]) < 1e-9 &&
                    std::abs(v[15] - 1.0) < 1e-9,
                "pose last row must be 0 0 0 1");
-    return pose_from_3x4({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10], v[11]});
+    return pose_from_3x4(
+        {v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10], v[11]});
 }
 
 std::array<double, 12> pose_to_3x4(const Pose& pose) {

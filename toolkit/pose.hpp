@@ -1,9 +1,9 @@
-// Rigid poses. Named target_from_source (STYLE.md §3): p_in_world = world_from_sensor * p_in_sensor.
+// Rigid poses. Named target_from_source (STYLE.md §3): p_in_world = world_from_sensor *
+// p_in_sensor.
 #pragma once
 
-#include <array>
-
 #include <Eigen/Geometry>
+#include <array>
 
 namespace rgbd {
 

@@ -4,7 +4,6 @@
 #pragma once
 
 #include <chrono>
-
 #include <nlohmann/json.hpp>
 
 namespace rgbd {

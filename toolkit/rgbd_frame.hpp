@@ -3,9 +3,8 @@
 #pragma once
 
 #include <cstdint>
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "toolkit/camera.hpp"
 #include "toolkit/pose.hpp"
@@ -27,8 +26,8 @@ struct RgbdFrame {
     std::string source;             ///< path of the depth image, for provenance
     float range_min_m = 0.0f;       ///< valid depth range of the sensor (0 = unknown)
     float range_max_m = 0.0f;
-    std::string noise_model;        ///< "kinect_v2", "kinect_v1", "sr300" or empty
-    cv::Mat mask;                   ///< optional CV_8UC1 object mask on the depth grid, 0 = background
+    std::string noise_model;  ///< "kinect_v2", "kinect_v1", "sr300" or empty
+    cv::Mat mask;             ///< optional CV_8UC1 object mask on the depth grid, 0 = background
 };
 
 }  // namespace rgbd

@@ -1,8 +1,7 @@
 #include "algorithms/frames/object_extraction.hpp"
 
-#include <cmath>
-
 #include <Eigen/Dense>
+#include <cmath>
 
 #include "toolkit/error.hpp"
 
@@ -40,7 +39,8 @@ Report crop_to_sphere(PointCloud& cloud, const Eigen::Vector3d& centre_world, do
     }
     const double r2 = radius_m * radius_m;
     auto outside = [&](PointSet::Index i) {
-        return (world_from_points * to_eigen(cloud.points.point(i)) - centre_world).squaredNorm() > r2;
+        return (world_from_points * to_eigen(cloud.points.point(i)) - centre_world).squaredNorm() >
+               r2;
     };
     std::size_t removed = 0;
     if (mark) {
@@ -51,8 +51,9 @@ Report crop_to_sphere(PointCloud& cloud, const Eigen::Vector3d& centre_world, do
                 ++removed;
             }
     } else {
-        const auto first_removed = std::stable_partition(
-            cloud.points.begin(), cloud.points.end(), [&](PointSet::Index i) { return !outside(i); });
+        const auto first_removed =
+            std::stable_partition(cloud.points.begin(), cloud.points.end(),
+                                  [&](PointSet::Index i) { return !outside(i); });
         removed = static_cast<std::size_t>(std::distance(first_removed, cloud.points.end()));
         if (removed > 0) {
             cloud.points.remove(first_removed, cloud.points.end());

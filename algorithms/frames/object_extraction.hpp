@@ -5,10 +5,9 @@
 // See also: algorithms/frames/depth_to_cloud.hpp (the depth window of §3 step 1).
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/pose.hpp"

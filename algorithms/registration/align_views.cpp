@@ -116,12 +116,33 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                        " is in its sensor frame but has no world_from_sensor pose");
     }
 
+    // Poses are estimated on measured points only (ALGORITHMS.md §0.3 order note): copies of
+    // the views that carry super-resolved points (prop::kSynthetic = 1) without them.
+    std::vector<PointCloud> measured_copies;
+    measured_copies.reserve(nv);
+    std::vector<const PointCloud*> measured(nv);
+    for (std::size_t v = 0; v < nv; ++v) {
+        measured[v] = &views[v];
+        const auto synthetic = views[v].flag(prop::kSynthetic);
+        if (!synthetic) continue;
+        PointCloud& copy = measured_copies.emplace_back(views[v]);
+        const auto flag = *copy.flag(prop::kSynthetic);
+        copy.points.remove(std::partition(copy.points.begin(), copy.points.end(),
+                                          [&](PointSet::Index i) { return flag[i] == 0; }),
+                           copy.points.end());
+        copy.points.collect_garbage();
+        RGBD_CHECK(copy.size() >= 3,
+                   "align_views: " + view_name(views[v]) + " has fewer than 3 measured points");
+        measured[v] = &copy;
+    }
+
     // Scale: ŝ = median of the views' robust spacings (2000-point samples keep this cheap).
     MultiViewResult result;
     double spacing = options.icp.spacing_m;
     if (spacing <= 0) {
         std::vector<double> s(nv);
-        for (std::size_t v = 0; v < nv; ++v) s[v] = sampling::robust_spacing(views[v].points, 2000);
+        for (std::size_t v = 0; v < nv; ++v)
+            s[v] = sampling::robust_spacing(measured[v]->points, 2000);
         std::nth_element(s.begin(), s.begin() + nv / 2, s.end());
         spacing = s[nv / 2];
     }
@@ -130,10 +151,10 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     if (options.voxel_m <= 0 && options.max_points_per_view > 0) {
         // On a surface, a voxel of edge e keeps about (ŝ / e)^2 of the points.
         std::vector<std::size_t> sizes;
-        for (const PointCloud& v : views) sizes.push_back(v.size());
+        for (const PointCloud* v : measured) sizes.push_back(v->size());
         std::nth_element(sizes.begin(), sizes.begin() + nv / 2, sizes.end());
-        const double ratio = static_cast<double>(sizes[nv / 2]) /
-                             static_cast<double>(options.max_points_per_view);
+        const double ratio =
+            static_cast<double>(sizes[nv / 2]) / static_cast<double>(options.max_points_per_view);
         if (ratio > 1.0) {
             voxel = std::max(voxel, spacing * std::sqrt(ratio));
             spacing = std::max(spacing, voxel / options.voxel_factor);
@@ -153,7 +174,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     nopt.k = options.normal_k;
     bool all_oriented = true;
     for (std::size_t v = 0; v < nv; ++v) {
-        PointCloud down = sampling::voxel_downsample(views[v], voxel);
+        PointCloud down = sampling::voxel_downsample(*measured[v], voxel);
         RGBD_CHECK(down.size() >= 3, "align_views: " + view_name(views[v]) +
                                          " has fewer than 3 points after down-sampling");
         const Report nrep = normals::estimate_normals(down, nopt);

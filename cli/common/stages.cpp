@@ -2,7 +2,6 @@
 
 #include <filesystem>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 #include "algorithms/frames/object_extraction.hpp"
@@ -91,8 +90,8 @@ std::optional<Eigen::Vector3d> object_centre(
     return frames::axes_convergence_point(poses);
 }
 
-PointCloud load_view(const io::Capture& capture, const std::string& sensor_id,
-                     std::size_t position, int view_id, const frames::CloudOptions& cloud_options,
+PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
+                     int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,
                      const ExtractionOptions& extraction, Report& report) {
     const RgbdFrame frame = io::load_frame(capture, sensor_id, position);
@@ -109,6 +108,17 @@ PointCloud load_view(const io::Capture& capture, const std::string& sensor_id,
     return cloud;
 }
 
+std::vector<PointCloud> read_point_views(Context& context) {
+    std::vector<PointCloud> views;
+    for (auto& document : context.read_all_documents()) {
+        if (document.kind == io::DocumentKind::kMesh)
+            throw InputError(context.spec().name + " takes point views, not meshes (document " +
+                             std::to_string(views.size() + 1) + ")");
+        views.push_back(std::move(document.cloud));
+    }
+    return views;
+}
+
 namespace {
 
 /// Normals oriented towards each view's own sensor, for views that have none.
@@ -116,7 +126,8 @@ void ensure_view_normals(std::vector<PointCloud>& views) {
     normals::NormalOptions options;
     options.orientation = normals::NormalOrientation::kAuto;
     for (auto& view : views)
-        if (!view.points.has_normal_map() && view.size() >= 3) normals::estimate_normals(view, options);
+        if (!view.points.has_normal_map() && view.size() >= 3)
+            normals::estimate_normals(view, options);
 }
 
 }  // namespace
@@ -124,7 +135,8 @@ void ensure_view_normals(std::vector<PointCloud>& views) {
 Report align_stage(std::vector<PointCloud>& views, const registration::MultiViewOptions& options,
                    const Progress& progress) {
     ensure_view_normals(views);
-    const registration::MultiViewResult result = registration::align_views(views, options, progress);
+    const registration::MultiViewResult result =
+        registration::align_views(views, options, progress);
     registration::apply_alignment(views, result);
     Report report = result.to_json();
     for (std::size_t i = 0; i < views.size() && i < report["views"].size(); ++i)
@@ -138,8 +150,8 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
     RGBD_CHECK(!views.empty(), "no views to mesh");
     ensure_view_normals(views);
     for (auto& view : views) to_world_frame(view);
-    PointCloud merged = views.size() == 1 ? std::move(views.front())
-                                          : sampling::merge_views(std::move(views));
+    PointCloud merged =
+        views.size() == 1 ? std::move(views.front()) : sampling::merge_views(std::move(views));
     if (!merged.points.has_normal_map()) {
         normals::NormalOptions normal_options;
         normal_options.orientation = normals::NormalOrientation::kMst;
@@ -251,8 +263,8 @@ Report evaluate_poses(const std::vector<PointCloud>& views, const std::string& g
         std::string key = v.view.sensor;
         if (!truth.count(key) && v.view.frame_index)
             key += "/" + std::to_string(*v.view.frame_index);
-        RGBD_CHECK(truth.count(key),
-                   gt_path + ": no true pose for view " + std::to_string(v.view.id) + " (" + key + ")");
+        RGBD_CHECK(truth.count(key), gt_path + ": no true pose for view " +
+                                         std::to_string(v.view.id) + " (" + key + ")");
         estimated[key] = *v.view.world_from_sensor;
     }
     std::map<std::string, Pose> truth_subset;

@@ -42,10 +42,14 @@ std::optional<Eigen::Vector3d> object_centre(
 
 /// Loads one selected frame as a view: depth_to_cloud, then the world-space crop around
 /// `centre` when given. Fills view.id and view.frame_index; the report gets the counts.
-PointCloud load_view(const io::Capture& capture, const std::string& sensor_id,
-                     std::size_t position, int view_id, const frames::CloudOptions& cloud_options,
+PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
+                     int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,
                      const ExtractionOptions& extraction, Report& report);
+
+/// Reads every document of the tool's inputs as point views; a mesh document is an
+/// InputError naming the tool and the document.
+std::vector<PointCloud> read_point_views(Context& context);
 
 /// Registers views (sensor frame, initial pose in view.world_from_sensor) to each other:
 /// estimates normals oriented to the sensor where missing, refines the poses jointly, then

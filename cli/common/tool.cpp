@@ -1,5 +1,6 @@
 #include "cli/common/tool.hpp"
 
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -8,8 +9,6 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
-
-#include <tbb/global_control.h>
 
 #include "toolkit/error.hpp"
 
@@ -46,7 +45,8 @@ Progress ProgressBar::callback() {
 Context::Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::string> inputs,
                  std::vector<std::string> args)
     : spec_(spec), vm_(std::move(vm)), inputs_(std::move(inputs)), args_(std::move(args)) {
-    verbosity_ = vm_.count("verbose") ? static_cast<int>(vm_["verbose"].as<std::vector<bool>>().size()) : 0;
+    verbosity_ =
+        vm_.count("verbose") ? static_cast<int>(vm_["verbose"].as<std::vector<bool>>().size()) : 0;
     if (vm_.count("quiet")) verbosity_ = -1;
     seed_ = vm_["seed"].as<std::uint64_t>();
     if (vm_.count("output")) {
@@ -127,9 +127,9 @@ std::ostream& Context::out() {
             const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
             RGBD_CHECK_AS(IoError, fs::is_directory(dir),
                           output_path_ + ": folder " + dir.string() + " does not exist");
-            temp_path_ = (dir / ("." + target.filename().string() + ".tmp" +
-                                 std::to_string(::getpid())))
-                             .string();
+            temp_path_ =
+                (dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid())))
+                    .string();
             file_out_ = std::make_unique<std::ofstream>(temp_path_, std::ios::binary);
             RGBD_CHECK_AS(IoError, file_out_->good(), output_path_ + ": cannot open for writing");
         }
@@ -157,7 +157,9 @@ void Context::write(io::Document& document) {
     ++documents_written_;
 }
 
-void Context::add_document_metrics(Report result) { metrics_["documents"].push_back(std::move(result)); }
+void Context::add_document_metrics(Report result) {
+    metrics_["documents"].push_back(std::move(result));
+}
 
 void Context::commit() {
     if (file_out_) {
@@ -204,7 +206,8 @@ std::vector<long long> parse_range(const std::string& text, long long count) {
     std::string item;
     std::vector<std::string> fields;
     while (std::getline(ss, item, ':')) fields.push_back(item);
-    if (text.empty() || fields.empty() || fields.size() > 3 || text.back() == ':' && fields.size() == 3)
+    if (text.empty() || fields.empty() || fields.size() > 3 ||
+        text.back() == ':' && fields.size() == 3)
         throw UsageError("bad range '" + text + "' (expected N or A:B[:STEP])");
     auto number = [&](const std::string& s, long long fallback) -> long long {
         if (s.empty()) return fallback;
@@ -271,16 +274,17 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
     po::options_description tool_options("Options");
     if (spec.add_options) spec.add_options(tool_options);
     po::options_description common("Common options");
-    common.add_options()("help,h", "print this help and exit")("version", "print the version and exit")(
+    common.add_options()("help,h", "print this help and exit")("version",
+                                                               "print the version and exit")(
         "output,o", po::value<std::string>()->value_name("FILE"),
         spec.writes_stream ? "output file (default: stdout; - = stdout)" : "output file")(
         "metrics", po::value<std::string>()->value_name("FILE"),
         "write a JSON object with the run's results (- = stdout, only with -o FILE)")(
         "threads", po::value<int>()->default_value(0)->value_name("N"),
         "worker threads (0 = all cores)")(
-        "seed", po::value<std::uint64_t>()->default_value(0)->value_name("N"),
-        "random seed")("verbose,v", po::value<std::vector<bool>>()->zero_tokens()->composing(),
-                       "more messages (repeatable)")("quiet,q", "only errors")(
+        "seed", po::value<std::uint64_t>()->default_value(0)->value_name("N"), "random seed")(
+        "verbose,v", po::value<std::vector<bool>>()->zero_tokens()->composing(),
+        "more messages (repeatable)")("quiet,q", "only errors")(
         "debug", "let exceptions escape (for a debugger)");
     po::options_description hidden;
     hidden.add_options()("input", po::value<std::vector<std::string>>(), "inputs");
@@ -304,7 +308,8 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
 
     po::variables_map vm;
     try {
-        po::store(po::command_line_parser(argc, argv).options(all).positional(positional).run(), vm);
+        po::store(po::command_line_parser(argc, argv).options(all).positional(positional).run(),
+                  vm);
         if (vm.count("help")) {
             std::cout << help_text(spec, visible);
             return 0;

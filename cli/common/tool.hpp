@@ -4,14 +4,13 @@
 // Modelled on PDAL's Kernel (parse, run, catch-all, exit codes).
 #pragma once
 
+#include <boost/program_options.hpp>
 #include <functional>
 #include <iosfwd>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <boost/program_options.hpp>
 
 #include "io/ply_stream.hpp"
 #include "toolkit/progress.hpp"
@@ -31,13 +30,14 @@ public:
 
 /// What a tool declares about itself.
 struct ToolSpec {
-    std::string name;         ///< "rgbd-clean"
-    std::string usage;        ///< "rgbd-clean [options] [FILE...]"
-    std::string description;  ///< one paragraph
-    std::string example;      ///< an example pipeline
-    bool writes_stream = true;    ///< writes a binary PLY stream / mesh to stdout by default
-    bool reads_stream = true;     ///< positional inputs are PLY streams (none or - = stdin)
-    bool whole_stream = false;    ///< reads the whole stream before writing ("reads the whole stream")
+    std::string name;           ///< "rgbd-clean"
+    std::string usage;          ///< "rgbd-clean [options] [FILE...]"
+    std::string description;    ///< one paragraph
+    std::string example;        ///< an example pipeline
+    bool writes_stream = true;  ///< writes a binary PLY stream / mesh to stdout by default
+    bool reads_stream = true;   ///< positional inputs are PLY streams (none or - = stdin)
+    bool whole_stream =
+        false;  ///< reads the whole stream before writing ("reads the whole stream")
     std::function<void(po::options_description&)> add_options;  ///< tool-specific options
 };
 
@@ -77,7 +77,9 @@ public:
     T get(const std::string& name) const {
         return vm_[name].as<T>();
     }
-    bool has(const std::string& name) const { return vm_.count(name) > 0 && !vm_[name].defaulted(); }
+    bool has(const std::string& name) const {
+        return vm_.count(name) > 0 && !vm_[name].defaulted();
+    }
     const std::vector<std::string>& inputs() const { return inputs_; }
     int verbosity() const { return verbosity_; }
     std::uint64_t seed() const { return seed_; }

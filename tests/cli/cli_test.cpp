@@ -1,16 +1,15 @@
 // Contract tests of every tool (STYLE.md §8): --help, --version, exit codes 0/1/2, one-line
 // errors naming the file, no partial output, stdout purity, metadata through a chain, and the
 // pipeline end to end on a small synthetic capture rendered by rgbd-synth.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 namespace fs = std::filesystem;
 
@@ -60,8 +59,8 @@ int line_count(const std::string& s) {
     return n;
 }
 
-const char* kTools[] = {"rgbd-cloud", "rgbd-clean", "rgbd-align", "rgbd-mesh",
-                        "rgbd-eval",  "rgbd-reconstruct", "rgbd-info", "rgbd-synth"};
+const char* kTools[] = {"rgbd-cloud", "rgbd-clean",       "rgbd-align", "rgbd-mesh",
+                        "rgbd-eval",  "rgbd-reconstruct", "rgbd-info",  "rgbd-synth"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {
@@ -93,7 +92,8 @@ protected:
         for (int i = 0; i < nu; ++i)
             off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
         off.close();
-        const Outcome r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
+        const Outcome r =
+            run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
         ASSERT_EQ(r.code, 0) << r.err;
     }
 };
@@ -139,8 +139,9 @@ TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
 }
 
 TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
-    Outcome r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > clean.ply && "
-                "$BIN/rgbd-info --json clean.ply");
+    Outcome r =
+        run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > clean.ply && "
+            "$BIN/rgbd-info --json clean.ply");
     ASSERT_EQ(r.code, 0) << r.err;
     const auto info = nlohmann::json::parse(r.out);
     const auto& docs = info[0]["documents"];
@@ -157,9 +158,10 @@ TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
 }
 
 TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
-    Outcome r = run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
-                "$BIN/rgbd-mesh -o piped.ply && $BIN/rgbd-eval piped.ply --reference cap/gt/mesh.ply "
-                "--samples 50000");
+    Outcome r =
+        run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
+            "$BIN/rgbd-mesh -o piped.ply && $BIN/rgbd-eval piped.ply --reference cap/gt/mesh.ply "
+            "--samples 50000");
     ASSERT_EQ(r.code, 0) << r.err;
     const auto m = nlohmann::json::parse(r.out);
     EXPECT_GT(m["surface"]["fscore_5mm"].get<double>(), 0.9) << r.out;
@@ -203,8 +205,9 @@ TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
 }
 
 TEST_F(Pipeline, TruncatedStreamIsAnErrorNamingTheDocument) {
-    Outcome r = run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
-                "full.ply > cut.ply && $BIN/rgbd-clean cut.ply -o cut_clean.ply");
+    Outcome r =
+        run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
+            "full.ply > cut.ply && $BIN/rgbd-clean cut.ply -o cut_clean.ply");
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("cut.ply"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("document"), std::string::npos) << r.err;

@@ -1,14 +1,14 @@
 // Enforces the dependency rules of STYLE.md §2 on the source tree: which top-level folder may
 // include which, algorithms/internal stays inside algorithms/, and public algorithm headers
 // include no CGAL headers.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <regex>
 #include <set>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace fs = std::filesystem;
 
@@ -45,7 +45,8 @@ std::vector<fs::path> sources_under(const fs::path& dir) {
     if (!fs::exists(dir)) return files;
     for (const auto& e : fs::recursive_directory_iterator(dir)) {
         const auto ext = e.path().extension();
-        if (e.is_regular_file() && (ext == ".hpp" || ext == ".cpp" || ext == ".h")) files.push_back(e.path());
+        if (e.is_regular_file() && (ext == ".hpp" || ext == ".cpp" || ext == ".h"))
+            files.push_back(e.path());
     }
     return files;
 }

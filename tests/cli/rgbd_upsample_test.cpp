@@ -1,0 +1,158 @@
+// Contract tests of rgbd-upsample (STYLE.md §8): help, exit codes, the capture folder found
+// from rgbd:view.source or --capture, a missing colour image (one-line error naming the file,
+// no partial output), a view without grid, and the point count on a rendered capture.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kBin = RGBD_BINARY_DIR;
+
+struct Outcome {
+    int code = -1;
+    std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+fs::path temp_root() {
+    static const fs::path root = [] {
+        fs::path p =
+            fs::temp_directory_path() / ("rgbd_upsample_test_" + std::to_string(::getpid()));
+        fs::create_directories(p);
+        return p;
+    }();
+    return root;
+}
+
+Outcome run(const std::string& command) {
+    static int counter = 0;
+    const fs::path out = temp_root() / ("out" + std::to_string(counter) + ".txt");
+    const fs::path err = temp_root() / ("err" + std::to_string(counter++) + ".txt");
+    const std::string line = "BIN=" + kBin + "; cd " + temp_root().string() + " && ( " + command +
+                             " ) >" + out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(("bash -c '" + line + "'").c_str());
+    Outcome r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+int line_count(const std::string& s) {
+    int n = 0;
+    for (char c : s) n += c == '\n';
+    return n;
+}
+
+/// A 2-sensor capture of a sphere (OFF), rendered once, and its cleaned view stream.
+class Upsample : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        if (fs::exists(temp_root() / "views.ply")) return;
+        std::ofstream off(temp_root() / "ball.off");
+        const int nu = 40, nv = 20;
+        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (2 * nu * (nv - 1)) << " 0\n0 0.2 0\n";
+        for (int j = 1; j < nv; ++j)
+            for (int i = 0; i < nu; ++i) {
+                const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
+                off << 0.2 * std::sin(th) * std::cos(ph) << " " << 0.2 * std::cos(th) << " "
+                    << 0.2 * std::sin(th) * std::sin(ph) << "\n";
+            }
+        off << "0 -0.2 0\n";
+        const int south = nu * (nv - 1) + 1;
+        auto id = [&](int j, int i) { return 1 + (j - 1) * nu + (i % nu); };
+        for (int i = 0; i < nu; ++i) off << "3 0 " << id(1, i + 1) << " " << id(1, i) << "\n";
+        for (int j = 1; j < nv - 1; ++j)
+            for (int i = 0; i < nu; ++i) {
+                off << "3 " << id(j, i) << " " << id(j, i + 1) << " " << id(j + 1, i + 1) << "\n";
+                off << "3 " << id(j, i) << " " << id(j + 1, i + 1) << " " << id(j + 1, i) << "\n";
+            }
+        for (int i = 0; i < nu; ++i)
+            off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
+        off.close();
+        Outcome r = run("$BIN/rgbd-synth ball.off -o cap --sensors 2 --height-m 0.4 -q");
+        ASSERT_EQ(r.code, 0) << r.err;
+        r = run("$BIN/rgbd-cloud cap -o views.ply");
+        ASSERT_EQ(r.code, 0) << r.err;
+    }
+};
+
+}  // namespace
+
+TEST_F(Upsample, HelpDocumentsOptionsAndCaptureLookup) {
+    const Outcome help = run("$BIN/rgbd-upsample --help");
+    EXPECT_EQ(help.code, 0);
+    for (const char* word : {"--neighbors", "--midpoints", "--capture", "view.source", "Example"})
+        EXPECT_NE(help.out.find(word), std::string::npos) << word;
+    EXPECT_TRUE(help.err.empty());
+    EXPECT_EQ(run("$BIN/rgbd-upsample --version").code, 0);
+}
+
+TEST_F(Upsample, UsageErrorsExitTwo) {
+    for (const char* args : {"--neighbors 5", "--sigma-color -1", "--no-such-option"}) {
+        const Outcome r = run(std::string("$BIN/rgbd-upsample views.ply -o never.ply ") + args);
+        EXPECT_EQ(r.code, 2) << args << r.err;
+        EXPECT_EQ(r.err.rfind("rgbd-upsample: error: ", 0), 0u) << r.err;
+        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+    }
+}
+
+TEST_F(Upsample, AddsPointsFromSourceOrCapture) {
+    for (const char* args : {"", "--capture cap", "--neighbors 4", "--midpoints"}) {
+        SCOPED_TRACE(args);
+        const Outcome r =
+            run(std::string("$BIN/rgbd-upsample views.ply -o up.ply --metrics m.json ") + args);
+        ASSERT_EQ(r.code, 0) << r.err;
+        EXPECT_GT(fs::file_size(temp_root() / "up.ply"),
+                  2 * fs::file_size(temp_root() / "views.ply"));
+        EXPECT_NE(slurp(temp_root() / "m.json").find("\"added\""), std::string::npos);
+        const Outcome info = run("$BIN/rgbd-info up.ply");
+        EXPECT_EQ(info.code, 0) << info.err;
+        EXPECT_NE(info.out.find("synthetic"), std::string::npos) << info.out;
+    }
+}
+
+TEST_F(Upsample, MissingColourImageIsAOneLineErrorAndNoOutput) {
+    fs::remove_all(temp_root() / "cap2");
+    fs::copy(temp_root() / "cap", temp_root() / "cap2", fs::copy_options::recursive);
+    fs::path victim;
+    for (const auto& e : fs::recursive_directory_iterator(temp_root() / "cap2"))
+        if (e.path().parent_path().filename() == "color") victim = e.path();
+    ASSERT_FALSE(victim.empty());
+    fs::remove(victim);
+    const Outcome r = run("$BIN/rgbd-upsample views.ply --capture cap2 -o never.ply");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(victim.filename().string()), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+    const Outcome nocap = run("$BIN/rgbd-upsample views.ply --capture no-such-dir -o never.ply");
+    EXPECT_EQ(nocap.code, 1);
+    EXPECT_NE(nocap.err.find("no-such-dir"), std::string::npos) << nocap.err;
+}
+
+TEST_F(Upsample, ViewWithoutGridIsAnError) {
+    std::ofstream(temp_root() / "flat.ply")
+        << "ply\nformat ascii 1.0\nelement vertex 3\n"
+           "property float x\nproperty float y\nproperty float z\n"
+           "end_header\n0 0 1\n1 0 1\n0 1 1\n";
+    const Outcome r = run("$BIN/rgbd-upsample flat.ply -o never.ply");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("grid"), std::string::npos) << r.err;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+}
