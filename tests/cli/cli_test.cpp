@@ -59,8 +59,8 @@ int line_count(const std::string& s) {
     return n;
 }
 
-const char* kTools[] = {"rgbd-cloud", "rgbd-clean",       "rgbd-align", "rgbd-mesh",
-                        "rgbd-eval",  "rgbd-reconstruct", "rgbd-info",  "rgbd-synth"};
+const char* kTools[] = {"rgbd-cloud",       "rgbd-clean", "rgbd-align", "rgbd-mesh",    "rgbd-eval",
+                        "rgbd-reconstruct", "rgbd-info",  "rgbd-synth", "rgbd-upsample"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {
