@@ -1,0 +1,58 @@
+// Runs built tools from contract tests: a shell command line in a per-process scratch folder,
+// with $BIN pointing at the tools, capturing exit code, stdout and stderr.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace rgbd::test {
+
+struct Outcome {
+    int code = -1;
+    std::string out, err;
+};
+
+inline std::string slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+inline int line_count(const std::string& s) {
+    int n = 0;
+    for (char c : s) n += c == '\n';
+    return n;
+}
+
+/// A scratch folder per test process: temp/<prefix>_<pid>.
+inline std::filesystem::path scratch_dir(const std::string& prefix) {
+    std::filesystem::path p =
+        std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(p);
+    return p;
+}
+
+/// Runs `command` with bash in `dir` (BIN = the tools' folder, stdin = /dev/null).
+inline Outcome run_in(const std::filesystem::path& dir, const std::string& command) {
+    static int counter = 0;
+    const std::filesystem::path out = dir / ("out" + std::to_string(counter) + ".txt");
+    const std::filesystem::path err = dir / ("err" + std::to_string(counter++) + ".txt");
+    const std::string line = "BIN=" + std::string(RGBD_BINARY_DIR) + "; cd " + dir.string() +
+                             " && ( " + command + " ) >" + out.string() + " 2>" + err.string() +
+                             " </dev/null";
+    const int status = std::system(("bash -c '" + line + "'").c_str());
+    Outcome r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+}  // namespace rgbd::test
