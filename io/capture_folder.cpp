@@ -60,6 +60,26 @@ std::vector<std::string> split_csv(const std::string& line) {
     return out;
 }
 
+/// Calls row(cells, bad) for every non-blank line after the header of a csv file; `bad(why)`
+/// fails naming the file and the line. Rows must have `columns` cells.
+template <typename Row>
+void for_each_csv_row(std::istream& in, const fs::path& path, std::size_t columns, Row&& row) {
+    std::string line;
+    std::size_t number = 1;
+    while (std::getline(in, line)) {
+        ++number;
+        if (trim(line).empty()) continue;
+        const auto cells = split_csv(line);
+        const auto bad = [&](const std::string& why) {
+            fail(path, "line " + std::to_string(number) + ": " + why);
+        };
+        if (cells.size() != columns)
+            bad("expected " + std::to_string(columns) + " columns, got " +
+                std::to_string(cells.size()));
+        row(cells, bad);
+    }
+}
+
 std::vector<std::string> split_ws(const std::string& line) {
     std::istringstream s(line);
     std::vector<std::string> out;
@@ -304,40 +324,31 @@ std::vector<FrameRecord> read_frames_csv(const fs::path& path) {
     if (!std::equal(base.begin(), base.end(), header.begin()))
         fail(path, "header must start with index,time_ns,depth,color");
     std::vector<FrameRecord> frames;
-    std::size_t number = 1;
-    while (std::getline(in, line)) {
-        ++number;
-        if (trim(line).empty()) continue;
-        const auto cells = split_csv(line);
-        const auto bad = [&](const std::string& why) {
-            fail(path, "line " + std::to_string(number) + ": " + why);
-        };
-        if (cells.size() != header.size())
-            bad("expected " + std::to_string(header.size()) + " columns, got " +
-                std::to_string(cells.size()));
-        FrameRecord r;
-        if (!to_int64(cells[0], r.index)) bad("bad index '" + cells[0] + "'");
-        if (!to_int64(cells[1], r.time_ns)) bad("bad time_ns '" + cells[1] + "'");
-        r.depth = cells[2];
-        r.color = cells[3];
-        if (r.depth.empty()) bad("empty depth path");
-        if (poses) {
-            const bool empty = std::all_of(cells.begin() + 4, cells.end(),
-                                           [](const std::string& c) { return c.empty(); });
-            if (!empty) {
-                std::array<double, 12> m{};
-                for (std::size_t k = 0; k < 12; ++k)
-                    if (!to_double(cells[4 + k], m[k]) || !std::isfinite(m[k]))
-                        bad("bad pose value '" + cells[4 + k] + "'");
-                try {
-                    r.world_from_depth = exact_pose(m);
-                } catch (const InputError& e) {
-                    bad(std::string("pose is not rigid: ") + e.what());
+    for_each_csv_row(
+        in, path, header.size(), [&](const std::vector<std::string>& cells, const auto& bad) {
+            FrameRecord r;
+            if (!to_int64(cells[0], r.index)) bad("bad index '" + cells[0] + "'");
+            if (!to_int64(cells[1], r.time_ns)) bad("bad time_ns '" + cells[1] + "'");
+            r.depth = cells[2];
+            r.color = cells[3];
+            if (r.depth.empty()) bad("empty depth path");
+            if (poses) {
+                const bool empty = std::all_of(cells.begin() + 4, cells.end(),
+                                               [](const std::string& c) { return c.empty(); });
+                if (!empty) {
+                    std::array<double, 12> m{};
+                    for (std::size_t k = 0; k < 12; ++k)
+                        if (!to_double(cells[4 + k], m[k]) || !std::isfinite(m[k]))
+                            bad("bad pose value '" + cells[4 + k] + "'");
+                    try {
+                        r.world_from_depth = exact_pose(m);
+                    } catch (const InputError& e) {
+                        bad(std::string("pose is not rigid: ") + e.what());
+                    }
                 }
             }
-        }
-        frames.push_back(std::move(r));
-    }
+            frames.push_back(std::move(r));
+        });
     return frames;
 }
 
@@ -359,29 +370,20 @@ std::vector<FrameSet> read_framesets_csv(const fs::path& path, const Rig& rig) {
         column_of_sensor[s] = c;
     }
     std::vector<FrameSet> sets;
-    std::size_t number = 1;
-    while (std::getline(in, line)) {
-        ++number;
-        if (trim(line).empty()) continue;
-        const auto cells = split_csv(line);
-        const auto bad = [&](const std::string& why) {
-            fail(path, "line " + std::to_string(number) + ": " + why);
-        };
-        if (cells.size() != header.size())
-            bad("expected " + std::to_string(header.size()) + " columns, got " +
-                std::to_string(cells.size()));
-        FrameSet set;
-        if (!to_int64(cells[0], set.set) || !to_int64(cells[1], set.time_ns) ||
-            !to_int64(cells[2], set.spread_ns))
-            bad("bad number");
-        for (std::size_t s = 0; s < rig.sensors.size(); ++s) {
-            std::int64_t f = -1;
-            if (column_of_sensor[s] != 0 && !to_int64(cells[column_of_sensor[s]], f))
-                bad("bad frame index '" + cells[column_of_sensor[s]] + "'");
-            set.frames.push_back(f);
-        }
-        sets.push_back(std::move(set));
-    }
+    for_each_csv_row(
+        in, path, header.size(), [&](const std::vector<std::string>& cells, const auto& bad) {
+            FrameSet set;
+            if (!to_int64(cells[0], set.set) || !to_int64(cells[1], set.time_ns) ||
+                !to_int64(cells[2], set.spread_ns))
+                bad("bad number");
+            for (std::size_t s = 0; s < rig.sensors.size(); ++s) {
+                std::int64_t f = -1;
+                if (column_of_sensor[s] != 0 && !to_int64(cells[column_of_sensor[s]], f))
+                    bad("bad frame index '" + cells[column_of_sensor[s]] + "'");
+                set.frames.push_back(f);
+            }
+            sets.push_back(std::move(set));
+        });
     return sets;
 }
 
