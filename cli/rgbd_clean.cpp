@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
             "--distance: robust standard deviations of the normalised kNN distance that are kept")(
             "no-pass-a", "--distance: skip the grid support and speckle tests")(
             "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
-            "beta", cli::po::value<double>()->default_value(0.3)->value_name("X"),
+            "beta", cli::po::value<double>()->default_value(0.2)->value_name("X"),
             "--density: keep a point when its density is at least X times the expected one")(
             "reference", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
             "--density: expected density from the sensors (views' cameras), local (median of "

@@ -242,9 +242,25 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         if (m >= 2) {
             std::vector<Eigen::Vector3d> pts(m);
             for (std::size_t a = 0; a < m; ++a) pts[a] = world[alive[a]];
-            PointSet sample;
-            for (const auto& p : pts) sample.insert(to_point(p));
-            const double spacing = sampling::robust_spacing(sample, 10000, options.seed);
+            // The spacing of one view (median over the views): the merged cloud's spacing
+            // shrinks with every interleaved view and would cut the surface into pieces.
+            std::vector<double> spacings;
+            for (std::size_t v = 0, first = 0; v < gathered.size(); ++v) {
+                const std::size_t count = gathered[v].xyz.size();
+                if (count >= 10) {
+                    PointSet sample;
+                    for (std::size_t i = first; i < first + count; ++i)
+                        sample.insert(to_point(world[i]));
+                    spacings.push_back(sampling::robust_spacing(sample, 10000, options.seed));
+                }
+                first += count;
+            }
+            if (spacings.empty()) {
+                PointSet sample;
+                for (const auto& p : pts) sample.insert(to_point(p));
+                spacings.push_back(sampling::robust_spacing(sample, 10000, options.seed));
+            }
+            const double spacing = detail::median_of(spacings);
             const double eps = options.cluster_spacing * spacing;
             report["spacing_m"] = spacing;
             report["cluster_eps_m"] = eps;

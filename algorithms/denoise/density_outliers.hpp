@@ -49,7 +49,7 @@ struct DensityOptions {
     /// Neighbours of the local reference density (kLocal).
     int k_ref = 64;
     /// Keep a point when measured >= beta * expected density.
-    double beta = 0.3;
+    double beta = 0.2;
     /// Cluster pass: link distance as a multiple of the robust spacing s_hat (0 = no pass).
     double cluster_spacing = 3.0;
     /// Cluster pass: components smaller than this share of the survivors go (the largest stays).
