@@ -1,50 +1,122 @@
 // rgbd-clean: noise removal on a view stream.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "algorithms/denoise/density_outliers.hpp"
+#include "algorithms/denoise/distance_outliers.hpp"
 #include "algorithms/denoise/statistical_outliers.hpp"
 #include "cli/common/tool.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
 
+namespace {
+
+enum class Method { kAuto, kDistance, kDensity, kStatistical, kRadius };
+
+}  // namespace
+
 int main(int argc, char** argv) {
     cli::ToolSpec spec;
     spec.name = "rgbd-clean";
-    spec.usage = "rgbd-clean [--statistical | --radius] [options] [FILE...] > cleaned.ply";
+    spec.usage =
+        "rgbd-clean [--distance | --density | --statistical | --radius] [options] [FILE...] > "
+        "cleaned.ply";
     spec.description =
-        "Removes noise points from every view of a stream, one view at a time. --statistical "
-        "(the default) is statistical outlier removal with the exact semantics of Open3D's "
-        "remove_statistical_outlier (or PCL's StatisticalOutlierRemoval with --convention pcl): "
-        "a point goes when its mean distance to its k nearest neighbours exceeds the mean of that "
-        "value over the view plus --std-ratio standard deviations. --radius removes points with "
-        "too few neighbours within a radius given in metres or as a multiple of the view's "
-        "robust point spacing. --mark flags points (property noise = 1) instead of deleting them.";
+        "Removes noise points from a view stream. --distance (the default for organised views, "
+        "i.e. views with a pixel grid, straight from rgbd-cloud; before alignment) works per "
+        "view: a pixel with fewer than --c-min neighbours in its 5x5 window that a real surface "
+        "at --theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so "
+        "is a pixel inside a dense window that continues no straight depth line (within "
+        "--line-sigmas sigma) along any grid axis, and small grid components are speckles; "
+        "--knn-test adds a kNN distance test relative to the pixel footprint z/f. Every "
+        "threshold scales with depth and the noise model. --density (after alignment: run on the "
+        "aligned "
+        "views of rgbd-align without --merge; reads the whole stream) judges every point over "
+        "all views together: its measured density against what the views that see it should "
+        "have produced (1/(z/f)^2 per view, occlusion-aware), then drops small detached "
+        "clusters; views without cameras (merged or unorganised clouds) are compared with the "
+        "local median density instead. Views without a grid fall back to --statistical when no "
+        "method is given. --statistical is statistical outlier removal with the exact semantics "
+        "of Open3D's remove_statistical_outlier (or PCL's with --convention pcl); --radius "
+        "removes points with too few neighbours within a radius given in metres or as a "
+        "multiple of the view's robust point spacing. --mark flags points (property noise = 1) "
+        "instead of deleting them.";
     spec.example =
-        "rgbd-cloud cap/ | rgbd-clean --statistical --k 20 --std-ratio 2 | rgbd-align | rgbd-mesh "
+        "rgbd-cloud cap/ | rgbd-clean --distance | rgbd-align | rgbd-clean --density | rgbd-mesh "
         "-o bust.ply";
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("statistical", "statistical outlier removal (default)")(
+        o.add_options()("distance",
+                        "adaptive distance-based removal per organised view (default when the "
+                        "view has a grid)")(
+            "density", "adaptive density-based removal over all aligned views")(
+            "statistical", "statistical outlier removal (default for views without a grid)")(
             "radius", "radius outlier removal")(
-            "k", cli::po::value<int>()->default_value(20)->value_name("N"),
-            "--statistical: neighbours per point")(
+            "k", cli::po::value<int>()->value_name("N"),
+            "neighbours per point (default 20 for --statistical, 16 for --distance and "
+            "--density)")(
             "std-ratio", cli::po::value<double>()->default_value(2.0)->value_name("X"),
             "--statistical: standard deviations above the mean distance that are kept")(
             "convention",
             cli::po::value<std::string>()->default_value("open3d")->value_name("NAME"),
-            "open3d (neighbours include the point itself) or pcl semantics")(
+            "--statistical/--radius: open3d (neighbours include the point itself) or pcl")(
             "min-points", cli::po::value<int>()->default_value(16)->value_name("N"),
             "--radius: minimum neighbours within the radius")(
             "radius-m", cli::po::value<double>()->value_name("M"), "--radius: radius in metres")(
             "radius-spacing", cli::po::value<double>()->default_value(4.0)->value_name("X"),
             "--radius: radius as a multiple of the robust point spacing (when --radius-m is not "
-            "given)")("mark", "flag noise points (noise = 1) instead of deleting them");
+            "given)")(
+            "noise-model",
+            cli::po::value<std::string>()->default_value("kinect_v2")->value_name("NAME"),
+            "--distance/--density: sensor noise model kinect_v2, kinect_v1, sr300 or generic")(
+            "theta-max-deg", cli::po::value<double>()->value_name("DEG"),
+            "--distance/--density: steepest incidence angle of a real surface (default 70 for "
+            "--distance, 75 for --density)")(
+            "c-min", cli::po::value<int>()->default_value(2)->value_name("N"),
+            "--distance: supporting neighbours a pixel needs in its 5x5 window")(
+            "line-sigmas", cli::po::value<double>()->default_value(4.0)->value_name("X"),
+            "--distance: line-support tolerance in sigma of the sensor noise (0 = no line test)")(
+            "dense-min", cli::po::value<int>()->default_value(20)->value_name("N"),
+            "--distance: the line test applies where at least N of the 24 window pixels are "
+            "valid")("n-speckle", cli::po::value<int>()->default_value(20)->value_name("N"),
+                     "--distance: grid components with fewer pixels are speckles (0 = off)")(
+            "alpha", cli::po::value<double>()->default_value(3.0)->value_name("X"),
+            "--distance: robust standard deviations of the normalised kNN distance that are kept")(
+            "no-pass-a", "--distance: skip the grid support and speckle tests")(
+            "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
+            "beta", cli::po::value<double>()->default_value(0.2)->value_name("X"),
+            "--density: keep a point when its density is at least X times the expected one")(
+            "reference", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
+            "--density: expected density from the sensors (views' cameras), local (median of "
+            "the neighbours) or auto")(
+            "cluster-spacing", cli::po::value<double>()->default_value(3.0)->value_name("X"),
+            "--density: cluster link distance as a multiple of the robust spacing (0 = no "
+            "cluster pass)")(
+            "min-cluster-fraction", cli::po::value<double>()->default_value(0.005)->value_name("X"),
+            "--density: detached clusters smaller than this share of the points are removed")(
+            "mark", "flag noise points (noise = 1) instead of deleting them");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
-        const bool radius = ctx.options().count("radius") > 0;
-        if (radius && ctx.options().count("statistical"))
-            throw cli::UsageError("choose one of --statistical and --radius");
+        const auto& vm = ctx.options();
+        std::vector<Method> chosen;
+        if (vm.count("distance")) chosen.push_back(Method::kDistance);
+        if (vm.count("density")) chosen.push_back(Method::kDensity);
+        if (vm.count("statistical")) chosen.push_back(Method::kStatistical);
+        if (vm.count("radius")) chosen.push_back(Method::kRadius);
+        if (chosen.size() > 1)
+            throw cli::UsageError(
+                "choose one of --distance, --density, --statistical and --radius");
+        const Method method = chosen.empty() ? Method::kAuto : chosen.front();
+
+        const bool mark = vm.count("mark") > 0;
         denoise::StatisticalOptions statistical;
         denoise::RadiusOptions radius_options;
+        denoise::DistanceOptions distance;
+        denoise::DensityOptions density;
         try {
-            statistical.k = ctx.get<int>("k");
+            const bool has_k = vm.count("k") > 0;
+            statistical.k = has_k ? ctx.get<int>("k") : 20;
             statistical.std_ratio = ctx.get<double>("std-ratio");
             const std::string convention = ctx.get<std::string>("convention");
             if (convention == "open3d")
@@ -53,22 +125,76 @@ int main(int argc, char** argv) {
                 statistical.convention = denoise::OutlierConvention::kPcl;
             else
                 throw cli::UsageError("--convention must be open3d or pcl");
-            statistical.mark = ctx.options().count("mark") > 0;
+            statistical.mark = mark;
             radius_options.min_points = ctx.get<int>("min-points");
-            if (ctx.options().count("radius-m"))
+            if (vm.count("radius-m"))
                 radius_options.radius_m = ctx.get<double>("radius-m");
             else
                 radius_options.radius_spacing_factor = ctx.get<double>("radius-spacing");
-            radius_options.mark = statistical.mark;
+            radius_options.mark = mark;
             radius_options.convention = statistical.convention;
-            if (radius)
-                radius_options.check();
+
+            const auto model = denoise::parse_noise_model(ctx.get<std::string>("noise-model"));
+            distance.noise_model = density.noise_model = model;
+            if (vm.count("theta-max-deg"))
+                distance.theta_max_deg = density.theta_max_deg = ctx.get<double>("theta-max-deg");
+            distance.k = density.k = has_k ? ctx.get<int>("k") : 16;
+            distance.c_min = ctx.get<int>("c-min");
+            distance.line_sigmas = ctx.get<double>("line-sigmas");
+            distance.dense_min = ctx.get<int>("dense-min");
+            distance.n_speckle = ctx.get<int>("n-speckle");
+            distance.alpha = ctx.get<double>("alpha");
+            distance.pass_a = vm.count("no-pass-a") == 0;
+            distance.pass_b = vm.count("knn-test") != 0;
+            distance.mark = mark;
+            density.beta = ctx.get<double>("beta");
+            const std::string reference = ctx.get<std::string>("reference");
+            if (reference == "auto")
+                density.reference = denoise::DensityReference::kAuto;
+            else if (reference == "sensors")
+                density.reference = denoise::DensityReference::kSensors;
+            else if (reference == "local")
+                density.reference = denoise::DensityReference::kLocal;
             else
-                statistical.check();
+                throw cli::UsageError("--reference must be auto, sensors or local");
+            density.cluster_spacing = ctx.get<double>("cluster-spacing");
+            density.min_cluster_fraction = ctx.get<double>("min-cluster-fraction");
+            density.seed = ctx.seed();
+            density.mark = mark;
+            // Every option is validated whatever the method, so a typo never passes silently.
+            statistical.check();
+            radius_options.check();
+            distance.check();
+            if (method == Method::kDensity || has_k) density.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
+
         auto bar = ctx.progress("clean");
+        if (method == Method::kDensity) {
+            std::vector<io::Document> documents = ctx.read_all_documents();
+            std::vector<PointCloud> views;
+            std::vector<std::size_t> slots;
+            for (std::size_t d = 0; d < documents.size(); ++d)
+                if (documents[d].kind == io::DocumentKind::kPoints) {
+                    views.push_back(std::move(documents[d].cloud));
+                    slots.push_back(d);
+                }
+            Report report = denoise::remove_density_outliers(views, density, bar.callback());
+            ctx.add_document_metrics(report);
+            ctx.info("density: " + report.dump());
+            for (std::size_t v = 0; v < views.size(); ++v)
+                documents[slots[v]].cloud = std::move(views[v]);
+            for (auto& document : documents) {
+                if (document.kind != io::DocumentKind::kPoints)
+                    ctx.warn("document " + std::to_string(document.cloud.view.id) +
+                             " is a mesh; passed through");
+                ctx.write(document);
+            }
+            return;
+        }
+
+        bool fallback_noted = false;
         ctx.for_each_document([&](io::Document& document) {
             if (document.kind != io::DocumentKind::kPoints) {
                 ctx.warn("document " + std::to_string(document.cloud.view.id) +
@@ -76,15 +202,35 @@ int main(int argc, char** argv) {
                 ctx.write(document);
                 return;
             }
-            if (document.cloud.empty())
-                ctx.warn("view " + std::to_string(document.cloud.view.id) + " has no points");
-            Report report = radius ? denoise::remove_radius_outliers(document.cloud, radius_options,
-                                                                     bar.callback())
-                                   : denoise::remove_statistical_outliers(
-                                         document.cloud, statistical, bar.callback());
-            report["view"] = document.cloud.view.id;
+            PointCloud& cloud = document.cloud;
+            if (cloud.empty()) ctx.warn("view " + std::to_string(cloud.view.id) + " has no points");
+            Method use = method;
+            if (use == Method::kAuto) {
+                use = cloud.view.has_grid() && cloud.pixel_map() ? Method::kDistance
+                                                                 : Method::kStatistical;
+                if (use == Method::kStatistical && !fallback_noted && !cloud.empty()) {
+                    ctx.note("view " + std::to_string(cloud.view.id) +
+                             " has no pixel grid: using --statistical (give --density after "
+                             "alignment for the adaptive filter)");
+                    fallback_noted = true;
+                }
+            }
+            Report report;
+            switch (use) {
+                case Method::kDistance:
+                    report = denoise::remove_distance_outliers(cloud, distance, bar.callback());
+                    break;
+                case Method::kRadius:
+                    report = denoise::remove_radius_outliers(cloud, radius_options, bar.callback());
+                    break;
+                default:
+                    report =
+                        denoise::remove_statistical_outliers(cloud, statistical, bar.callback());
+                    break;
+            }
+            report["view"] = cloud.view.id;
             ctx.add_document_metrics(report);
-            ctx.info("view " + std::to_string(document.cloud.view.id) + ": " + report.dump());
+            ctx.info("view " + std::to_string(cloud.view.id) + ": " + report.dump());
             ctx.write(document);
         });
     });

@@ -5,12 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
-#include <random>
 #include <string>
 #include <vector>
 
+#include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
@@ -37,59 +37,10 @@ const char* convention_name(OutlierConvention c) {
     return c == OutlierConvention::kOpen3d ? "open3d" : "pcl";
 }
 
-std::string view_name(const PointCloud& cloud) {
-    std::string name = "view " + std::to_string(cloud.view.id);
-    if (!cloud.view.sensor.empty()) name += " (sensor " + cloud.view.sensor + ")";
-    return name;
-}
-
-/// Live points of the cloud in iteration order; throws on a non-finite coordinate.
-struct Gathered {
-    std::vector<Eigen::Vector3d> xyz;
-    std::vector<PointSet::Index> ids;
-};
-
-Gathered gather(const PointCloud& cloud) {
-    Gathered g;
-    g.xyz.reserve(cloud.size());
-    g.ids.reserve(cloud.size());
-    std::size_t i = 0;
-    for (PointSet::Index idx : cloud.points) {
-        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
-        RGBD_CHECK(p.allFinite(), view_name(cloud) + ": point " + std::to_string(i) +
-                                      " has a non-finite coordinate");
-        g.xyz.push_back(p);
-        g.ids.push_back(idx);
-        ++i;
-    }
-    return g;
-}
-
-/// Marks or deletes the points with outlier[i] != 0 (i = position in `g`); returns the count.
-std::size_t apply(PointCloud& cloud, const Gathered& g, const std::vector<std::uint8_t>& outlier,
-                  bool mark) {
-    const std::size_t count =
-        static_cast<std::size_t>(std::count(outlier.begin(), outlier.end(), std::uint8_t{1}));
-    if (mark) {
-        auto noise = cloud.add_flag(prop::kNoise);
-        for (std::size_t i = 0; i < g.ids.size(); ++i)
-            if (outlier[i]) noise[g.ids[i]] = 1;
-        return count;
-    }
-    if (count == 0) return 0;
-    std::size_t slots = 0;
-    for (PointSet::Index idx : g.ids) slots = std::max<std::size_t>(slots, std::size_t(idx) + 1);
-    std::vector<std::uint8_t> drop(slots, 0);
-    for (std::size_t i = 0; i < g.ids.size(); ++i) drop[std::size_t(g.ids[i])] = outlier[i];
-    // Stable partition keeps the order of the survivors; removing a tail range is the
-    // Point_set_3 idiom (CGAL 5.5's remove of an inner range prints to stderr).
-    auto first_removed =
-        std::stable_partition(cloud.points.begin(), cloud.points.end(),
-                              [&](PointSet::Index idx) { return drop[std::size_t(idx)] == 0; });
-    cloud.points.remove(first_removed, cloud.points.end());
-    cloud.points.collect_garbage();
-    return count;
-}
+using detail::apply;
+using detail::gather;
+using detail::Gathered;
+using detail::view_name;
 
 Report cancelled(Report report, const Stopwatch& watch) {
     report["cancelled"] = true;
@@ -99,36 +50,6 @@ Report cancelled(Report report, const Stopwatch& watch) {
 }
 
 }  // namespace
-
-double robust_spacing(const PointCloud& cloud, std::uint64_t seed, std::size_t max_samples) {
-    const Gathered g = gather(cloud);
-    const std::size_t n = g.xyz.size();
-    if (n < 2 || max_samples == 0) return 0.0;
-    std::vector<std::uint32_t> sample(n);
-    std::iota(sample.begin(), sample.end(), 0u);
-    if (n > max_samples) {
-        std::mt19937_64 rng(seed);
-        for (std::size_t i = 0; i < max_samples; ++i) {
-            std::uniform_int_distribution<std::size_t> pick(i, n - 1);
-            std::swap(sample[i], sample[pick(rng)]);
-        }
-        sample.resize(max_samples);
-    }
-    const internal::KdTree tree(g.xyz);
-    std::vector<double> nn(sample.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sample.size(), 256),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          std::uint32_t ids[2];
-                          double sq[2];
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                              const std::size_t found = tree.knn(g.xyz[sample[i]], 2, ids, sq);
-                              nn[i] = found == 2 ? std::sqrt(sq[1]) : 0.0;
-                          }
-                      });
-    const auto mid = nn.begin() + static_cast<std::ptrdiff_t>((nn.size() - 1) / 2);
-    std::nth_element(nn.begin(), mid, nn.end());
-    return *mid;
-}
 
 Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& options,
                                    const Progress& progress) {
@@ -238,7 +159,9 @@ Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
 
     double radius = options.radius_m;
     if (radius <= 0.0) {
-        const double spacing = robust_spacing(cloud, options.seed);
+        // Fewer than two points have no spacing (0): the check below names the view.
+        const double spacing =
+            n >= 2 ? sampling::robust_spacing(cloud.points, 10000, options.seed) : 0.0;
         report["spacing_m"] = spacing;
         report["radius_spacing_factor"] = options.radius_spacing_factor;
         radius = options.radius_spacing_factor * spacing;

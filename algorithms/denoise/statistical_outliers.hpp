@@ -55,7 +55,8 @@ struct RadiusOptions {
     /// Search radius in metres; 0 = radius_spacing_factor * s_hat (robust spacing).
     double radius_m = 0.0;
     /// Radius as a multiple of the robust spacing s_hat (median nearest-neighbour distance of
-    /// a fixed-seed sample of <= 10 000 points, ALGORITHMS.md §0.2). Used when radius_m == 0.
+    /// a fixed-seed sample of <= 10 000 points, ALGORITHMS.md §0.2,
+    /// rgbd::sampling::robust_spacing). Used when radius_m == 0.
     double radius_spacing_factor = 4.0;
     /// Seed of the s_hat sample.
     std::uint64_t seed = 42;
@@ -87,10 +88,5 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
 /// @throws InputError naming the view for a non-finite point.
 Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
                               const Progress& progress = {});
-
-/// Robust spacing s_hat: median distance to the nearest other point over a fixed-seed sample
-/// of at most `max_samples` points (0 for fewer than two points).
-double robust_spacing(const PointCloud& cloud, std::uint64_t seed = 42,
-                      std::size_t max_samples = 10000);
 
 }  // namespace rgbd::denoise

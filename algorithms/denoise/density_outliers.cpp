@@ -1,0 +1,329 @@
+#include "algorithms/denoise/density_outliers.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "algorithms/denoise/outlier_common.hpp"
+#include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/sampling/robust_spacing.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::denoise {
+
+void DensityOptions::check() const {
+    RGBD_CHECK(std::isfinite(theta_max_deg) && theta_max_deg > 0.0 && theta_max_deg <= 89.0,
+               "density outliers: theta_max must be in (0, 89] degrees");
+    RGBD_CHECK(k >= 2 && k <= 1000, "density outliers: k must be in [2, 1000]");
+    RGBD_CHECK(k_ref >= 1 && k_ref <= 10000, "density outliers: k_ref must be in [1, 10000]");
+    RGBD_CHECK(std::isfinite(beta) && beta >= 0.0 && beta <= 100.0,
+               "density outliers: beta must be in [0, 100]");
+    RGBD_CHECK(
+        std::isfinite(cluster_spacing) && cluster_spacing >= 0.0 && cluster_spacing <= 1000.0,
+        "density outliers: cluster_spacing must be in [0, 1000]");
+    RGBD_CHECK(std::isfinite(min_cluster_fraction) && min_cluster_fraction >= 0.0 &&
+                   min_cluster_fraction <= 1.0,
+               "density outliers: min_cluster_fraction must be in [0, 1]");
+}
+
+namespace {
+
+/// Depth map of one view in its own camera, for the visibility test.
+struct Camera {
+    Pose sensor_from_world;
+    PinholeIntrinsics intrinsics;
+    double focal = 0.0;
+    std::vector<float> depth;  ///< width * height, +inf = no return
+};
+
+std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t a) {
+    while (parent[a] != a) {
+        parent[a] = parent[parent[a]];
+        a = parent[a];
+    }
+    return a;
+}
+
+}  // namespace
+
+Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOptions& options,
+                               const Progress& progress) {
+    Stopwatch watch;
+    options.check();
+    Report report;
+    report["method"] = "density";
+    report["mark"] = options.mark;
+
+    // Gather all views in the world frame.
+    std::vector<detail::Gathered> gathered(views.size());
+    std::vector<Eigen::Vector3d> world;
+    std::vector<std::uint32_t> owner;  // view position of each merged point
+    bool have_cameras = true;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        PointCloud& view = views[v];
+        gathered[v] = detail::gather(view);
+        if (gathered[v].xyz.empty()) continue;
+        const bool posed = view.view.world_from_sensor.has_value();
+        if (!posed || !view.view.intrinsics) have_cameras = false;
+        Pose world_from_frame = Pose::Identity();
+        if (view.view.frame == ViewFrame::kSensor) {
+            RGBD_CHECK(posed || views.size() == 1,
+                       detail::view_name(view) +
+                           ": --density merges views in the world frame and needs "
+                           "world_from_sensor (run rgbd-align first)");
+            if (posed) world_from_frame = *view.view.world_from_sensor;
+        }
+        for (const auto& p : gathered[v].xyz) {
+            world.push_back(world_from_frame * p);
+            owner.push_back(static_cast<std::uint32_t>(v));
+        }
+    }
+    const std::size_t n = world.size();
+    report["input_points"] = n;
+    DensityReference reference = options.reference;
+    if (reference == DensityReference::kAuto)
+        reference = have_cameras ? DensityReference::kSensors : DensityReference::kLocal;
+    if (reference == DensityReference::kSensors)
+        for (const auto& view : views)
+            RGBD_CHECK(view.empty() || (view.view.world_from_sensor && view.view.intrinsics),
+                       detail::view_name(view) +
+                           ": the sensors' density reference needs the view's intrinsics and "
+                           "world_from_sensor pose");
+    report["reference"] = reference == DensityReference::kSensors ? "sensors" : "local";
+    const std::size_t k = std::min<std::size_t>(std::size_t(options.k), n > 0 ? n - 1 : 0);
+    if (n < 3 || k < 2) {
+        report["removed"] = 0;
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+    if (!report_progress(progress, 0.0)) {
+        report["cancelled"] = true;
+        report["removed"] = 0;
+        return report;
+    }
+    const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
+    const double cos_min = std::cos(theta_max);
+
+    // Depth maps of the views (sensors reference only).
+    std::vector<Camera> cameras;
+    if (reference == DensityReference::kSensors) {
+        cameras.resize(views.size());
+        for (std::size_t v = 0; v < views.size(); ++v) {
+            if (gathered[v].xyz.empty()) continue;
+            Camera& c = cameras[v];
+            c.intrinsics = *views[v].view.intrinsics;
+            c.sensor_from_world = views[v].view.world_from_sensor->inverse();
+            c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
+            c.depth.assign(std::size_t(c.intrinsics.width) * c.intrinsics.height,
+                           std::numeric_limits<float>::infinity());
+        }
+        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+            Camera& c = cameras[v];
+            if (c.depth.empty()) return;
+            const Pose frame_to_sensor =
+                views[v].view.frame == ViewFrame::kWorld ? c.sensor_from_world : Pose::Identity();
+            for (const auto& p : gathered[v].xyz) {
+                const Eigen::Vector3d q = frame_to_sensor * p;
+                if (q.z() <= 0.0) continue;
+                const Eigen::Vector2d uv = c.intrinsics.project(q);
+                if (!c.intrinsics.contains(uv)) continue;
+                const std::size_t px = std::size_t(std::lround(uv.y())) * c.intrinsics.width +
+                                       std::size_t(std::lround(uv.x()));
+                c.depth[px] = std::min(c.depth[px], float(q.z()));
+            }
+        });
+    }
+
+    // Measured and expected density per point.
+    const internal::KdTree tree(world);
+    const std::size_t k_ref = std::min<std::size_t>(std::size_t(options.k_ref), n - 1);
+    std::vector<double> measured(n), expected(n, 0.0);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+            std::vector<std::uint32_t> ids(k + 1);
+            std::vector<double> sq(k + 1);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const std::size_t found = tree.knn(world[i], k + 1, ids.data(), sq.data());
+                const double dk2 = std::max(sq[found - 1], 1e-18);
+                measured[i] = double(found - 1) / (std::numbers::pi * dk2);
+                if (reference != DensityReference::kSensors) continue;
+                Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+                for (std::size_t j = 0; j < found; ++j) mean += world[ids[j]];
+                mean /= double(found);
+                Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+                for (std::size_t j = 0; j < found; ++j) {
+                    const Eigen::Vector3d d = world[ids[j]] - mean;
+                    cov += d * d.transpose();
+                }
+                const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+                const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+                double sum = 0.0;
+                for (const Camera& c : cameras) {
+                    if (c.depth.empty()) continue;
+                    const Eigen::Vector3d q = c.sensor_from_world * world[i];
+                    if (q.z() <= 0.0) continue;
+                    const Eigen::Vector2d uv = c.intrinsics.project(q);
+                    if (!c.intrinsics.contains(uv)) continue;
+                    const int col = int(std::lround(uv.x())), row = int(std::lround(uv.y()));
+                    const double tol =
+                        max_depth_step_m(options.noise_model, q.z(), c.focal, theta_max);
+                    bool any = false, seen = false;
+                    double nearest = std::numeric_limits<double>::infinity();
+                    for (int dr = -1; dr <= 1; ++dr)
+                        for (int dc = -1; dc <= 1; ++dc) {
+                            const int rr = row + dr, cc = col + dc;
+                            if (rr < 0 || cc < 0 || rr >= c.intrinsics.height ||
+                                cc >= c.intrinsics.width)
+                                continue;
+                            const double d = c.depth[std::size_t(rr) * c.intrinsics.width + cc];
+                            if (!std::isfinite(d)) continue;
+                            any = true;
+                            nearest = std::min(nearest, d);
+                            if (std::abs(d - q.z()) <= tol) seen = true;
+                        }
+                    // Occluded: behind v's surface, so v could not have measured it.
+                    if (any && !seen && q.z() > nearest + tol) continue;
+                    // Ray from camera v to the point, in the world frame.
+                    const Eigen::Vector3d ray =
+                        c.sensor_from_world.linear().transpose() * q.normalized();
+                    const double cos_theta = std::max(cos_min, std::abs(normal.dot(ray)));
+                    const double s_d = q.z() / c.focal;
+                    sum += cos_theta / (s_d * s_d);
+                }
+                expected[i] = sum;
+            }
+        });
+    if (!report_progress(progress, 0.5)) {
+        report["cancelled"] = true;
+        report["removed"] = 0;
+        return report;
+    }
+    if (reference == DensityReference::kLocal) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              std::vector<std::uint32_t> ids(k_ref + 1);
+                              std::vector<double> sq(k_ref + 1);
+                              std::vector<double> dens(k_ref + 1);
+                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                  const std::size_t found =
+                                      tree.knn(world[i], k_ref + 1, ids.data(), sq.data());
+                                  dens.resize(found);
+                                  for (std::size_t j = 0; j < found; ++j)
+                                      dens[j] = measured[ids[j]];
+                                  expected[i] = detail::median_of(dens);
+                              }
+                          });
+    }
+
+    std::vector<std::uint8_t> outlier(n, 0);
+    std::size_t density_removed = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        if (measured[i] < options.beta * expected[i]) {
+            outlier[i] = 1;
+            ++density_removed;
+        }
+    report["density"] = density_removed;
+
+    // Cluster pass over the survivors.
+    std::size_t cluster_removed = 0, clusters = 0;
+    if (options.cluster_spacing > 0.0) {
+        std::vector<std::uint32_t> alive;
+        for (std::size_t i = 0; i < n; ++i)
+            if (!outlier[i]) alive.push_back(static_cast<std::uint32_t>(i));
+        const std::size_t m = alive.size();
+        if (m >= 2) {
+            std::vector<Eigen::Vector3d> pts(m);
+            for (std::size_t a = 0; a < m; ++a) pts[a] = world[alive[a]];
+            // The spacing of one view (median over the views): the merged cloud's spacing
+            // shrinks with every interleaved view and would cut the surface into pieces.
+            std::vector<double> spacings;
+            for (std::size_t v = 0, first = 0; v < gathered.size(); ++v) {
+                const std::size_t count = gathered[v].xyz.size();
+                if (count >= 10) {
+                    PointSet sample;
+                    for (std::size_t i = first; i < first + count; ++i)
+                        sample.insert(to_point(world[i]));
+                    spacings.push_back(sampling::robust_spacing(sample, 10000, options.seed));
+                }
+                first += count;
+            }
+            if (spacings.empty()) {
+                PointSet sample;
+                for (const auto& p : pts) sample.insert(to_point(p));
+                spacings.push_back(sampling::robust_spacing(sample, 10000, options.seed));
+            }
+            const double spacing = detail::median_of(spacings);
+            const double eps = options.cluster_spacing * spacing;
+            report["spacing_m"] = spacing;
+            report["cluster_eps_m"] = eps;
+            const internal::KdTree alive_tree(pts);
+            constexpr std::size_t kBlock = 1024;
+            const std::size_t blocks = (m + kBlock - 1) / kBlock;
+            std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edges(blocks);
+            tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
+                std::vector<std::pair<std::uint32_t, double>> found;
+                for (std::size_t a = b * kBlock; a < std::min(m, (b + 1) * kBlock); ++a) {
+                    alive_tree.radius(pts[a], eps, found);
+                    for (const auto& f : found)
+                        if (f.first > a) edges[b].emplace_back(std::uint32_t(a), f.first);
+                }
+            });
+            std::vector<std::uint32_t> parent(m);
+            for (std::size_t a = 0; a < m; ++a) parent[a] = std::uint32_t(a);
+            for (const auto& block : edges)
+                for (const auto& e : block) {
+                    const std::uint32_t x = find_root(parent, e.first);
+                    const std::uint32_t y = find_root(parent, e.second);
+                    if (x != y) parent[std::max(x, y)] = std::min(x, y);
+                }
+            std::vector<std::uint32_t> size(m, 0);
+            for (std::size_t a = 0; a < m; ++a) ++size[find_root(parent, std::uint32_t(a))];
+            std::uint32_t largest = 0;
+            for (std::size_t a = 0; a < m; ++a) {
+                if (size[a] > 0) ++clusters;
+                if (size[a] > size[largest]) largest = std::uint32_t(a);
+            }
+            const double keep = options.min_cluster_fraction * double(m);
+            for (std::size_t a = 0; a < m; ++a) {
+                const std::uint32_t root = find_root(parent, std::uint32_t(a));
+                if (root != largest && double(size[root]) < keep) {
+                    outlier[alive[a]] = 1;
+                    ++cluster_removed;
+                }
+            }
+        }
+    }
+    report["cluster"] = cluster_removed;
+    report["clusters"] = clusters;
+
+    // Apply per view.
+    std::size_t total = 0, offset = 0;
+    Report per_view = Report::array();
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const std::size_t count = gathered[v].xyz.size();
+        std::vector<std::uint8_t> flags(outlier.begin() + std::ptrdiff_t(offset),
+                                        outlier.begin() + std::ptrdiff_t(offset + count));
+        offset += count;
+        const std::size_t removed = detail::apply(views[v], gathered[v], flags, options.mark);
+        total += removed;
+        per_view.push_back({{"view", views[v].view.id},
+                            {"input_points", count},
+                            {options.mark ? "marked" : "removed", removed}});
+    }
+    report["views"] = per_view;
+    report[options.mark ? "marked" : "removed"] = total;
+    if (options.mark) report["removed"] = 0;
+    report_progress(progress, 1.0);
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+}  // namespace rgbd::denoise

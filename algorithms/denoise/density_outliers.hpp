@@ -1,0 +1,79 @@
+// Adaptive density-based noise removal after alignment (ALGORITHMS.md §8): floating clusters,
+// sparse stragglers and halos between views, judged against the density the sensors should
+// have produced at each point rather than one global threshold.
+//
+// Measured density [M]: rho_i = k / (pi d_k^2), d_k = distance to the k-th nearest other point
+// of all views (areal density of a surface through p_i).
+// Expected density [M] ("sensors" reference): every view v with intrinsics and a pose that
+// should see p_i contributes cos(theta_v) / s_d_v(z_v)^2, z_v = depth of p_i in camera v,
+// s_d = z / f, theta_v = angle between the ray and the PCA normal of the k neighbours (cos
+// clamped to >= cos(theta_max)). v should see p_i when p_i projects inside v's image and is not
+// occluded by v's own depth map (3 x 3 window, tolerance dz_max(z) of §4): on v's surface, in
+// front of it (free space: v would have measured it) or where v has no return at all.
+// Fallback [R] ("local" reference, §8 step 3): the median measured density of the k_ref
+// nearest neighbours, for clouds without per-view cameras (merged or unorganised clouds).
+// Remove p_i when rho_i < beta * expected_i. Cluster pass (§8 step 5): components of the
+// eps = cluster_spacing * s_hat graph over the survivors; keep the largest and those with at
+// least min_cluster_fraction of the survivors.
+// Peers: Open3D remove_radius_outlier, remove_statistical_outlier, cluster_dbscan; PCL
+// RadiusOutlierRemoval + EuclideanClusterExtraction; CGAL remove_outliers.
+// See also: distance_outliers.hpp (before alignment), sensor_noise.hpp.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "algorithms/denoise/sensor_noise.hpp"
+#include "toolkit/point_cloud.hpp"
+#include "toolkit/progress.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::denoise {
+
+/// Where the expected density comes from.
+enum class DensityReference {
+    kAuto,     ///< kSensors when every non-empty view has intrinsics and a pose, else kLocal
+    kSensors,  ///< from the views' cameras (throws InputError when a view lacks them)
+    kLocal,    ///< median measured density of the k_ref nearest neighbours
+};
+
+/// Options of remove_density_outliers().
+struct DensityOptions {
+    DensityReference reference = DensityReference::kAuto;
+    /// Sensor noise model for the occlusion tolerance dz_max(z) (§2.3, §4).
+    NoiseModel noise_model = NoiseModel::kKinectV2;
+    /// Steepest incidence of a real surface, degrees (occlusion tolerance, cos clamp).
+    double theta_max_deg = 75.0;
+    /// Neighbours of the measured density and of the normal (the point itself excluded).
+    int k = 16;
+    /// Neighbours of the local reference density (kLocal).
+    int k_ref = 64;
+    /// Keep a point when measured >= beta * expected density.
+    double beta = 0.2;
+    /// Cluster pass: link distance as a multiple of the robust spacing s_hat (0 = no pass).
+    double cluster_spacing = 3.0;
+    /// Cluster pass: components smaller than this share of the survivors go (the largest stays).
+    double min_cluster_fraction = 0.005;
+    /// Seed of the s_hat sample.
+    std::uint64_t seed = 42;
+    /// Set the `noise` flag to 1 on outliers instead of deleting them.
+    bool mark = false;
+
+    /// Throws InputError for out-of-range values.
+    void check() const;
+};
+
+/// Removes (or marks) density outliers of a set of aligned views in place, judged over all
+/// views together; each view keeps its own surviving points and metadata.
+///
+/// @param views  world-frame views, or sensor-frame views with world_from_sensor (a single
+///               view without a pose is used in its own frame). Every coordinate finite.
+/// @return report: method, reference, spacing_m, cluster_eps_m, input_points, density
+///         (removed by the density test), cluster (removed by the cluster pass), clusters,
+///         removed (or marked), per-view counts ("views"), time_s.
+/// @throws InputError naming the view for a non-finite coordinate, a missing pose among several
+///         views, or missing cameras with DensityReference::kSensors.
+Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOptions& options,
+                               const Progress& progress = {});
+
+}  // namespace rgbd::denoise

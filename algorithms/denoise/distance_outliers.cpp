@@ -1,0 +1,312 @@
+#include "algorithms/denoise/distance_outliers.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "algorithms/denoise/outlier_common.hpp"
+#include "algorithms/internal/kd_tree.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::denoise {
+
+void DistanceOptions::check() const {
+    RGBD_CHECK(std::isfinite(theta_max_deg) && theta_max_deg > 0.0 && theta_max_deg <= 89.0,
+               "distance outliers: theta_max must be in (0, 89] degrees");
+    RGBD_CHECK(c_min >= 0 && c_min <= 24, "distance outliers: c_min must be in [0, 24]");
+    RGBD_CHECK(std::isfinite(line_sigmas) && line_sigmas >= 0.0 && line_sigmas <= 1000.0,
+               "distance outliers: line_sigmas must be in [0, 1000]");
+    RGBD_CHECK(dense_min >= 0 && dense_min <= 24,
+               "distance outliers: dense_min must be in [0, 24]");
+    RGBD_CHECK(n_speckle >= 0 && n_speckle <= 10000000,
+               "distance outliers: n_speckle must be in [0, 10000000]");
+    RGBD_CHECK(k >= 1 && k <= 1000, "distance outliers: k must be in [1, 1000]");
+    RGBD_CHECK(std::isfinite(alpha) && alpha >= 0.0 && alpha <= 1000.0,
+               "distance outliers: alpha must be in [0, 1000]");
+}
+
+namespace {
+
+enum Reason : std::uint8_t { kKeep = 0, kFlying = 1, kSpeckle = 2, kStatistical = 3 };
+
+/// Half size of the support window (5 x 5 pixels).
+constexpr int kWindow = 2;
+
+/// Union-find with path halving over point positions.
+std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t a) {
+    while (parent[a] != a) {
+        parent[a] = parent[parent[a]];
+        a = parent[a];
+    }
+    return a;
+}
+
+/// Focal length in pixels from horizontally adjacent pixels (x / z changes by 1 / f).
+double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
+                      const std::vector<std::int32_t>& grid, int width, int height) {
+    std::vector<double> f;
+    for (int row = 0; row < height; ++row)
+        for (int col = 0; col + 1 < width; ++col) {
+            const std::int32_t a = grid[std::size_t(row) * width + col];
+            const std::int32_t b = grid[std::size_t(row) * width + col + 1];
+            if (a < 0 || b < 0 || cam[a].z() <= 0.0 || cam[b].z() <= 0.0) continue;
+            const double d = cam[b].x() / cam[b].z() - cam[a].x() / cam[a].z();
+            if (d > 0.0) f.push_back(1.0 / d);
+        }
+    return detail::median_of(f);
+}
+
+}  // namespace
+
+Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& options,
+                                const Progress& progress) {
+    Stopwatch watch;
+    options.check();
+    Report report;
+    report["method"] = "distance";
+    report["noise_model"] = to_string(options.noise_model);
+    report["mark"] = options.mark;
+    const std::string name = detail::view_name(cloud);
+    const detail::Gathered g = detail::gather(cloud);
+    const std::size_t n = g.xyz.size();
+    report["input_points"] = n;
+    if (n == 0) {
+        report["removed"] = 0;
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+    RGBD_CHECK(cloud.view.has_grid(),
+               name +
+                   ": --distance needs an organised view (pixel grid); this view has none, "
+                   "use --density (after alignment) or --statistical");
+    const auto pixel = cloud.pixel_map();
+    RGBD_CHECK(pixel.has_value(), name +
+                                      ": --distance needs the `pixel` property of an "
+                                      "organised view; use --density or --statistical");
+    if (!report_progress(progress, 0.0)) {
+        report["cancelled"] = true;
+        report["removed"] = 0;
+        return report;
+    }
+
+    // Camera-frame coordinates: depth is the camera z.
+    std::vector<Eigen::Vector3d> cam(g.xyz);
+    if (cloud.view.frame == ViewFrame::kWorld) {
+        RGBD_CHECK(cloud.view.world_from_sensor.has_value(),
+                   name + ": a world-frame view needs its world_from_sensor pose for --distance");
+        const Pose sensor_from_world = cloud.view.world_from_sensor->inverse();
+        for (auto& p : cam) p = sensor_from_world * p;
+    }
+
+    const int width = cloud.view.grid_width;
+    const int height = cloud.view.grid_height;
+    const std::size_t cells = std::size_t(width) * std::size_t(height);
+    std::vector<std::int32_t> grid(cells, -1);
+    std::vector<std::uint8_t> reason(n, kKeep);
+    std::vector<std::uint8_t> on_grid(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t px = (*pixel)[g.ids[i]];
+        if (cam[i].z() <= 0.0) {
+            reason[i] = kStatistical;  // behind the sensor: no surface there
+            continue;
+        }
+        if (px < cells && grid[px] < 0) {
+            grid[px] = static_cast<std::int32_t>(i);
+            on_grid[i] = 1;
+        }
+    }
+
+    double focal = 0.0;
+    if (cloud.view.intrinsics)
+        focal = 0.5 * (cloud.view.intrinsics->fx + cloud.view.intrinsics->fy);
+    else
+        focal = estimate_focal(cam, grid, width, height);
+    RGBD_CHECK(
+        std::isfinite(focal) && focal > 0.0,
+        name + ": cannot determine the focal length (no intrinsics, too few adjacent pixels)");
+    report["focal_px"] = focal;
+    const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
+
+    std::size_t flying = 0, speckle = 0, components = 0;
+    if (options.pass_a) {
+        // Step 1: window support. A neighbour at pixel offset o on a real surface seen at
+        // incidence <= theta_max lies within |o| s_d(z) / cos(theta_max) + 3 sigma_z(z) in 3D.
+        // Step 2: line support where the window is dense (no silhouette, no dropout hole):
+        // along one of the 4 grid axes the depth must continue a straight line through p
+        // (interpolation between both sides or extrapolation from one), within line_sigmas
+        // sigma_z(z) of the second difference; flying pixels between two surfaces do not.
+        const int w = kWindow;
+        const double inv_cos = 1.0 / std::cos(theta_max);
+        const int axes[4][2] = {{0, 1}, {1, 0}, {1, 1}, {1, -1}};
+        const auto depth_at = [&](int rr, int cc) {
+            if (rr < 0 || rr >= height || cc < 0 || cc >= width)
+                return std::numeric_limits<double>::quiet_NaN();
+            const std::int32_t j = grid[std::size_t(rr) * width + cc];
+            return j < 0 ? std::numeric_limits<double>::quiet_NaN() : cam[j].z();
+        };
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, height, 8), [&](const tbb::blocked_range<int>& r) {
+                for (int row = r.begin(); row != r.end(); ++row)
+                    for (int col = 0; col < width; ++col) {
+                        const std::int32_t i = grid[std::size_t(row) * width + col];
+                        if (i < 0) continue;
+                        const Eigen::Vector3d& p = cam[i];
+                        const double z = p.z();
+                        const double step = z / focal * inv_cos;
+                        const double sigma = sigma_z_m(options.noise_model, z, 0.0);
+                        int support = 0, valid = 0;
+                        for (int dr = -w; dr <= w; ++dr)
+                            for (int dc = -w; dc <= w; ++dc) {
+                                if (dr == 0 && dc == 0) continue;
+                                const int rr = row + dr, cc = col + dc;
+                                if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
+                                const std::int32_t j = grid[std::size_t(rr) * width + cc];
+                                if (j < 0) continue;
+                                ++valid;
+                                const double limit =
+                                    step * std::sqrt(double(dr * dr + dc * dc)) + 3.0 * sigma;
+                                if ((cam[j] - p).squaredNorm() <= limit * limit) ++support;
+                            }
+                        if (support < options.c_min) {
+                            reason[i] = kFlying;
+                            continue;
+                        }
+                        if (options.line_sigmas <= 0.0 || valid < options.dense_min) continue;
+                        // Second-difference noise: sqrt(1.5) sigma for the midpoint of two
+                        // neighbours, sqrt(6) sigma for the extrapolation from one side.
+                        const double t_in = options.line_sigmas * sigma * std::sqrt(1.5);
+                        const double t_ex = options.line_sigmas * sigma * std::sqrt(6.0);
+                        bool line = false;
+                        for (const auto& a : axes) {
+                            const double zp = depth_at(row + a[0], col + a[1]);
+                            const double zm = depth_at(row - a[0], col - a[1]);
+                            const double zpp = depth_at(row + 2 * a[0], col + 2 * a[1]);
+                            const double zmm = depth_at(row - 2 * a[0], col - 2 * a[1]);
+                            // Comparisons with NaN are false: a missing sample never supports.
+                            if (std::abs(z - 0.5 * (zp + zm)) <= t_in ||
+                                std::abs(z - (2.0 * zp - zpp)) <= t_ex ||
+                                std::abs(z - (2.0 * zm - zmm)) <= t_ex) {
+                                line = true;
+                                break;
+                            }
+                        }
+                        if (!line) reason[i] = kFlying;
+                    }
+            });
+        flying = static_cast<std::size_t>(std::count(reason.begin(), reason.end(), kFlying));
+
+        // Step 3: speckles = small components of the grid graph over the survivors.
+        if (options.n_speckle > 0) {
+            std::vector<std::uint32_t> parent(n);
+            for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<std::uint32_t>(i);
+            // Links: the window-support relation of step 1 (5 x 5, 3D distance), so that
+            // grazing surface broken by dropouts stays one component.
+            for (int row = 0; row < height; ++row)
+                for (int col = 0; col < width; ++col) {
+                    const std::int32_t i = grid[std::size_t(row) * width + col];
+                    if (i < 0 || reason[i] != kKeep) continue;
+                    const double step = cam[i].z() / focal * inv_cos;
+                    const double noise = 3.0 * sigma_z_m(options.noise_model, cam[i].z(), 0.0);
+                    for (int dr = 0; dr <= w; ++dr)
+                        for (int dc = -w; dc <= w; ++dc) {
+                            if (dr == 0 && dc <= 0) continue;  // each pair once
+                            const int rr = row + dr, cc = col + dc;
+                            if (rr >= height || cc < 0 || cc >= width) continue;
+                            const std::int32_t j = grid[std::size_t(rr) * width + cc];
+                            if (j < 0 || reason[j] != kKeep) continue;
+                            const double limit =
+                                step * std::sqrt(double(dr * dr + dc * dc)) + noise;
+                            if ((cam[j] - cam[i]).squaredNorm() > limit * limit) continue;
+                            const std::uint32_t a = find_root(parent, std::uint32_t(i));
+                            const std::uint32_t b = find_root(parent, std::uint32_t(j));
+                            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                        }
+                }
+            std::vector<std::uint32_t> size(n, 0);
+            for (std::size_t i = 0; i < n; ++i)
+                if (on_grid[i] && reason[i] == kKeep) ++size[find_root(parent, std::uint32_t(i))];
+            std::uint32_t largest = 0;
+            for (std::size_t i = 0; i < n; ++i) {
+                if (size[i] > 0) ++components;
+                if (size[i] > size[largest]) largest = static_cast<std::uint32_t>(i);
+            }
+            for (std::size_t i = 0; i < n; ++i) {
+                if (!on_grid[i] || reason[i] != kKeep) continue;
+                const std::uint32_t root = find_root(parent, std::uint32_t(i));
+                if (root != largest && size[root] < std::uint32_t(options.n_speckle)) {
+                    reason[i] = kSpeckle;
+                    ++speckle;
+                }
+            }
+        }
+    }
+    report["flying"] = flying;
+    report["speckle"] = speckle;
+    report["components"] = components;
+    if (!report_progress(progress, 0.4)) {
+        report["cancelled"] = true;
+        report["removed"] = 0;
+        return report;
+    }
+
+    std::size_t statistical = 0;
+    if (options.pass_b) {
+        std::vector<std::uint32_t> alive;
+        alive.reserve(n);
+        for (std::size_t i = 0; i < n; ++i)
+            if (reason[i] == kKeep) alive.push_back(static_cast<std::uint32_t>(i));
+        const std::size_t m = alive.size();
+        const std::size_t search = std::min<std::size_t>(std::size_t(options.k) + 1, m);
+        if (search >= 2) {
+            std::vector<Eigen::Vector3d> pts(m);
+            for (std::size_t a = 0; a < m; ++a) pts[a] = cam[alive[a]];
+            const internal::KdTree tree(pts);
+            std::vector<double> ratio(m);
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 256),
+                              [&](const tbb::blocked_range<std::size_t>& r) {
+                                  std::vector<std::uint32_t> ids(search);
+                                  std::vector<double> sq(search);
+                                  for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                                      const std::size_t found =
+                                          tree.knn(pts[a], search, ids.data(), sq.data());
+                                      double sum = 0.0;
+                                      for (std::size_t j = 1; j < found; ++j)
+                                          sum += std::sqrt(sq[j]);
+                                      const double dbar = found > 1 ? sum / double(found - 1) : 0.0;
+                                      ratio[a] = dbar * focal / pts[a].z();
+                                  }
+                              });
+            std::vector<double> tmp(ratio);
+            const double med = detail::median_of(tmp);
+            for (double& t : tmp) t = std::abs(t - med);
+            const double sigma = 1.4826 * detail::median_of(tmp);
+            const double threshold =
+                std::max(med + options.alpha * sigma, med / std::cos(theta_max));
+            report["r_median"] = med;
+            report["r_sigma_rob"] = sigma;
+            report["r_threshold"] = threshold;
+            for (std::size_t a = 0; a < m; ++a)
+                if (ratio[a] > threshold) {
+                    reason[alive[a]] = kStatistical;
+                    ++statistical;
+                }
+        }
+    }
+    report["statistical"] = statistical;
+    std::vector<std::uint8_t> outlier(n);
+    for (std::size_t i = 0; i < n; ++i) outlier[i] = reason[i] != kKeep;
+    const std::size_t count = detail::apply(cloud, g, outlier, options.mark);
+    report[options.mark ? "marked" : "removed"] = count;
+    if (options.mark) report["removed"] = 0;
+    report_progress(progress, 1.0);
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+}  // namespace rgbd::denoise

@@ -1,0 +1,80 @@
+// Internal helpers of the denoise filters: gathering the live points of a view (finite
+// coordinates checked, error naming the view) and applying a per-point outlier decision by
+// marking (`noise` flag) or deleting with all properties kept aligned. Not a public header.
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "toolkit/error.hpp"
+#include "toolkit/point_cloud.hpp"
+
+namespace rgbd::denoise::detail {
+
+inline std::string view_name(const PointCloud& cloud) {
+    std::string name = "view " + std::to_string(cloud.view.id);
+    if (!cloud.view.sensor.empty()) name += " (sensor " + cloud.view.sensor + ")";
+    return name;
+}
+
+/// Live points of the cloud in iteration order.
+struct Gathered {
+    std::vector<Eigen::Vector3d> xyz;
+    std::vector<PointSet::Index> ids;
+};
+
+/// Throws InputError naming the view for a non-finite coordinate.
+inline Gathered gather(const PointCloud& cloud) {
+    Gathered g;
+    g.xyz.reserve(cloud.size());
+    g.ids.reserve(cloud.size());
+    std::size_t i = 0;
+    for (PointSet::Index idx : cloud.points) {
+        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
+        RGBD_CHECK(p.allFinite(), view_name(cloud) + ": point " + std::to_string(i) +
+                                      " has a non-finite coordinate");
+        g.xyz.push_back(p);
+        g.ids.push_back(idx);
+        ++i;
+    }
+    return g;
+}
+
+/// Marks or deletes the points with outlier[i] != 0 (i = position in `g`); returns the count.
+inline std::size_t apply(PointCloud& cloud, const Gathered& g,
+                         const std::vector<std::uint8_t>& outlier, bool mark) {
+    const std::size_t count = static_cast<std::size_t>(
+        std::count_if(outlier.begin(), outlier.end(), [](std::uint8_t o) { return o != 0; }));
+    if (mark) {
+        auto noise = cloud.add_flag(prop::kNoise);
+        for (std::size_t i = 0; i < g.ids.size(); ++i)
+            if (outlier[i]) noise[g.ids[i]] = 1;
+        return count;
+    }
+    if (count == 0) return 0;
+    std::size_t slots = 0;
+    for (PointSet::Index idx : g.ids) slots = std::max<std::size_t>(slots, std::size_t(idx) + 1);
+    std::vector<std::uint8_t> drop(slots, 0);
+    for (std::size_t i = 0; i < g.ids.size(); ++i) drop[std::size_t(g.ids[i])] = outlier[i];
+    // Stable partition keeps the order of the survivors; removing a tail range is the
+    // Point_set_3 idiom (CGAL 5.5's remove of an inner range prints to stderr).
+    auto first_removed =
+        std::stable_partition(cloud.points.begin(), cloud.points.end(),
+                              [&](PointSet::Index idx) { return drop[std::size_t(idx)] == 0; });
+    cloud.points.remove(first_removed, cloud.points.end());
+    cloud.points.collect_garbage();
+    return count;
+}
+
+/// Median of `v` (reordered); 0 for an empty vector.
+inline double median_of(std::vector<double>& v) {
+    if (v.empty()) return 0.0;
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>((v.size() - 1) / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+}  // namespace rgbd::denoise::detail

@@ -1,0 +1,172 @@
+// Tests of the adaptive density-based filter (ALGORITHMS.md §8): two aligned views of a plane
+// with floating clusters and sparse outliers, the sensors and local references, mark ==
+// delete, errors, empty views, thread-count determinism.
+#include "algorithms/denoise/density_outliers.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <limits>
+#include <random>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::denoise {
+namespace {
+
+constexpr int kW = 128, kH = 96;
+
+PinholeIntrinsics intrinsics() {
+    PinholeIntrinsics k;
+    k.width = kW;
+    k.height = kH;
+    k.fx = k.fy = 180.0;
+    k.cx = kW / 2.0;
+    k.cy = kH / 2.0;
+    return k;
+}
+
+/// View of the plane z = 1.5 (world) from a camera at `x` looking along +z; noise points
+/// (flag noise = 1 in the returned `truth` property "synthetic") appended.
+PointCloud plane_view(int id, double x, std::size_t clusters, std::size_t outliers,
+                      std::uint64_t seed) {
+    PointCloud view;
+    view.view.id = id;
+    view.view.sensor = "cam" + std::to_string(id);
+    view.view.frame = ViewFrame::kWorld;
+    view.view.intrinsics = intrinsics();
+    Pose pose = Pose::Identity();
+    pose.translation() = Eigen::Vector3d(x, 0.0, 0.0);
+    view.view.world_from_sensor = pose;
+    auto truth = view.add_flag(prop::kSynthetic);
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> noise(0.0, 0.0014);
+    const auto k = intrinsics();
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const Eigen::Vector3d p = pose * k.unproject(col, row, 1.5 + noise(rng));
+            view.points.insert(to_point(p));
+        }
+    std::uniform_real_distribution<double> u(-0.3, 0.3), depth(0.6, 1.45);
+    for (std::size_t c = 0; c < clusters; ++c) {
+        // Floating 5-11 cm in front of the plane: farther than the cluster link distance (3 x
+        // the 8 mm spacing of one view), so detached.
+        const Eigen::Vector3d centre(u(rng), u(rng) * 0.6, 1.5 - 0.05 - 0.02 * double(c % 4));
+        std::normal_distribution<double> spread(0.0, 0.004);
+        for (int j = 0; j < 8; ++j) {
+            auto idx = *view.points.insert(
+                to_point(centre + Eigen::Vector3d(spread(rng), spread(rng), spread(rng))));
+            truth[idx] = 1;
+        }
+    }
+    for (std::size_t o = 0; o < outliers; ++o) {
+        const double z = depth(rng);
+        auto idx = *view.points.insert(to_point(Eigen::Vector3d(u(rng) * z, u(rng) * z, z)));
+        truth[idx] = 1;
+    }
+    return view;
+}
+
+struct Counts {
+    std::size_t noise = 0, surface = 0, noise_left = 0, surface_left = 0;
+};
+
+Counts count(const std::vector<PointCloud>& before, const std::vector<PointCloud>& after) {
+    Counts c;
+    for (const auto& v : before)
+        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? c.noise : c.surface)++;
+    for (const auto& v : after)
+        for (auto idx : v.points)
+            ((*v.flag(prop::kSynthetic))[idx] ? c.noise_left : c.surface_left)++;
+    return c;
+}
+
+std::vector<PointCloud> scene() {
+    return {plane_view(0, 0.0, 10, 60, 1), plane_view(1, 0.25, 10, 60, 2)};
+}
+
+TEST(DensityOutliers, SensorsReferenceRemovesClustersAndOutliers) {
+    const auto before = scene();
+    auto after = before;
+    const Report r = remove_density_outliers(after, DensityOptions{});
+    EXPECT_EQ(r["reference"], "sensors");
+    const Counts c = count(before, after);
+    EXPECT_GE(1.0 - double(c.noise_left) / double(c.noise), 0.95) << r.dump();
+    EXPECT_LE(1.0 - double(c.surface_left) / double(c.surface), 0.01) << r.dump();
+    EXPECT_EQ(after[0].view.id, 0);
+    EXPECT_EQ(after[1].view.id, 1);
+}
+
+TEST(DensityOutliers, LocalReferenceWithoutCameras) {
+    auto before = scene();
+    for (auto& v : before) v.view.intrinsics.reset();
+    auto after = before;
+    const Report r = remove_density_outliers(after, DensityOptions{});
+    EXPECT_EQ(r["reference"], "local");
+    const Counts c = count(before, after);
+    EXPECT_GE(1.0 - double(c.noise_left) / double(c.noise), 0.9) << r.dump();
+    EXPECT_LE(1.0 - double(c.surface_left) / double(c.surface), 0.01) << r.dump();
+    DensityOptions sensors;
+    sensors.reference = DensityReference::kSensors;
+    EXPECT_THROW(remove_density_outliers(after, sensors), InputError);
+}
+
+TEST(DensityOutliers, MarkEqualsDelete) {
+    const auto before = scene();
+    auto deleted = before, marked = before;
+    DensityOptions o;
+    remove_density_outliers(deleted, o);
+    o.mark = true;
+    remove_density_outliers(marked, o);
+    for (std::size_t v = 0; v < before.size(); ++v) {
+        ASSERT_EQ(marked[v].size(), before[v].size());
+        std::vector<Point_3> a, b;
+        for (auto idx : deleted[v].points) a.push_back(deleted[v].points.point(idx));
+        const auto noise = *marked[v].flag(prop::kNoise);
+        for (auto idx : marked[v].points)
+            if (!noise[idx]) b.push_back(marked[v].points.point(idx));
+        EXPECT_EQ(a, b);
+    }
+}
+
+TEST(DensityOutliers, ErrorsAndEmptyViews) {
+    auto views = scene();
+    views[1].points.insert(Point_3(std::numeric_limits<double>::quiet_NaN(), 0, 1));
+    EXPECT_THROW(remove_density_outliers(views, DensityOptions{}), InputError);
+    views = scene();
+    views[0].view.frame = ViewFrame::kSensor;
+    views[0].view.world_from_sensor.reset();
+    EXPECT_THROW(remove_density_outliers(views, DensityOptions{}), InputError);
+
+    std::vector<PointCloud> empty(2);
+    EXPECT_EQ(remove_density_outliers(empty, DensityOptions{})["removed"].get<int>(), 0);
+    std::vector<PointCloud> none;
+    EXPECT_EQ(remove_density_outliers(none, DensityOptions{})["removed"].get<int>(), 0);
+
+    DensityOptions bad;
+    bad.beta = -1;
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.k = 1;
+    EXPECT_THROW(bad.check(), InputError);
+}
+
+TEST(DensityOutliers, OneAndTwoThreadsAgree) {
+    auto one = scene(), two = scene();
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        remove_density_outliers(one, DensityOptions{});
+    }
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+        remove_density_outliers(two, DensityOptions{});
+    }
+    for (std::size_t v = 0; v < one.size(); ++v) {
+        ASSERT_EQ(one[v].size(), two[v].size());
+        auto a = one[v].points.begin();
+        for (auto b : two[v].points) EXPECT_EQ(one[v].points.point(*a++), two[v].points.point(b));
+    }
+}
+
+}  // namespace
+}  // namespace rgbd::denoise

@@ -1,0 +1,169 @@
+// Contract tests of rgbd-clean's adaptive methods (STYLE.md §8): --distance is the default on
+// organised views, --distance on a view without a grid is an error that suggests --density,
+// --density runs on the aligned view stream and keeps the views, --mark == delete, absurd
+// parameters are usage errors (exit 2), empty input passes.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kBin = RGBD_BINARY_DIR;
+
+struct Outcome {
+    int code = -1;
+    std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+fs::path temp_root() {
+    static const fs::path root = [] {
+        fs::path p = fs::temp_directory_path() / ("rgbd_clean_test_" + std::to_string(::getpid()));
+        fs::create_directories(p);
+        return p;
+    }();
+    return root;
+}
+
+Outcome run(const std::string& command) {
+    static int counter = 0;
+    const fs::path out = temp_root() / ("out" + std::to_string(counter) + ".txt");
+    const fs::path err = temp_root() / ("err" + std::to_string(counter++) + ".txt");
+    const std::string line = "BIN=" + kBin + "; cd " + temp_root().string() + " && ( " + command +
+                             " ) >" + out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(("bash -c '" + line + "'").c_str());
+    Outcome r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+nlohmann::json metrics(const std::string& file) {
+    return nlohmann::json::parse(slurp(temp_root() / file));
+}
+
+/// A 4-sensor ring capture of an ellipsoid, rendered once; views.ply = its organised views.
+class RgbdClean : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        if (fs::exists(temp_root() / "views.ply")) return;
+        std::ofstream off(temp_root() / "blob.off");
+        const int nu = 48, nv = 24;
+        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (nu * nv) << " 0\n";
+        off << "0 0.5 0\n";
+        for (int j = 1; j < nv; ++j)
+            for (int i = 0; i < nu; ++i) {
+                const double t = 3.14159265358979 * j / nv, p = 2 * 3.14159265358979 * i / nu;
+                off << 0.3 * std::sin(t) * std::cos(p) << " " << 0.5 * std::cos(t) << " "
+                    << 0.25 * std::sin(t) * std::sin(p) << "\n";
+            }
+        off << "0 -0.5 0\n";
+        for (int i = 0; i < nu; ++i) off << "3 0 " << 1 + (i + 1) % nu << " " << 1 + i << "\n";
+        for (int j = 0; j < nv - 2; ++j)
+            for (int i = 0; i < nu; ++i) {
+                const int a = 1 + j * nu + i, b = 1 + j * nu + (i + 1) % nu;
+                off << "4 " << a << " " << b << " " << b + nu << " " << a + nu << "\n";
+            }
+        const int last = 1 + (nv - 2) * nu, bottom = 1 + (nv - 1) * nu;
+        for (int i = 0; i < nu; ++i)
+            off << "3 " << bottom << " " << last + i << " " << last + (i + 1) % nu << "\n";
+        off.close();
+        Outcome r =
+            run("$BIN/rgbd-synth blob.off -o cap --sensors 4 --height-m 0.5 --seed 3 -q && "
+                "$BIN/rgbd-cloud cap -q > views.ply");
+        ASSERT_EQ(r.code, 0) << r.err;
+    }
+    // A fixture that failed must fail the tests, not skip them.
+    void SetUp() override { ASSERT_TRUE(fs::exists(temp_root() / "views.ply")) << "no capture"; }
+};
+
+TEST_F(RgbdClean, DistanceIsTheDefaultOnOrganisedViews) {
+    Outcome r =
+        run("$BIN/rgbd-clean views.ply --metrics m_default.json > a.ply && "
+            "$BIN/rgbd-clean --distance views.ply --metrics m_distance.json > b.ply && "
+            "cmp <(grep -av \"rgbd:history\" a.ply) <(grep -av \"rgbd:history\" b.ply) || true");
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;  // identical apart from the history line
+    const auto m = metrics("m_default.json");
+    ASSERT_EQ(m["documents"].size(), 4u);
+    for (const auto& d : m["documents"]) {
+        EXPECT_EQ(d["method"], "distance");
+        EXPECT_GT(d["removed"].get<int>(), 0);
+    }
+}
+
+TEST_F(RgbdClean, MarkEqualsDelete) {
+    Outcome r =
+        run("$BIN/rgbd-clean --distance --mark views.ply --metrics m_mark.json > marked.ply && "
+            "$BIN/rgbd-clean --distance views.ply --metrics m_del.json > deleted.ply && "
+            "$BIN/rgbd-info --json marked.ply > marked.json && $BIN/rgbd-info --json deleted.ply > "
+            "deleted.json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto marked = metrics("m_mark.json"), deleted = metrics("m_del.json");
+    for (std::size_t v = 0; v < 4; ++v) {
+        EXPECT_EQ(marked["documents"][v]["marked"], deleted["documents"][v]["removed"]);
+        EXPECT_EQ(marked["documents"][v]["input_points"], deleted["documents"][v]["input_points"]);
+    }
+}
+
+TEST_F(RgbdClean, DistanceWithoutGridSuggestsDensity) {
+    // rgbd-align --merge output has no grid.
+    Outcome r =
+        run("$BIN/rgbd-align views.ply --merge -q > merged.ply && "
+            "$BIN/rgbd-clean --distance merged.ply > x.ply");
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("--density"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("view"), std::string::npos) << r.err;
+}
+
+TEST_F(RgbdClean, DensityOnAlignedViewsKeepsTheViews) {
+    Outcome r =
+        run("$BIN/rgbd-clean --distance views.ply | $BIN/rgbd-align -q > aligned.ply && "
+            "$BIN/rgbd-clean --density aligned.ply --metrics m_density.json > d.ply && "
+            "$BIN/rgbd-info --json d.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto m = metrics("m_density.json");
+    ASSERT_EQ(m["documents"].size(), 1u);
+    EXPECT_EQ(m["documents"][0]["reference"], "sensors");
+    EXPECT_EQ(m["documents"][0]["views"].size(), 4u);
+    EXPECT_NE(r.out.find("\"history\""), std::string::npos);
+}
+
+TEST_F(RgbdClean, AbsurdParametersAreUsageErrors) {
+    for (const std::string args :
+         {"--distance --c-min 25", "--distance --line-sigmas -1", "--distance --dense-min 30",
+          "--distance --theta-max-deg 95", "--distance --alpha -2", "--density --beta -1",
+          "--density --k 1", "--noise-model kinect3", "--distance --density",
+          "--reference global --density", "--n-speckle -5"}) {
+        SCOPED_TRACE(args);
+        Outcome r = run("$BIN/rgbd-clean " + args + " < /dev/null");
+        EXPECT_EQ(r.code, 2) << r.err;
+    }
+}
+
+TEST_F(RgbdClean, EmptyStreamOfEmptyViewsPasses) {
+    // Crop everything away: the views stay, with no points.
+    Outcome r =
+        run("$BIN/rgbd-cloud cap --crop-radius-m 0.001 -q > empty.ply && "
+            "$BIN/rgbd-clean --distance empty.ply -q > e1.ply && "
+            "$BIN/rgbd-clean --density empty.ply -q > e2.ply");
+    EXPECT_EQ(r.code, 0) << r.err;
+}
+
+}  // namespace
