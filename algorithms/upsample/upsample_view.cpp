@@ -59,6 +59,14 @@ struct Child {
     std::uint32_t parent;  // index of the parent point
 };
 
+/// A depth sample of the parent's 3x3 neighbourhood (Algorithm A).
+struct Sample {
+    double u, v;  // colour-image position
+    double h;     // offset of its plane along the parent normal, from the colour centre
+    int rgb[3];
+    std::int32_t index;
+};
+
 struct Counters {
     std::size_t parents = 0, gated = 0, uncoloured = 0, no_normal = 0, outside = 0, owned = 0,
                 grazing = 0, offset = 0;
@@ -168,6 +176,7 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
                 usable[i] = 1;
             }
         });
+    const double time_prepare_s = watch.seconds();
     if (!report_progress(progress, 0.2)) throw AlgorithmError(name + ": upsample cancelled");
 
     // Geometry of the colour camera in the depth frame and the colour-pixel steps.
@@ -182,6 +191,11 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
     const int istep_v = static_cast<int>(std::lround(step_v));
     const double tan_theta = std::tan(options.theta_max_deg * M_PI / 180.0);
     const double cos_grazing = std::cos(options.grazing_max_deg * M_PI / 180.0);
+    const double cos2_grazing = cos_grazing * cos_grazing;
+    const double max_offset2 = options.max_offset_factor * options.max_offset_factor;
+    // Undistorted colour ray through pixel (u, v), in the depth frame: ray0 + u ray_du + v ray_dv.
+    const Eigen::Vector3d ray_du = r_dc.col(0) / kc.fx, ray_dv = r_dc.col(1) / kc.fy;
+    const Eigen::Vector3d ray0 = r_dc.col(2) - kc.cx * ray_du - kc.cy * ray_dv;
     const bool midpoints = options.method == UpsampleMethod::kMidpoints;
     const int k_children = midpoints ? options.neighbors / 2 : options.neighbors;
 
@@ -285,7 +299,22 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
                     continue;
                 }
 
-                // Algorithm A: colour pixels around the parent's colour pixel.
+                // Algorithm A: colour pixels around the parent's colour pixel. The 3x3 depth
+                // neighbourhood (all usable: the gate passed) is gathered once per parent:
+                // colour-image position, colour and the offset of its plane along the normal.
+                std::array<Sample, 9> nb;
+                int m = 0;
+                for (int dv = -1; dv <= 1; ++dv)
+                    for (int du = -1; du <= 1; ++du) {
+                        const std::int32_t j = at(col + du, row + dv);
+                        if (j < 0) continue;
+                        nb[m++] = {uvc[j].x(),
+                                   uvc[j].y(),
+                                   normal.dot(xyz[j] - origin),
+                                   {rgb[j].r, rgb[j].g, rgb[j].b},
+                                   j};
+                    }
+                const double h_parent = normal.dot(xp - origin);
                 const Eigen::Vector2d& q0 = uvc[ip];
                 const double c0u = std::round(q0.x()), c0v = std::round(q0.y());
                 for (int k = 0; k < k_children; ++k) {
@@ -297,68 +326,66 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
                         ++count.outside;
                         continue;
                     }
-                    const Rgb cq = integer_steps ? bgr_at(frame.color, static_cast<int>(qu),
-                                                          static_cast<int>(qv))
-                                                 : bilinear(frame.color, qu, qv);
-                    // Ray of the colour pixel, in the depth frame.
-                    const Eigen::Vector3d ray_c =
-                        distorted
-                            ? kc.unproject(qu, qv, 1.0)
-                            : Eigen::Vector3d((qu - kc.cx) / kc.fx, (qv - kc.cy) / kc.fy, 1.0);
-                    const Eigen::Vector3d ray = r_dc * ray_c;
-                    const double nr = normal.dot(ray);
-                    if (std::abs(nr) < cos_grazing * ray.norm()) {
-                        ++count.grazing;
-                        continue;
-                    }
-                    // Ownership and the joint bilateral average over the 3x3 depth samples.
-                    const double d2p = (q0 - Eigen::Vector2d(qu, qv)).squaredNorm();
+                    // Ownership first: the colour pixel belongs to the nearest projection.
+                    const double d2p =
+                        (q0.x() - qu) * (q0.x() - qu) + (q0.y() - qv) * (q0.y() - qv);
+                    double d2s[9];
                     bool owned = true;
-                    double wsum = 0.0, wssum = 0.0, tsum = 0.0;
-                    for (int dv = -1; dv <= 1 && owned; ++dv) {
-                        for (int du = -1; du <= 1; ++du) {
-                            const std::int32_t j = at(col + du, row + dv);
-                            if (j < 0) continue;
-                            const double d2 = (uvc[j] - Eigen::Vector2d(qu, qv)).squaredNorm();
-                            if (j != ip && (d2 < d2p || (d2 == d2p && j < ip))) {
-                                owned = false;
-                                break;
-                            }
-                            const int sb =
-                                std::min(kSpatialBins - 1, static_cast<int>(d2 * kSpatialStep));
-                            const Rgb& cj = rgb[j];
-                            const int dc =
-                                (std::abs(int(cq.r) - int(cj.r)) + std::abs(int(cq.g) - int(cj.g)) +
-                                 std::abs(int(cq.b) - int(cj.b)) + 1) /
-                                3;
-                            const double ws = spatial_lut[sb];
-                            const double w = ws * range_lut[std::min(dc, 255)];
-                            tsum += w * normal.dot(xyz[j] - origin) / nr;
-                            wsum += w;
-                            wssum += ws;
+                    for (int a = 0; a < m; ++a) {
+                        const double eu = nb[a].u - qu, ev = nb[a].v - qv;
+                        d2s[a] = eu * eu + ev * ev;
+                        if (nb[a].index != ip &&
+                            (d2s[a] < d2p || (d2s[a] == d2p && nb[a].index < ip))) {
+                            owned = false;
+                            break;
                         }
                     }
                     if (!owned) {
                         ++count.owned;
                         continue;
                     }
-                    if (!(wsum > 1e-12)) {  // colour unlike every sample: fall back to spatial
-                        tsum = normal.dot(xp - origin) / nr;
-                        wsum = 1.0;
+                    // Ray of the colour pixel, in the depth frame.
+                    const Eigen::Vector3d ray =
+                        distorted ? Eigen::Vector3d(r_dc * kc.unproject(qu, qv, 1.0))
+                                  : Eigen::Vector3d(ray0 + qu * ray_du + qv * ray_dv);
+                    const double nr = normal.dot(ray);
+                    if (nr * nr < cos2_grazing * ray.squaredNorm()) {
+                        ++count.grazing;
+                        continue;
                     }
-                    const double t = tsum / wsum;
+                    const Rgb cq = integer_steps ? bgr_at(frame.color, static_cast<int>(qu),
+                                                          static_cast<int>(qv))
+                                                 : bilinear(frame.color, qu, qv);
+                    // Joint bilateral average of the plane offsets over the 3x3 samples.
+                    double wsum = 0.0, wssum = 0.0, hsum = 0.0;
+                    for (int a = 0; a < m; ++a) {
+                        const int sb =
+                            std::min(kSpatialBins - 1, static_cast<int>(d2s[a] * kSpatialStep));
+                        const int dc = (std::abs(int(cq.r) - nb[a].rgb[0]) +
+                                        std::abs(int(cq.g) - nb[a].rgb[1]) +
+                                        std::abs(int(cq.b) - nb[a].rgb[2]) + 1) /
+                                       3;
+                        const double ws = spatial_lut[sb];
+                        const double w = ws * range_lut[std::min(dc, 255)];
+                        hsum += w * nb[a].h;
+                        wsum += w;
+                        wssum += ws;
+                    }
+                    // Colour unlike every sample: fall back to the parent's plane.
+                    const double t = wsum > 1e-12 ? hsum / (wsum * nr) : h_parent / nr;
                     const Eigen::Vector3d y = origin + t * ray;
-                    if (!(t > 0.0) || (y - xp).norm() > options.max_offset_factor * s_d) {
+                    if (!(t > 0.0) || (y - xp).squaredNorm() > max_offset2 * s_d * s_d) {
                         ++count.offset;
                         continue;
                     }
-                    out.push_back({y, normal, cq,
-                                   static_cast<float>(parent_conf * std::min(1.0, wsum / wssum)),
+                    const double colour_weight = std::min(1.0, (wsum > 1e-12 ? wsum : 1.0) / wssum);
+                    out.push_back({y, normal, cq, static_cast<float>(parent_conf * colour_weight),
                                    static_cast<std::uint32_t>(ip)});
                 }
             }
         }
     });
+    const double time_children_s = watch.seconds() - time_prepare_s;
     if (!report_progress(progress, 0.8)) throw AlgorithmError(name + ": upsample cancelled");
 
     // Append in row order (deterministic).
@@ -428,6 +455,9 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
     report["rejected_grazing"] = total.grazing;
     report["rejected_offset"] = total.offset;
     report["time_s"] = watch.seconds();
+    report["time_prepare_s"] = time_prepare_s;
+    report["time_children_s"] = time_children_s;
+    report["time_append_s"] = watch.seconds() - time_prepare_s - time_children_s;
     report_progress(progress, 1.0);
     return report;
 }

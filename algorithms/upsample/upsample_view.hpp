@@ -68,7 +68,8 @@ struct UpsampleOptions {
 /// @throws InputError naming the view (and frame source) for a view without grid or pixel
 /// map, a frame without colour image, or sizes that do not match.
 /// @return report: method, neighbors, rho, parents, gated (discontinuity), new points,
-/// rejections by reason, points_before/after, time_s.
+/// rejections by reason, points_before/after, time_s and its splits time_prepare_s (point
+/// table), time_children_s (new points), time_append_s (writing them into the point set).
 Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOptions& options,
                      const Progress& progress = {});
 

@@ -1,6 +1,7 @@
 // Contract tests of rgbd-upsample (STYLE.md §8): help, exit codes, the capture folder found
-// from rgbd:view.source or --capture, a missing colour image (one-line error naming the file,
-// no partial output), a view without grid, and the point count on a rendered capture.
+// from rgbd:view.source or --capture, a missing colour image or one of another size than
+// rig.json says (one-line error naming the file or the sizes, no partial output), a view
+// without grid, and the point count on a rendered capture.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -8,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
 
@@ -112,6 +114,28 @@ TEST_F(Upsample, MissingColourImageIsAOneLineErrorAndNoOutput) {
     const Outcome nocap = run("$BIN/rgbd-upsample views.ply --capture no-such-dir -o never.ply");
     EXPECT_EQ(nocap.code, 1);
     EXPECT_NE(nocap.err.find("no-such-dir"), std::string::npos) << nocap.err;
+}
+
+TEST_F(Upsample, ColourImageOfAnotherSizeThanTheRigIsAOneLineError) {
+    fs::remove_all(temp_root() / "cap3");
+    fs::copy(temp_root() / "cap", temp_root() / "cap3", fs::copy_options::recursive);
+    fs::path victim;
+    for (const auto& e : fs::recursive_directory_iterator(temp_root() / "cap3"))
+        if (e.path().parent_path().filename() == "color") victim = e.path();
+    ASSERT_FALSE(victim.empty());
+    const cv::Mat image = cv::imread(victim.string(), cv::IMREAD_COLOR);
+    ASSERT_FALSE(image.empty());
+    cv::Mat half(image.rows / 2, image.cols / 2, CV_8UC3, cv::Scalar(40, 80, 120));
+    ASSERT_TRUE(cv::imwrite(victim.string(), half));
+    const Outcome r = run("$BIN/rgbd-upsample views.ply --capture cap3 -o never.ply");
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    EXPECT_EQ(r.err.rfind("rgbd-upsample: error: ", 0), 0u) << r.err;
+    const std::string size = std::to_string(half.cols) + "x" + std::to_string(half.rows);
+    EXPECT_TRUE(r.err.find(size) != std::string::npos ||
+                r.err.find(victim.filename().string()) != std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
 }
 
 TEST_F(Upsample, ViewWithoutGridIsAnError) {
