@@ -44,14 +44,6 @@ struct Camera {
     std::vector<float> depth;  ///< width * height, +inf = no return
 };
 
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t a) {
-    while (parent[a] != a) {
-        parent[a] = parent[parent[a]];
-        a = parent[a];
-    }
-    return a;
-}
-
 }  // namespace
 
 Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOptions& options,
@@ -104,11 +96,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         report["time_s"] = watch.seconds();
         return report;
     }
-    if (!report_progress(progress, 0.0)) {
-        report["cancelled"] = true;
-        report["removed"] = 0;
-        return report;
-    }
+    if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
     const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
     const double cos_min = std::cos(theta_max);
 
@@ -201,11 +189,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                 expected[i] = sum;
             }
         });
-    if (!report_progress(progress, 0.5)) {
-        report["cancelled"] = true;
-        report["removed"] = 0;
-        return report;
-    }
+    if (!report_progress(progress, 0.5)) return detail::cancelled(report, watch);
     if (reference == DensityReference::kLocal) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
                           [&](const tbb::blocked_range<std::size_t>& r) {
@@ -276,16 +260,11 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                         if (f.first > a) edges[b].emplace_back(std::uint32_t(a), f.first);
                 }
             });
-            std::vector<std::uint32_t> parent(m);
-            for (std::size_t a = 0; a < m; ++a) parent[a] = std::uint32_t(a);
+            detail::DisjointSets sets(m);
             for (const auto& block : edges)
-                for (const auto& e : block) {
-                    const std::uint32_t x = find_root(parent, e.first);
-                    const std::uint32_t y = find_root(parent, e.second);
-                    if (x != y) parent[std::max(x, y)] = std::min(x, y);
-                }
+                for (const auto& e : block) sets.unite(e.first, e.second);
             std::vector<std::uint32_t> size(m, 0);
-            for (std::size_t a = 0; a < m; ++a) ++size[find_root(parent, std::uint32_t(a))];
+            for (std::size_t a = 0; a < m; ++a) ++size[sets.find(std::uint32_t(a))];
             std::uint32_t largest = 0;
             for (std::size_t a = 0; a < m; ++a) {
                 if (size[a] > 0) ++clusters;
@@ -293,7 +272,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             }
             const double keep = options.min_cluster_fraction * double(m);
             for (std::size_t a = 0; a < m; ++a) {
-                const std::uint32_t root = find_root(parent, std::uint32_t(a));
+                const std::uint32_t root = sets.find(std::uint32_t(a));
                 if (root != largest && double(size[root]) < keep) {
                     outlier[alive[a]] = 1;
                     ++cluster_removed;

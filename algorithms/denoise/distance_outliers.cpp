@@ -38,15 +38,6 @@ enum Reason : std::uint8_t { kKeep = 0, kFlying = 1, kSpeckle = 2, kStatistical 
 /// Half size of the support window (5 x 5 pixels).
 constexpr int kWindow = 2;
 
-/// Union-find with path halving over point positions.
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t a) {
-    while (parent[a] != a) {
-        parent[a] = parent[parent[a]];
-        a = parent[a];
-    }
-    return a;
-}
-
 /// Focal length in pixels from horizontally adjacent pixels (x / z changes by 1 / f).
 double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
                       const std::vector<std::int32_t>& grid, int width, int height) {
@@ -89,11 +80,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     RGBD_CHECK(pixel.has_value(), name +
                                       ": --distance needs the `pixel` property of an "
                                       "organised view; use --density or --statistical");
-    if (!report_progress(progress, 0.0)) {
-        report["cancelled"] = true;
-        report["removed"] = 0;
-        return report;
-    }
+    if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
 
     // Camera-frame coordinates: depth is the camera z.
     std::vector<Eigen::Vector3d> cam(g.xyz);
@@ -144,6 +131,18 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
         const int w = kWindow;
         const double inv_cos = 1.0 / std::cos(theta_max);
         const int axes[4][2] = {{0, 1}, {1, 0}, {1, 1}, {1, -1}};
+        // Per point: the support radius per pixel of offset and sigma_z(z) head-on.
+        std::vector<double> step(n, 0.0), sigma(n, 0.0);
+        tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+            if (cam[i].z() <= 0.0) return;
+            step[i] = cam[i].z() / focal * inv_cos;
+            sigma[i] = sigma_z_m(options.noise_model, cam[i].z(), 0.0);
+        });
+        // Does j, at pixel offset (dr, dc) from i, support i (the step-1 relation)?
+        const auto supports = [&](std::int32_t i, std::int32_t j, int dr, int dc) {
+            const double limit = step[i] * std::sqrt(double(dr * dr + dc * dc)) + 3.0 * sigma[i];
+            return (cam[j] - cam[i]).squaredNorm() <= limit * limit;
+        };
         const auto depth_at = [&](int rr, int cc) {
             if (rr < 0 || rr >= height || cc < 0 || cc >= width)
                 return std::numeric_limits<double>::quiet_NaN();
@@ -156,10 +155,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                     for (int col = 0; col < width; ++col) {
                         const std::int32_t i = grid[std::size_t(row) * width + col];
                         if (i < 0) continue;
-                        const Eigen::Vector3d& p = cam[i];
-                        const double z = p.z();
-                        const double step = z / focal * inv_cos;
-                        const double sigma = sigma_z_m(options.noise_model, z, 0.0);
+                        const double z = cam[i].z();
                         int support = 0, valid = 0;
                         for (int dr = -w; dr <= w; ++dr)
                             for (int dc = -w; dc <= w; ++dc) {
@@ -169,9 +165,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                                 const std::int32_t j = grid[std::size_t(rr) * width + cc];
                                 if (j < 0) continue;
                                 ++valid;
-                                const double limit =
-                                    step * std::sqrt(double(dr * dr + dc * dc)) + 3.0 * sigma;
-                                if ((cam[j] - p).squaredNorm() <= limit * limit) ++support;
+                                if (supports(i, j, dr, dc)) ++support;
                             }
                         if (support < options.c_min) {
                             reason[i] = kFlying;
@@ -180,8 +174,8 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                         if (options.line_sigmas <= 0.0 || valid < options.dense_min) continue;
                         // Second-difference noise: sqrt(1.5) sigma for the midpoint of two
                         // neighbours, sqrt(6) sigma for the extrapolation from one side.
-                        const double t_in = options.line_sigmas * sigma * std::sqrt(1.5);
-                        const double t_ex = options.line_sigmas * sigma * std::sqrt(6.0);
+                        const double t_in = options.line_sigmas * sigma[i] * std::sqrt(1.5);
+                        const double t_ex = options.line_sigmas * sigma[i] * std::sqrt(6.0);
                         bool line = false;
                         for (const auto& a : axes) {
                             const double zp = depth_at(row + a[0], col + a[1]);
@@ -203,34 +197,26 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
 
         // Step 3: speckles = small components of the grid graph over the survivors.
         if (options.n_speckle > 0) {
-            std::vector<std::uint32_t> parent(n);
-            for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<std::uint32_t>(i);
+            detail::DisjointSets sets(n);
             // Links: the window-support relation of step 1 (5 x 5, 3D distance), so that
             // grazing surface broken by dropouts stays one component.
             for (int row = 0; row < height; ++row)
                 for (int col = 0; col < width; ++col) {
                     const std::int32_t i = grid[std::size_t(row) * width + col];
                     if (i < 0 || reason[i] != kKeep) continue;
-                    const double step = cam[i].z() / focal * inv_cos;
-                    const double noise = 3.0 * sigma_z_m(options.noise_model, cam[i].z(), 0.0);
                     for (int dr = 0; dr <= w; ++dr)
                         for (int dc = -w; dc <= w; ++dc) {
                             if (dr == 0 && dc <= 0) continue;  // each pair once
                             const int rr = row + dr, cc = col + dc;
                             if (rr >= height || cc < 0 || cc >= width) continue;
                             const std::int32_t j = grid[std::size_t(rr) * width + cc];
-                            if (j < 0 || reason[j] != kKeep) continue;
-                            const double limit =
-                                step * std::sqrt(double(dr * dr + dc * dc)) + noise;
-                            if ((cam[j] - cam[i]).squaredNorm() > limit * limit) continue;
-                            const std::uint32_t a = find_root(parent, std::uint32_t(i));
-                            const std::uint32_t b = find_root(parent, std::uint32_t(j));
-                            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                            if (j < 0 || reason[j] != kKeep || !supports(i, j, dr, dc)) continue;
+                            sets.unite(std::uint32_t(i), std::uint32_t(j));
                         }
                 }
             std::vector<std::uint32_t> size(n, 0);
             for (std::size_t i = 0; i < n; ++i)
-                if (on_grid[i] && reason[i] == kKeep) ++size[find_root(parent, std::uint32_t(i))];
+                if (on_grid[i] && reason[i] == kKeep) ++size[sets.find(std::uint32_t(i))];
             std::uint32_t largest = 0;
             for (std::size_t i = 0; i < n; ++i) {
                 if (size[i] > 0) ++components;
@@ -238,7 +224,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             }
             for (std::size_t i = 0; i < n; ++i) {
                 if (!on_grid[i] || reason[i] != kKeep) continue;
-                const std::uint32_t root = find_root(parent, std::uint32_t(i));
+                const std::uint32_t root = sets.find(std::uint32_t(i));
                 if (root != largest && size[root] < std::uint32_t(options.n_speckle)) {
                     reason[i] = kSpeckle;
                     ++speckle;
@@ -249,11 +235,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     report["flying"] = flying;
     report["speckle"] = speckle;
     report["components"] = components;
-    if (!report_progress(progress, 0.4)) {
-        report["cancelled"] = true;
-        report["removed"] = 0;
-        return report;
-    }
+    if (!report_progress(progress, 0.4)) return detail::cancelled(report, watch);
 
     std::size_t statistical = 0;
     if (options.pass_b) {

@@ -1,6 +1,7 @@
 // Internal helpers of the denoise filters: gathering the live points of a view (finite
-// coordinates checked, error naming the view) and applying a per-point outlier decision by
-// marking (`noise` flag) or deleting with all properties kept aligned. Not a public header.
+// coordinates checked, error naming the view), applying a per-point outlier decision by
+// marking (`noise` flag) or deleting with all properties kept aligned, the report of a
+// cancelled run, and the disjoint sets of the component passes. Not a public header.
 #pragma once
 
 #include <Eigen/Core>
@@ -11,6 +12,7 @@
 
 #include "toolkit/error.hpp"
 #include "toolkit/point_cloud.hpp"
+#include "toolkit/report.hpp"
 
 namespace rgbd::denoise::detail {
 
@@ -68,6 +70,37 @@ inline std::size_t apply(PointCloud& cloud, const Gathered& g,
     cloud.points.collect_garbage();
     return count;
 }
+
+/// The report of a run cancelled through its progress callback: nothing removed.
+inline Report cancelled(Report report, const Stopwatch& watch) {
+    report["cancelled"] = true;
+    report["removed"] = 0;
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+/// Union-find over point positions with path halving; the smaller index becomes the root.
+class DisjointSets {
+public:
+    explicit DisjointSets(std::size_t n) : parent_(n) {
+        for (std::size_t i = 0; i < n; ++i) parent_[i] = static_cast<std::uint32_t>(i);
+    }
+    std::uint32_t find(std::uint32_t a) {
+        while (parent_[a] != a) {
+            parent_[a] = parent_[parent_[a]];
+            a = parent_[a];
+        }
+        return a;
+    }
+    void unite(std::uint32_t a, std::uint32_t b) {
+        a = find(a);
+        b = find(b);
+        if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+    }
+
+private:
+    std::vector<std::uint32_t> parent_;
+};
 
 /// Median of `v` (reordered); 0 for an empty vector.
 inline double median_of(std::vector<double>& v) {

@@ -38,16 +38,10 @@ const char* convention_name(OutlierConvention c) {
 }
 
 using detail::apply;
+using detail::cancelled;
 using detail::gather;
 using detail::Gathered;
 using detail::view_name;
-
-Report cancelled(Report report, const Stopwatch& watch) {
-    report["cancelled"] = true;
-    report["removed"] = 0;
-    report["time_s"] = watch.seconds();
-    return report;
-}
 
 }  // namespace
 
