@@ -3,56 +3,27 @@
 // --density runs on the aligned view stream and keeps the views, --mark == delete, absurd
 // parameters are usage errors (exit 2), empty input passes.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
+
+#include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kBin = RGBD_BINARY_DIR;
-
-struct Outcome {
-    int code = -1;
-    std::string out, err;
-};
-
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using rgbd::test::Outcome;
+using rgbd::test::slurp;
 
 fs::path temp_root() {
-    static const fs::path root = [] {
-        fs::path p = fs::temp_directory_path() / ("rgbd_clean_test_" + std::to_string(::getpid()));
-        fs::create_directories(p);
-        return p;
-    }();
+    static const fs::path root = rgbd::test::scratch_dir("rgbd_clean_test");
     return root;
 }
 
-Outcome run(const std::string& command) {
-    static int counter = 0;
-    const fs::path out = temp_root() / ("out" + std::to_string(counter) + ".txt");
-    const fs::path err = temp_root() / ("err" + std::to_string(counter++) + ".txt");
-    const std::string line = "BIN=" + kBin + "; cd " + temp_root().string() + " && ( " + command +
-                             " ) >" + out.string() + " 2>" + err.string() + " </dev/null";
-    const int status = std::system(("bash -c '" + line + "'").c_str());
-    Outcome r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-}
+Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
 
 nlohmann::json metrics(const std::string& file) {
     return nlohmann::json::parse(slurp(temp_root() / file));
