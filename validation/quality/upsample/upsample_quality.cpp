@@ -172,7 +172,7 @@ int render_face(const std::string& stream, const std::string& out_png, int view_
     label(right, "upsampled: " + std::to_string(all.size()) + " points");
     cv::Mat both;
     cv::hconcat(left, right, both);
-    if (!cv::imwrite(out_png, both)) throw IoError(out_png + ": cannot write");
+    io::write_image_atomic(out_png, both);
     nlohmann::json r;
     r["png"] = out_png;
     r["view"] = cloud.view.id;
@@ -223,8 +223,8 @@ int convert_pcl_grabber(const std::string& dir, const std::string& out) {
         depth.convertTo(mm, CV_16U, z_factor * 1000.0);
         char name[32];
         std::snprintf(name, sizeof name, "%06d.png", k++);
-        cv::imwrite((fs::path(out) / "depth" / name).string(), mm);
-        cv::imwrite((fs::path(out) / "color" / name).string(), color);
+        io::write_image_atomic(fs::path(out) / "depth" / name, mm);
+        io::write_image_atomic(fs::path(out) / "color" / name, color);
         width = depth.cols;
         height = depth.rows;
     }
@@ -232,7 +232,7 @@ int convert_pcl_grabber(const std::string& dir, const std::string& out) {
     k_json["width"] = width;
     k_json["height"] = height;
     k_json["intrinsic_matrix"] = {fx, 0, 0, 0, fy, 0, cx, cy, 1};
-    std::ofstream(fs::path(out) / "intrinsic.json") << k_json.dump(1) << "\n";
+    io::write_text_atomic(fs::path(out) / "intrinsic.json", k_json.dump(1) + "\n");
     std::cout << "{\"frames\": " << k << "}\n";
     return 0;
 }
