@@ -93,6 +93,21 @@ TEST_F(RgbdClean, MarkEqualsDelete) {
     }
 }
 
+// --knn-test adds Pass B: it runs, reports its threshold and can only remove more.
+TEST_F(RgbdClean, KnnTestAddsThePassBStatistic) {
+    Outcome r =
+        run("$BIN/rgbd-clean --distance views.ply --metrics m_plain.json > plain.ply && "
+            "$BIN/rgbd-clean --distance --knn-test views.ply --metrics m_knn.json > knn.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto plain = metrics("m_plain.json"), knn = metrics("m_knn.json");
+    for (std::size_t v = 0; v < 4; ++v) {
+        EXPECT_EQ(plain["documents"][v]["statistical"], 0);
+        EXPECT_TRUE(knn["documents"][v].contains("r_threshold"));
+        EXPECT_GE(knn["documents"][v]["removed"].get<int>(),
+                  plain["documents"][v]["removed"].get<int>());
+    }
+}
+
 TEST_F(RgbdClean, DistanceWithoutGridSuggestsDensity) {
     // rgbd-align --merge output has no grid.
     Outcome r =
