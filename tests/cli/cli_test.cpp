@@ -11,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -37,30 +38,10 @@ protected:
     static void SetUpTestSuite() {
         const fs::path cap = temp_root() / "cap";
         if (fs::exists(cap)) return;
-        // An icosphere-ish closed mesh written as OFF: a UV sphere scaled into an ellipsoid.
-        std::ofstream off(temp_root() / "blob.off");
-        const int nu = 48, nv = 24;
-        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (2 * nu * (nv - 1)) << " 0\n";
-        off << "0 0.5 0\n";
-        for (int j = 1; j < nv; ++j)
-            for (int i = 0; i < nu; ++i) {
-                const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
-                const double bump = 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th);
-                off << 0.3 * bump * std::sin(th) * std::cos(ph) << " " << 0.5 * std::cos(th) << " "
-                    << 0.25 * bump * std::sin(th) * std::sin(ph) << "\n";
-            }
-        off << "0 -0.5 0\n";
-        const int south = nu * (nv - 1) + 1;
-        auto id = [&](int j, int i) { return 1 + (j - 1) * nu + (i % nu); };
-        for (int i = 0; i < nu; ++i) off << "3 0 " << id(1, i + 1) << " " << id(1, i) << "\n";
-        for (int j = 1; j < nv - 1; ++j)
-            for (int i = 0; i < nu; ++i) {
-                off << "3 " << id(j, i) << " " << id(j, i + 1) << " " << id(j + 1, i + 1) << "\n";
-                off << "3 " << id(j, i) << " " << id(j + 1, i + 1) << " " << id(j + 1, i) << "\n";
-            }
-        for (int i = 0; i < nu; ++i)
-            off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
-        off.close();
+        // A closed mesh: a bumpy ellipsoid.
+        rgbd::test::write_ellipsoid_off(
+            temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25,
+            [](double th, double ph) { return 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th); });
         const Outcome r =
             run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
         ASSERT_EQ(r.code, 0) << r.err;

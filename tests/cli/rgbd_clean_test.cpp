@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -34,27 +35,7 @@ class RgbdClean : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         if (fs::exists(temp_root() / "views.ply")) return;
-        std::ofstream off(temp_root() / "blob.off");
-        const int nu = 48, nv = 24;
-        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (nu * nv) << " 0\n";
-        off << "0 0.5 0\n";
-        for (int j = 1; j < nv; ++j)
-            for (int i = 0; i < nu; ++i) {
-                const double t = 3.14159265358979 * j / nv, p = 2 * 3.14159265358979 * i / nu;
-                off << 0.3 * std::sin(t) * std::cos(p) << " " << 0.5 * std::cos(t) << " "
-                    << 0.25 * std::sin(t) * std::sin(p) << "\n";
-            }
-        off << "0 -0.5 0\n";
-        for (int i = 0; i < nu; ++i) off << "3 0 " << 1 + (i + 1) % nu << " " << 1 + i << "\n";
-        for (int j = 0; j < nv - 2; ++j)
-            for (int i = 0; i < nu; ++i) {
-                const int a = 1 + j * nu + i, b = 1 + j * nu + (i + 1) % nu;
-                off << "4 " << a << " " << b << " " << b + nu << " " << a + nu << "\n";
-            }
-        const int last = 1 + (nv - 2) * nu, bottom = 1 + (nv - 1) * nu;
-        for (int i = 0; i < nu; ++i)
-            off << "3 " << bottom << " " << last + i << " " << last + (i + 1) % nu << "\n";
-        off.close();
+        rgbd::test::write_ellipsoid_off(temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25);
         Outcome r =
             run("$BIN/rgbd-synth blob.off -o cap --sensors 4 --height-m 0.5 --seed 3 -q && "
                 "$BIN/rgbd-cloud cap -q > views.ply");

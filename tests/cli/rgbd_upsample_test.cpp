@@ -13,6 +13,7 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -35,27 +36,7 @@ class Upsample : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         if (fs::exists(temp_root() / "views.ply")) return;
-        std::ofstream off(temp_root() / "ball.off");
-        const int nu = 40, nv = 20;
-        off << "OFF\n" << (nu * (nv - 1) + 2) << " " << (2 * nu * (nv - 1)) << " 0\n0 0.2 0\n";
-        for (int j = 1; j < nv; ++j)
-            for (int i = 0; i < nu; ++i) {
-                const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
-                off << 0.2 * std::sin(th) * std::cos(ph) << " " << 0.2 * std::cos(th) << " "
-                    << 0.2 * std::sin(th) * std::sin(ph) << "\n";
-            }
-        off << "0 -0.2 0\n";
-        const int south = nu * (nv - 1) + 1;
-        auto id = [&](int j, int i) { return 1 + (j - 1) * nu + (i % nu); };
-        for (int i = 0; i < nu; ++i) off << "3 0 " << id(1, i + 1) << " " << id(1, i) << "\n";
-        for (int j = 1; j < nv - 1; ++j)
-            for (int i = 0; i < nu; ++i) {
-                off << "3 " << id(j, i) << " " << id(j, i + 1) << " " << id(j + 1, i + 1) << "\n";
-                off << "3 " << id(j, i) << " " << id(j + 1, i + 1) << " " << id(j + 1, i) << "\n";
-            }
-        for (int i = 0; i < nu; ++i)
-            off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
-        off.close();
+        rgbd::test::write_ellipsoid_off(temp_root() / "ball.off", 40, 20, 0.2, 0.2, 0.2);
         Outcome r = run("$BIN/rgbd-synth ball.off -o cap --sensors 2 --height-m 0.4 -q");
         ASSERT_EQ(r.code, 0) << r.err;
         r = run("$BIN/rgbd-cloud cap -o views.ply");
