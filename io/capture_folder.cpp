@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "io/internal/atomic_file.hpp"
+#include "io/internal/depth_png.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -1049,7 +1050,9 @@ void CaptureWriter::add_encoded_frame(const std::string& sensor_id, std::int64_t
     if (!color_jpeg.empty()) fs::create_directories(dir / "color", ec);
     const std::string name = frame_name(index);
     const std::string depth_rel = "depth/" + name + ".png";
-    write_image_atomic(dir / depth_rel, depth_raw, {cv::IMWRITE_PNG_COMPRESSION, png_compression});
+    thread_local std::vector<std::uint8_t> png;  // reused between frames
+    internal::encode_depth_png(depth_raw, png_compression, png);
+    write_bytes_atomic(dir / depth_rel, png.data(), png.size());
     std::string color_rel;
     if (!color_jpeg.empty()) {
         color_rel = "color/" + name + ".jpg";
