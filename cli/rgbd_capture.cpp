@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <condition_variable>
 #include <csignal>
@@ -38,6 +39,17 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) { g_stop = true; }
+
+/// Polls for up to 20 ms; false when a signal interrupted the wait (EINTR).
+bool poll_once(zmq::pollitem_t& item) {
+    try {
+        zmq::poll(&item, 1, std::chrono::milliseconds(20));
+        return true;
+    } catch (const zmq::error_t& e) {
+        if (e.num() != EINTR) throw;
+        return false;
+    }
+}
 
 struct HubOptions {
     int probes = 16;
@@ -569,7 +581,7 @@ void run_capture(cli::Context& ctx) {
             break;
         }
         zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
-        zmq::poll(&item, 1, std::chrono::milliseconds(20));
+        if (!poll_once(item)) continue;
         for (int k = 0; k < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++k) {
             if (message.more()) {
                 while (message.more() && pull.recv(message, zmq::recv_flags::none)) {
@@ -588,7 +600,7 @@ void run_capture(cli::Context& ctx) {
         while (monotonic_ns() - quiet_since < 300'000'000 &&
                monotonic_ns() - drain_start < 10'000'000'000 && !recorder.failed()) {
             zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
-            zmq::poll(&item, 1, std::chrono::milliseconds(20));
+            if (!poll_once(item)) continue;
             while (pull.recv(message, zmq::recv_flags::dontwait)) {
                 if (message.more()) {
                     while (message.more() && pull.recv(message, zmq::recv_flags::none)) {

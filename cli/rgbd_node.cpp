@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <fstream>
@@ -103,7 +104,11 @@ private:
                 last_bye = now;
             }
             zmq::pollitem_t item{socket_.handle(), 0, ZMQ_POLLIN, 0};
-            if (zmq::poll(&item, 1, std::chrono::milliseconds(20)) == 0) continue;
+            try {
+                if (zmq::poll(&item, 1, std::chrono::milliseconds(20)) == 0) continue;
+            } catch (const zmq::error_t&) {
+                continue;  // EINTR: a signal; the main thread decides
+            }
             while (socket_.recv(message, zmq::recv_flags::dontwait)) {
                 const std::int64_t t1 = clock_.now();
                 net::ControlMessage in;
@@ -264,8 +269,18 @@ void run_node(cli::Context& ctx) {
         header.height = static_cast<std::uint16_t>(frame.depth.rows);
         net::encode_frame(header, rvl.data(), rvl.size(), color->data(), color->size(), message);
         encode_s += 1e-9 * static_cast<double>(sensors::monotonic_ns() - t_encode);
-        if (!push.send(zmq::buffer(message), zmq::send_flags::none))
+        bool accepted = false;
+        try {
+            accepted = push.send(zmq::buffer(message), zmq::send_flags::none).has_value();
+        } catch (const zmq::error_t& e) {
+            if (e.num() != EINTR) throw;
+            if (g_stop) break;
+        }
+        if (!accepted) {
+            if (g_stop) break;
+            push.set(zmq::sockopt::linger, 0);  // nobody takes the queued frames: do not wait
             throw IoError("the hub at " + hub + " accepts no frames (send timed out)");
+        }
         if (truth)
             *truth << session << ',' << frame.index << ',' << frame.source_position << ','
                    << frame.capture_ns << ',' << header.node_ns << '\n';
@@ -274,6 +289,8 @@ void run_node(cli::Context& ctx) {
         rvl_bytes += static_cast<std::int64_t>(rvl.size());
         color_bytes += static_cast<std::int64_t>(color->size());
     }
+    // Stopped by a signal: give queued frames a second to leave, not the full linger.
+    if (g_stop) push.set(zmq::sockopt::linger, 1000);
     channel->bye(sent);
     if (truth) {
         truth->flush();

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -102,14 +103,34 @@ std::vector<Truth> read_truth(const fs::path& path) {
 
 json read_json(const fs::path& p) { return json::parse(slurp(p)); }
 
-/// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays; rendered once.
+/// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
+/// test in its own process: the capture is rendered once per rgbd-synth build into a shared
+/// cache folder (rendered beside it, then renamed into place) and linked into the scratch
+/// folder.
 class RgbdCapture : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         if (fs::exists(temp_root() / "synth" / "rig.json")) return;
-        rgbd::test::write_ellipsoid_off(temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25);
-        Outcome r = run("$BIN/rgbd-synth blob.off -o synth --sensors 8 --frames 4 --seed 5 -q");
-        ASSERT_EQ(r.code, 0) << r.err;
+        const fs::path synth = fs::path(RGBD_BINARY_DIR) / "rgbd-synth";
+        std::error_code ec;
+        const auto stamp = fs::last_write_time(synth, ec).time_since_epoch().count();
+        const fs::path cache =
+            fs::temp_directory_path() /
+            ("rgbd_capture_test_synth_" +
+             std::to_string(std::hash<std::string>{}(synth.string() + std::to_string(stamp))));
+        if (!fs::exists(cache / "rig.json")) {
+            const fs::path work = fs::path(cache.string() + ".tmp" + std::to_string(::getpid()));
+            fs::remove_all(work);
+            fs::create_directories(work);
+            rgbd::test::write_ellipsoid_off(work / "blob.off", 48, 24, 0.3, 0.5, 0.25);
+            Outcome r = rgbd::test::run_in(
+                work, "$BIN/rgbd-synth blob.off -o synth --sensors 8 --frames 4 --seed 5 -q");
+            ASSERT_EQ(r.code, 0) << r.err;
+            fs::rename(work / "synth", cache, ec);  // fails harmlessly if another test won
+            fs::remove_all(work);
+        }
+        ASSERT_TRUE(fs::exists(cache / "rig.json")) << "no synthetic capture in " << cache;
+        fs::create_directory_symlink(cache, temp_root() / "synth", ec);
     }
     void SetUp() override {
         ASSERT_TRUE(fs::exists(temp_root() / "synth" / "rig.json")) << "no synthetic capture";
