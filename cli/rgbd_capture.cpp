@@ -699,7 +699,7 @@ int main(int argc, char** argv) {
                                            "control endpoint (default: --listen's port + 1)")(
             "tolerance-ms", cli::po::value<double>()->default_value(16.7),
             "largest spread of a frame set (hub time)")(
-            "latency-ms", cli::po::value<double>()->default_value(300.0),
+            "latency-ms", cli::po::value<double>()->default_value(1000.0),
             "wait this long for late frames before forming a set")(
             "probes", cli::po::value<int>()->default_value(16), "clock probes per burst")(
             "probe-interval-ms", cli::po::value<double>()->default_value(1000.0),

@@ -86,7 +86,9 @@ private:
         zmq::message_t message;
         while (!stop_) {
             const std::int64_t now = sensors::monotonic_ns();
-            if (!started_ && now - last_hello > 1'000'000'000) {
+            // Hello every second until started, then every 5 s: after a reconnect the hub
+            // learns the node's new address from it.
+            if (now - last_hello > (started_ ? 5'000'000'000 : 1'000'000'000)) {
                 net::ControlMessage hello;
                 hello.type = net::ControlType::kHello;
                 hello.session = session_;

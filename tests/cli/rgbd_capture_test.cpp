@@ -223,7 +223,7 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
     start(dir, "hub8",
           "$BIN/rgbd-capture --rig synth/rig.json -o rec8 --listen tcp://127.0.0.1:" +
               std::to_string(port) +
-              " --exit-after-bye --probe-interval-ms 500 --metrics hub8.json");
+              " --exit-after-bye --probe-interval-ms 500 --latency-ms 2000 --metrics hub8.json");
     std::vector<double> offsets, drifts;
     for (int s = 0; s < 8; ++s) {
         offsets.push_back(s == 0 ? 500.0 : s == 1 ? -500.0 : 500.0 * uni(rng));
