@@ -75,10 +75,9 @@ pid_t pid_of(const fs::path& dir, const std::string& name) {
 /// A port pair per test process (frames on p, control on p + 1), below Linux's ephemeral
 /// port range (32768-60999) so that no outgoing connection holds it.
 int free_port() {
-    static int next = 12000 + static_cast<int>(::getpid() % 9000) * 2;
-    const int p = next;
-    next += 2;
-    return p;
+    // 8 pairs per process; test processes run in parallel under ctest -j.
+    static int first = 12000 + static_cast<int>(::getpid() % 1100) * 16, used = 0;
+    return first + 2 * (used++ % 8);
 }
 
 struct Truth {
