@@ -8,5 +8,5 @@ set -euo pipefail
 BUILD=${1:-build}
 export RGBD_CAPTURE_SECONDS=${2:-60}
 cmake --build "$BUILD" -j2 --target test_cli_rgbd_capture_test rgbd-capture rgbd-node rgbd-synth
-"$BUILD/tests/cli/test_cli_rgbd_capture_test" \
+"$BUILD/bin/test_cli_rgbd_capture_test" \
   --gtest_filter='RgbdCapture.EightNodesOnLoopbackLoseNothingAndStayInSync'
