@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "io/internal/atomic_file.hpp"
+#include "io/internal/depth_png.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -387,12 +388,23 @@ std::vector<FrameSet> read_framesets_csv(const fs::path& path, const Rig& rig) {
     return sets;
 }
 
+// Appends one line; on failure (disk full) the file is cut back to its previous length so it
+// never ends in a partial line.
 void append_line(const fs::path& path, const std::string& line) {
-    std::ofstream out(path, std::ios::app | std::ios::binary);
-    if (!out) throw IoError(path.string() + ": cannot open for appending");
-    out << line << '\n';
-    out.flush();
-    if (!out) throw IoError(path.string() + ": write failed (disk full?)");
+    std::error_code ec;
+    const std::uintmax_t before = fs::exists(path, ec) ? fs::file_size(path, ec) : 0;
+    bool ok = false;
+    {
+        std::ofstream out(path, std::ios::app | std::ios::binary);
+        if (!out) throw IoError(path.string() + ": cannot open for appending");
+        out << line << '\n';
+        out.flush();
+        ok = static_cast<bool>(out);
+    }
+    if (!ok) {
+        if (!ec) fs::resize_file(path, before, ec);
+        throw IoError(path.string() + ": write failed (disk full?)");
+    }
 }
 
 // ------------------------------------------------------------------------------ layouts
@@ -1020,6 +1032,38 @@ void CaptureWriter::add_frame(const std::string& sensor_id, std::int64_t index,
     append_line(csv, line);
 }
 
+void CaptureWriter::add_encoded_frame(const std::string& sensor_id, std::int64_t index,
+                                      std::int64_t time_ns, const cv::Mat& depth_raw,
+                                      const std::vector<std::uint8_t>& color_jpeg,
+                                      int png_compression) {
+    const SensorSpec& s = rig_.sensor(sensor_id);
+    if (depth_raw.type() != CV_16UC1)
+        throw InputError("add_encoded_frame: depth must be CV_16UC1 (depth_scale units)");
+    if (depth_raw.cols != s.depth.width || depth_raw.rows != s.depth.height)
+        throw InputError("add_encoded_frame: sensor '" + sensor_id + "': depth is " +
+                         std::to_string(depth_raw.cols) + "x" + std::to_string(depth_raw.rows) +
+                         " but the rig declares " + std::to_string(s.depth.width) + "x" +
+                         std::to_string(s.depth.height));
+    const fs::path dir = root_ / sensor_id;
+    std::error_code ec;
+    fs::create_directories(dir / "depth", ec);
+    if (!color_jpeg.empty()) fs::create_directories(dir / "color", ec);
+    const std::string name = frame_name(index);
+    const std::string depth_rel = "depth/" + name + ".png";
+    thread_local std::vector<std::uint8_t> png;  // reused between frames
+    internal::encode_depth_png(depth_raw, png_compression, png);
+    write_bytes_atomic(dir / depth_rel, png.data(), png.size());
+    std::string color_rel;
+    if (!color_jpeg.empty()) {
+        color_rel = "color/" + name + ".jpg";
+        write_bytes_atomic(dir / color_rel, color_jpeg.data(), color_jpeg.size());
+    }
+    const fs::path csv = dir / "frames.csv";
+    if (!has_file(csv)) append_line(csv, "index,time_ns,depth,color");
+    append_line(csv, std::to_string(index) + "," + std::to_string(time_ns) + "," + depth_rel + "," +
+                         color_rel);
+}
+
 void CaptureWriter::add_frameset(const FrameSet& set) {
     if (set.frames.size() != rig_.sensors.size())
         throw InputError("add_frameset: " + std::to_string(set.frames.size()) +
@@ -1050,6 +1094,12 @@ void write_image_atomic(const fs::path& path, const cv::Mat& image,
     internal::write_file_atomic(path, [&](std::ostream& out) {
         out.write(reinterpret_cast<const char*>(bytes.data()),
                   static_cast<std::streamsize>(bytes.size()));
+    });
+}
+
+void write_bytes_atomic(const fs::path& path, const std::uint8_t* data, std::size_t size) {
+    internal::write_file_atomic(path, [&](std::ostream& out) {
+        out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
     });
 }
 

@@ -106,6 +106,14 @@ public:
     void add_frame(const std::string& sensor_id, std::int64_t index, std::int64_t time_ns,
                    const cv::Mat& depth_m, const cv::Mat& color_bgr,
                    const std::optional<Pose>& world_from_depth = std::nullopt);
+    /// Writes a frame whose images are already in their stored form: `depth_raw` CV_16UC1 in
+    /// the sensor's depth_scale units (written as PNG with `png_compression` 0-9, bit for bit),
+    /// `color_jpeg` the bytes of a JPEG file (written unchanged; empty = no colour), then
+    /// appends the frames.csv line (no pose columns). Used by the capture hub, which receives
+    /// compressed frames and must not re-encode colour. Throws IoError naming the file.
+    void add_encoded_frame(const std::string& sensor_id, std::int64_t index, std::int64_t time_ns,
+                           const cv::Mat& depth_raw, const std::vector<std::uint8_t>& color_jpeg,
+                           int png_compression = 1);
     /// Appends a framesets.csv line (frames in Rig::sensors order, -1 = missing).
     void add_frameset(const FrameSet& set);
     const std::filesystem::path& root() const { return root_; }
@@ -120,6 +128,9 @@ private:
 /// follows the extension (.png, .jpg). Throws IoError naming the file.
 void write_image_atomic(const std::filesystem::path& path, const cv::Mat& image,
                         const std::vector<int>& params = {});
+/// Writes bytes atomically. Throws IoError naming the file.
+void write_bytes_atomic(const std::filesystem::path& path, const std::uint8_t* data,
+                        std::size_t size);
 /// Writes text atomically. Throws IoError naming the file.
 void write_text_atomic(const std::filesystem::path& path, const std::string& text);
 

@@ -178,6 +178,36 @@ std::string rig_error(const std::string& text) {
     return message;
 }
 
+TEST(CaptureFolder, EncodedFramesAreStoredBitForBit) {
+    const fs::path dir = temp_dir("encoded");
+    const Rig rig = test_rig();
+    cv::Mat raw(48, 64, CV_16UC1);
+    for (int i = 0; i < 48 * 64; ++i) raw.at<std::uint16_t>(i / 64, i % 64) = (i * 7919) % 65536;
+    cv::Mat color(60, 80, CV_8UC3, cv::Scalar(10, 200, 30));
+    std::vector<std::uint8_t> jpeg;
+    cv::imencode(".jpg", color, jpeg, {cv::IMWRITE_JPEG_QUALITY, 70});
+    {
+        CaptureWriter w(dir, rig);
+        w.add_encoded_frame("k2-1", 0, 123, raw, jpeg);
+        w.add_encoded_frame("k2-1", 1, 456, raw, {});
+        EXPECT_THROW(w.add_encoded_frame("k2-1", 2, 789, cv::Mat(48, 64, CV_32FC1), jpeg),
+                     InputError);
+        EXPECT_THROW(w.add_encoded_frame("k2-1", 2, 789, cv::Mat(4, 4, CV_16UC1), jpeg),
+                     InputError);
+    }
+    const Capture cap = open_capture(dir);
+    ASSERT_EQ(cap.frames.at("k2-1").size(), 2u);
+    EXPECT_EQ(cap.frames.at("k2-1")[1].time_ns, 456);
+    EXPECT_TRUE(cap.frames.at("k2-1")[1].color.empty());
+    const cv::Mat back =
+        cv::imread((dir / "k2-1" / cap.frames.at("k2-1")[0].depth).string(), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(cv::norm(back, raw, cv::NORM_INF), 0.0);
+    std::ifstream in(dir / "k2-1" / cap.frames.at("k2-1")[0].color, std::ios::binary);
+    const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(bytes, jpeg);
+    fs::remove_all(dir);
+}
+
 TEST(CaptureFolder, BadRigJsonVariants) {
     const std::string good = R"({ "format": "rgbd-capture", "version": 1, "units": "m",
       "sensors": [ { "id": "k2-0", "model": "kinect_v2",

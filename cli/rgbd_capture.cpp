@@ -1,0 +1,726 @@
+// rgbd-capture: the capture hub (DESIGN.md §5, ALGORITHMS.md §1). Receives frames from many
+// rgbd-node processes over ZeroMQ, estimates each node's clock offset and drift with
+// four-timestamp probes on a separate control socket, maps every frame to hub time, groups
+// frames of all sensors into frame sets within a tolerance and records a capture folder v1
+// (atomic files, csv appended line by line) that io::open_capture and rgbd-cloud read back.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <condition_variable>
+#include <csignal>
+#include <deque>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <zmq.hpp>
+
+#include "cli/common/tool.hpp"
+#include "io/capture_folder.hpp"
+#include "io/rvl.hpp"
+#include "sensors/network/clock_sync.hpp"
+#include "sensors/network/frame_grouper.hpp"
+#include "sensors/network/protocol.hpp"
+#include "sensors/network/transport.hpp"
+#include "sensors/sensor.hpp"
+#include "toolkit/error.hpp"
+
+using namespace rgbd;
+namespace net = rgbd::sensors::net;
+namespace fs = std::filesystem;
+using sensors::monotonic_ns;
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop = true; }
+
+/// Polls for up to 20 ms; false when a signal interrupted the wait (EINTR).
+bool poll_once(zmq::pollitem_t& item) {
+    try {
+        zmq::poll(&item, 1, std::chrono::milliseconds(20));
+        return true;
+    } catch (const zmq::error_t& e) {
+        if (e.num() != EINTR) throw;
+        return false;
+    }
+}
+
+struct HubOptions {
+    int probes = 16;
+    std::int64_t probe_interval_ns = 1'000'000'000;
+    double drift_window_s = 60;
+    std::int64_t probe_timeout_ns = 500'000'000;
+};
+
+// ---------------------------------------------------------------------------------- control
+
+net::ControlMessage start_message() {
+    net::ControlMessage m;
+    m.type = net::ControlType::kStart;
+    return m;
+}
+
+/// One node run (session): its clock estimate and the probe schedule.
+struct Session {
+    std::string routing_id;
+    std::size_t sensor = 0;
+    double rate_hz = 30;
+    net::ClockEstimator clock;
+    int burst_count = 0;       ///< probes of the current burst sent and answered/timed out
+    std::uint32_t seq = 0;     ///< sequence number of the outstanding probe
+    bool awaiting = false;     ///< a probe is outstanding
+    std::int64_t sent_at = 0;  ///< hub time of the outstanding probe
+    std::int64_t next_at = 0;  ///< hub time of the next probe
+    int timeouts = 0;          ///< consecutive timeouts
+    bool started = false, bye = false;
+    std::int64_t frames_announced = -1;  ///< from bye
+};
+
+/// Runs the control socket on its own thread, so probe replies are stamped as they arrive and
+/// never wait behind frame processing.
+class ControlHub {
+public:
+    ControlHub(zmq::context_t& context, const std::string& endpoint, const io::Rig& rig,
+               const HubOptions& options, const net::CurveKeys* keys, cli::Context& ctx)
+        : socket_(context, zmq::socket_type::router), rig_(rig), options_(options), ctx_(ctx) {
+        socket_.set(zmq::sockopt::linger, 0);
+        socket_.set(zmq::sockopt::router_mandatory, 0);
+        if (keys) net::make_curve_server(socket_, *keys);
+        try {
+            socket_.bind(endpoint);
+        } catch (const zmq::error_t& e) {
+            throw IoError("--control " + endpoint + ": cannot listen: " + e.what());
+        }
+        thread_ = std::thread([this] { run(); });
+    }
+    ~ControlHub() { stop(); }
+    void stop() {
+        stop_ = true;
+        if (thread_.joinable()) thread_.join();
+    }
+
+    /// The clock fit and sensor of a session that has been started; false otherwise.
+    bool lookup(std::uint64_t session, net::ClockFit& fit, std::size_t& sensor) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        const auto it = sessions_.find(session);
+        if (it == sessions_.end() || !it->second.started) return false;
+        fit = it->second.clock.fit();
+        sensor = it->second.sensor;
+        return true;
+    }
+    /// Every sensor that said hello has said bye in its latest session.
+    bool all_done() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (latest_.empty()) return false;
+        for (const auto& [sensor, session] : latest_)
+            if (!sessions_.at(session).bye) return false;
+        return true;
+    }
+    std::int64_t malformed() const { return malformed_; }
+    std::int64_t refused() const { return refused_; }
+
+    /// Per sensor: clock estimate at hub time `at`, sessions, probes.
+    Report report(std::int64_t at) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        Report r = Report::object();
+        for (const auto& [sensor, session] : latest_) {
+            const Session& s = sessions_.at(session);
+            int count = 0;
+            for (const auto& [id, other] : sessions_) count += other.sensor == sensor;
+            r[rig_.sensors[sensor].id] = {{"offset_ns", s.clock.offset_ns_at(at)},
+                                          {"drift_ppm", s.clock.drift_ppm()},
+                                          {"at_hub_ns", at},
+                                          {"bursts", s.clock.bursts()},
+                                          {"last_round_trip_ns", s.clock.last_round_trip_ns()},
+                                          {"sessions", count},
+                                          {"session", session},
+                                          {"bye", s.bye}};
+        }
+        return r;
+    }
+
+private:
+    void send(const std::string& routing_id, const net::ControlMessage& m) {
+        const auto bytes = net::encode_control(m);
+        try {
+            socket_.send(zmq::buffer(routing_id),
+                         zmq::send_flags::sndmore | zmq::send_flags::dontwait);
+            socket_.send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+        } catch (const zmq::error_t&) {
+        }
+    }
+
+    void on_message(const std::string& routing_id, const std::uint8_t* data, std::size_t size,
+                    std::int64_t t3) {
+        net::ControlMessage m;
+        std::string error;
+        if (!net::parse_control(data, size, m, error)) {
+            ++malformed_;
+            return;
+        }
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (m.type == net::ControlType::kHello) {
+            if (sessions_.count(m.session)) {
+                Session& s = sessions_.at(m.session);
+                s.routing_id = routing_id;
+                if (s.started) send(routing_id, start_message());
+                return;
+            }
+            nlohmann::json hello = nlohmann::json::parse(m.json, nullptr, false);
+            const std::string id =
+                hello.is_object() && hello.contains("sensor") && hello["sensor"].is_string()
+                    ? hello["sensor"].get<std::string>()
+                    : std::string();
+            std::size_t sensor = 0;
+            while (sensor < rig_.sensors.size() && rig_.sensors[sensor].id != id) ++sensor;
+            if (sensor == rig_.sensors.size()) {
+                ++refused_;
+                ctx_.warn("refused a node: sensor '" + id + "' is not in the rig");
+                return;
+            }
+            const io::SensorSpec& spec = rig_.sensors[sensor];
+            if (hello.value("width", 0) != spec.depth.width ||
+                hello.value("height", 0) != spec.depth.height) {
+                ++refused_;
+                ctx_.warn("refused sensor '" + id + "': depth size differs from the rig");
+                return;
+            }
+            Session s{.routing_id = routing_id,
+                      .sensor = sensor,
+                      .rate_hz = hello.value("rate_hz", 30.0),
+                      .clock = net::ClockEstimator(options_.drift_window_s)};
+            s.next_at = t3;
+            sessions_.emplace(m.session, std::move(s));
+            latest_[sensor] = m.session;
+            ctx_.info("sensor '" + id + "' joined (session " + std::to_string(m.session) + ")");
+            return;
+        }
+        if (m.type == net::ControlType::kBye) {
+            const auto it = sessions_.find(m.session);
+            if (it != sessions_.end()) {
+                it->second.bye = true;
+                it->second.frames_announced = m.frames;
+            }
+            return;
+        }
+        if (m.type == net::ControlType::kProbeReply) {
+            for (auto& [id, s] : sessions_) {
+                if (s.routing_id != routing_id || !s.awaiting || m.seq != s.seq) continue;
+                s.awaiting = false;
+                s.timeouts = 0;
+                s.clock.add_probe({m.t0, m.t1, m.t2, t3});
+                finish_probe(s, t3);
+                return;
+            }
+            return;  // a late reply to a timed-out probe
+        }
+        ++malformed_;  // probes and starts are not for the hub
+    }
+
+    void finish_probe(Session& s, std::int64_t now) {
+        if (++s.burst_count < options_.probes) {
+            s.next_at = now;
+            return;
+        }
+        s.burst_count = 0;
+        s.clock.end_burst();
+        s.next_at = now + options_.probe_interval_ns;
+        if (!s.started && s.clock.ready()) {
+            s.started = true;
+            send(s.routing_id, start_message());
+        }
+    }
+
+    void schedule(std::int64_t now) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        for (auto& [id, s] : sessions_) {
+            if (s.bye) continue;
+            if (s.awaiting && now - s.sent_at > options_.probe_timeout_ns) {
+                s.awaiting = false;
+                ++s.timeouts;
+                finish_probe(s, now);
+                if (s.timeouts > 3) s.next_at = now + options_.probe_interval_ns;
+            }
+            if (!s.awaiting && now >= s.next_at) {
+                net::ControlMessage probe;
+                probe.type = net::ControlType::kProbe;
+                probe.seq = ++s.seq;
+                s.awaiting = true;
+                s.sent_at = probe.t0 = monotonic_ns();
+                send(s.routing_id, probe);
+            }
+        }
+    }
+
+    void run() {
+        zmq::message_t id, payload;
+        while (!stop_) {
+            zmq::pollitem_t item{socket_.handle(), 0, ZMQ_POLLIN, 0};
+            try {
+                zmq::poll(&item, 1, std::chrono::milliseconds(1));
+                while (socket_.recv(id, zmq::recv_flags::dontwait)) {
+                    if (!id.more()) {
+                        ++malformed_;
+                        continue;
+                    }
+                    if (!socket_.recv(payload, zmq::recv_flags::none)) break;
+                    const std::int64_t t3 = monotonic_ns();
+                    bool extra = payload.more();
+                    while (payload.more() && socket_.recv(payload, zmq::recv_flags::none)) {
+                    }
+                    if (extra) {
+                        ++malformed_;
+                        continue;
+                    }
+                    on_message(id.to_string(), static_cast<const std::uint8_t*>(payload.data()),
+                               payload.size(), t3);
+                }
+                schedule(monotonic_ns());
+            } catch (const zmq::error_t& e) {
+                if (stop_) break;
+            }
+        }
+    }
+
+    zmq::socket_t socket_;
+    const io::Rig& rig_;
+    HubOptions options_;
+    cli::Context& ctx_;
+    std::mutex mutex_;
+    std::map<std::uint64_t, Session> sessions_;
+    std::map<std::size_t, std::uint64_t> latest_;  ///< sensor -> its latest session
+    std::atomic<std::int64_t> malformed_{0}, refused_{0};
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+// ---------------------------------------------------------------------------------- writer
+
+/// A unit of work for the recording thread: a frame or a frame set. Jobs are recycled so
+/// that buffers are reused (no allocation per frame once warmed up).
+struct Job {
+    bool is_set = false;
+    std::size_t sensor = 0;
+    std::int64_t index = 0, hub_ns = 0;
+    cv::Mat depth;
+    std::vector<std::uint8_t> jpeg;
+    io::FrameSet set;
+};
+
+class Recorder {
+public:
+    Recorder(const fs::path& root, const io::Rig& rig, int png_compression)
+        : writer_(root, rig), rig_(rig), png_compression_(png_compression) {
+        thread_ = std::thread([this] { run(); });
+    }
+    ~Recorder() { finish(); }
+
+    std::unique_ptr<Job> take() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (free_.empty()) return std::make_unique<Job>();
+        auto job = std::move(free_.back());
+        free_.pop_back();
+        return job;
+    }
+    /// Returns an unused job to the pool.
+    void push_back_free(std::unique_ptr<Job> job) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        free_.push_back(std::move(job));
+    }
+    void push(std::unique_ptr<Job> job) {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            queue_.push_back(std::move(job));
+        }
+        wake_.notify_one();
+    }
+    /// Waits until the queue is written (or writing failed) and stops the thread.
+    void finish() {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            done_ = true;
+        }
+        wake_.notify_one();
+        if (thread_.joinable()) thread_.join();
+    }
+    bool failed() const { return failed_; }
+    std::string error() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return error_;
+    }
+    std::int64_t frames_written() const { return frames_; }
+    std::int64_t sets_written() const { return sets_; }
+    std::size_t backlog() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return queue_.size();
+    }
+    const fs::path& root() const { return writer_.root(); }
+
+private:
+    void run() {
+        for (;;) {
+            std::unique_ptr<Job> job;
+            {
+                std::unique_lock<std::mutex> lock(mutex_);
+                wake_.wait(lock, [&] { return !queue_.empty() || done_; });
+                if (queue_.empty()) return;
+                job = std::move(queue_.front());
+                queue_.pop_front();
+            }
+            if (!failed_) {
+                try {
+                    if (job->is_set) {
+                        writer_.add_frameset(job->set);
+                        ++sets_;
+                    } else {
+                        writer_.add_encoded_frame(rig_.sensors[job->sensor].id, job->index,
+                                                  job->hub_ns, job->depth, job->jpeg,
+                                                  png_compression_);
+                        ++frames_;
+                    }
+                } catch (const std::exception& e) {
+                    std::lock_guard<std::mutex> lock(mutex_);
+                    error_ = e.what();
+                    failed_ = true;
+                }
+            }
+            std::lock_guard<std::mutex> lock(mutex_);
+            free_.push_back(std::move(job));
+        }
+    }
+
+    io::CaptureWriter writer_;
+    const io::Rig& rig_;
+    int png_compression_;
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    std::deque<std::unique_ptr<Job>> queue_;
+    std::vector<std::unique_ptr<Job>> free_;
+    bool done_ = false;
+    std::atomic<bool> failed_{false};
+    std::string error_;
+    std::atomic<std::int64_t> frames_{0}, sets_{0};
+    std::thread thread_;
+};
+
+// ---------------------------------------------------------------------------------- hub
+
+struct SensorStats {
+    std::int64_t recorded = 0;
+    std::int64_t last_hub_ns = std::numeric_limits<std::int64_t>::min();
+    std::uint64_t session = 0;
+    double period_ns = 1e9 / 30;
+    std::vector<std::pair<std::int64_t, std::int64_t>> gaps;
+};
+
+void run_capture(cli::Context& ctx) {
+    if (ctx.has("make-key")) {
+        const std::string path = ctx.get<std::string>("make-key");
+        if (fs::exists(path)) throw IoError(path + ": exists; refusing to overwrite a key file");
+        net::write_key_file(path);
+        ctx.note("wrote CURVE keys to " + path + " (give it to the hub and its nodes only)");
+        return;
+    }
+    if (!ctx.inputs().empty())
+        throw cli::UsageError("unexpected argument '" + ctx.inputs().front() + "'");
+    if (!ctx.has("rig")) throw cli::UsageError("--rig FILE is required");
+    if (ctx.output_path().empty()) throw cli::UsageError("-o FOLDER is required");
+    const double tolerance_ms = ctx.get<double>("tolerance-ms");
+    const double latency_ms = ctx.get<double>("latency-ms");
+    const double duration_s = ctx.get<double>("duration-s");
+    HubOptions options;
+    options.probes = ctx.get<int>("probes");
+    const double interval_ms = ctx.get<double>("probe-interval-ms");
+    options.drift_window_s = ctx.get<double>("drift-window-s");
+    const int png = ctx.get<int>("png-compression");
+    if (!(tolerance_ms >= 0 && tolerance_ms <= 1000))
+        throw cli::UsageError("--tolerance-ms must be in [0, 1000]");
+    if (!(latency_ms >= 0 && latency_ms <= 60000))
+        throw cli::UsageError("--latency-ms must be in [0, 60000]");
+    if (!(duration_s >= 0)) throw cli::UsageError("--duration-s must be >= 0");
+    if (options.probes < 1 || options.probes > 1000)
+        throw cli::UsageError("--probes must be in [1, 1000]");
+    if (!(interval_ms >= 10 && interval_ms <= 3.6e6))
+        throw cli::UsageError("--probe-interval-ms must be in [10, 3.6e6]");
+    if (!(options.drift_window_s >= 1)) throw cli::UsageError("--drift-window-s must be >= 1");
+    if (png < 0 || png > 9) throw cli::UsageError("--png-compression must be 0..9");
+    options.probe_interval_ns = static_cast<std::int64_t>(interval_ms * 1e6);
+
+    io::Rig rig = io::read_rig(ctx.get<std::string>("rig"));
+    for (io::SensorSpec& s : rig.sensors) {
+        if (s.id.size() > net::kMaxSensorId)
+            throw InputError(ctx.get<std::string>("rig") + ": sensor id '" + s.id +
+                             "' is too long for the network (max " +
+                             std::to_string(net::kMaxSensorId) + ")");
+        s.clock_offset_ns = 0;  // the hub records in its own time
+        s.extra.erase("clock");
+    }
+    std::unique_ptr<net::CurveKeys> keys;
+    if (ctx.has("key")) {
+        if (!net::curve_available())
+            throw IoError("--key: this libzmq has no CURVE support (zmq_has(\"curve\") is 0)");
+        keys = std::make_unique<net::CurveKeys>(net::read_key_file(ctx.get<std::string>("key")));
+    }
+    const std::string listen = ctx.get<std::string>("listen");
+    const std::string control =
+        ctx.has("control") ? ctx.get<std::string>("control") : net::control_endpoint_for(listen);
+
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+
+    zmq::context_t context(1);
+    std::unique_ptr<net::ZapAuthenticator> zap;
+    if (keys) zap = std::make_unique<net::ZapAuthenticator>(context, keys->client_public);
+    zmq::socket_t pull(context, zmq::socket_type::pull);
+    pull.set(zmq::sockopt::rcvhwm, 4000);
+    pull.set(zmq::sockopt::linger, 0);
+    pull.set(zmq::sockopt::maxmsgsize, static_cast<std::int64_t>(2 * net::kMaxPayload + 4096));
+    if (keys) net::make_curve_server(pull, *keys);
+    try {
+        pull.bind(listen);
+    } catch (const zmq::error_t& e) {
+        throw IoError("--listen " + listen + ": cannot listen: " + e.what());
+    }
+    ControlHub hub(context, control, rig, options, keys.get(), ctx);
+    // The output folder is created only once the sockets are up (no empty folders on error).
+    Recorder recorder(ctx.output_path(), rig, png);
+    ctx.info("listening on " + listen + " (control " + control + "), recording to " +
+             ctx.output_path());
+
+    const std::size_t n = rig.sensors.size();
+    const auto tolerance_ns = static_cast<std::int64_t>(std::llround(tolerance_ms * 1e6));
+    const auto latency_ns = static_cast<std::int64_t>(std::llround(latency_ms * 1e6));
+    net::FrameGrouper grouper(n, tolerance_ns);
+    std::vector<SensorStats> stats(n);
+    std::vector<io::FrameSet> sets;
+    std::map<std::string, std::int64_t> dropped;  // reason -> count
+    std::int64_t received = 0, unsynchronised = 0, complete_sets = 0, missing_slots = 0;
+    std::int64_t max_spread = 0;
+    const std::int64_t start = monotonic_ns();
+    const bool exit_after_bye = ctx.has("exit-after-bye");
+    net::FrameView view;
+    std::string error;
+    zmq::message_t message;
+
+    const auto drop = [&](const std::string& reason) {
+        ++dropped[reason];
+        if (dropped[reason] == 1) ctx.warn("dropped a message: " + reason);
+    };
+    const auto handle = [&](const zmq::message_t& msg) {
+        const auto* data = static_cast<const std::uint8_t*>(msg.data());
+        if (!net::parse_frame(data, msg.size(), view, error)) return drop(error);
+        net::ClockFit fit;
+        std::size_t sensor = 0;
+        if (!hub.lookup(view.header.session, fit, sensor)) {
+            ++unsynchronised;
+            return drop("frame from a session without a clock estimate");
+        }
+        const io::SensorSpec& spec = rig.sensors[sensor];
+        if (view.header.sensor_id != spec.id) return drop("sensor id differs from the hello");
+        if (view.header.width != spec.depth.width || view.header.height != spec.depth.height)
+            return drop("depth size differs from the rig");
+        auto job = recorder.take();
+        job->depth.create(spec.depth.height, spec.depth.width, CV_16UC1);
+        try {
+            io::rvl_decompress(view.depth, view.header.depth_bytes, job->depth.ptr<std::uint16_t>(),
+                               job->depth.total(), "frame message");
+        } catch (const InputError& e) {
+            recorder.push_back_free(std::move(job));
+            return drop("corrupt RVL depth");
+        }
+        job->jpeg.assign(view.color, view.color + view.header.color_bytes);
+        SensorStats& st = stats[sensor];
+        const std::int64_t hub_ns = fit.to_hub(view.header.node_ns);
+        if (st.session != view.header.session) {
+            st.session = view.header.session;
+        }
+        if (st.last_hub_ns != std::numeric_limits<std::int64_t>::min() &&
+            hub_ns - st.last_hub_ns > 1.5 * st.period_ns)
+            st.gaps.emplace_back(st.last_hub_ns, hub_ns);
+        st.last_hub_ns = std::max(st.last_hub_ns, hub_ns);
+        job->is_set = false;
+        job->sensor = sensor;
+        job->index = st.recorded++;
+        job->hub_ns = hub_ns;
+        grouper.add(sensor, hub_ns, job->index);
+        recorder.push(std::move(job));
+        ++received;
+    };
+    const auto form_sets = [&](std::int64_t horizon) {
+        sets.clear();
+        grouper.form(horizon, sets);
+        for (io::FrameSet& set : sets) {
+            const auto missing = std::count(set.frames.begin(), set.frames.end(), -1);
+            missing_slots += missing;
+            complete_sets += missing == 0;
+            max_spread = std::max(max_spread, set.spread_ns);
+            auto job = recorder.take();
+            job->is_set = true;
+            job->set = set;
+            recorder.push(std::move(job));
+        }
+    };
+
+    std::string stop_reason = "signal";
+    for (;;) {
+        if (g_stop) break;
+        if (recorder.failed()) break;
+        if (duration_s > 0 &&
+            monotonic_ns() - start > static_cast<std::int64_t>(duration_s * 1e9)) {
+            stop_reason = "duration";
+            break;
+        }
+        if (exit_after_bye && hub.all_done()) {
+            stop_reason = "all nodes done";
+            break;
+        }
+        zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
+        if (!poll_once(item)) continue;
+        for (int k = 0; k < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++k) {
+            if (message.more()) {
+                while (message.more() && pull.recv(message, zmq::recv_flags::none)) {
+                }
+                drop("multi-part message");
+                continue;
+            }
+            handle(message);
+        }
+        form_sets(monotonic_ns() - latency_ns);
+    }
+    if (!recorder.failed()) {
+        // Drain: what the nodes already sent, until the socket is quiet for 300 ms.
+        std::int64_t quiet_since = monotonic_ns();
+        const std::int64_t drain_start = quiet_since;
+        while (monotonic_ns() - quiet_since < 300'000'000 &&
+               monotonic_ns() - drain_start < 10'000'000'000 && !recorder.failed()) {
+            zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
+            if (!poll_once(item)) continue;
+            while (pull.recv(message, zmq::recv_flags::dontwait)) {
+                if (message.more()) {
+                    while (message.more() && pull.recv(message, zmq::recv_flags::none)) {
+                    }
+                    drop("multi-part message");
+                    continue;
+                }
+                handle(message);
+                quiet_since = monotonic_ns();
+            }
+        }
+        form_sets(std::numeric_limits<std::int64_t>::max());
+    }
+    const std::int64_t end = monotonic_ns();
+    hub.stop();
+    recorder.finish();
+    const Report clocks = hub.report(end);
+
+    auto& m = ctx.metrics();
+    m["output"] = ctx.output_path();
+    m["stop_reason"] = recorder.failed() ? "recording failed" : stop_reason;
+    m["duration_s"] = 1e-9 * static_cast<double>(end - start);
+    m["frames_received"] = received;
+    m["frames_recorded"] = recorder.frames_written();
+    m["framesets"] = recorder.sets_written();
+    m["framesets_complete"] = complete_sets;
+    m["missing_slots"] = missing_slots;
+    m["max_spread_ns"] = max_spread;
+    m["late_frames"] = grouper.late();
+    m["tolerance_ns"] = tolerance_ns;
+    std::int64_t dropped_total = 0;
+    for (const auto& [reason, count] : dropped) dropped_total += count;
+    m["dropped_messages"] = dropped_total;
+    m["dropped_by_reason"] = dropped;
+    m["malformed_control_messages"] = hub.malformed();
+    m["refused_nodes"] = hub.refused();
+    if (zap) m["refused_connections"] = zap->refused();
+    Report per_sensor = Report::object();
+    for (std::size_t s = 0; s < n; ++s) {
+        Report r = {{"frames", stats[s].recorded}, {"gaps", Report::array()}};
+        for (const auto& [a, b] : stats[s].gaps) r["gaps"].push_back({a, b});
+        if (clocks.contains(rig.sensors[s].id)) r["clock"] = clocks[rig.sensors[s].id];
+        per_sensor[rig.sensors[s].id] = r;
+    }
+    m["sensors"] = per_sensor;
+
+    if (recorder.failed())
+        throw IoError("recording stopped: " + recorder.error() + "; " + recorder.root().string() +
+                      " holds " + std::to_string(recorder.frames_written()) + " frames and " +
+                      std::to_string(recorder.sets_written()) +
+                      " frame sets, all complete and readable");
+    // rig.json again, now with each node's clock estimate (times in the capture are hub time).
+    for (io::SensorSpec& s : rig.sensors)
+        if (clocks.contains(s.id))
+            s.extra["clock"] = {{"node_offset_ns", clocks[s.id]["offset_ns"]},
+                                {"node_drift_ppm", clocks[s.id]["drift_ppm"]},
+                                {"at_hub_ns", end}};
+    io::write_rig(recorder.root() / "rig.json", rig);
+    ctx.note("recorded " + std::to_string(recorder.frames_written()) + " frames in " +
+             std::to_string(recorder.sets_written()) + " frame sets (" +
+             std::to_string(complete_sets) + " complete), " + std::to_string(dropped_total) +
+             " messages dropped");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    cli::ToolSpec spec;
+    spec.name = "rgbd-capture";
+    spec.usage = "rgbd-capture --rig rig.json [--listen ENDPOINT] -o FOLDER [options]";
+    spec.description =
+        "The capture hub. Receives frames from rgbd-node processes over ZeroMQ (PULL on "
+        "--listen), estimates every node's clock offset and drift with four-timestamp probes "
+        "on the control socket (--listen's port + 1 unless --control is given; bursts of "
+        "--probes probes, the least-queued of each burst kept, a least-squares drift fit over "
+        "--drift-window-s), maps frame time stamps to hub time, groups frames into frame sets "
+        "(each set's spread <= --tolerance-ms; a sensor without a frame in the window is "
+        "missing) and records a capture folder v1: images written atomically, frames.csv and "
+        "framesets.csv appended line by line, times in hub time, each node's clock estimate "
+        "in rig.json. Malformed or truncated messages are counted and dropped. Stops on "
+        "SIGINT/SIGTERM, after --duration-s, or with --exit-after-bye when every node has "
+        "finished; on a full disk it stops with what was recorded intact (exit 1). With "
+        "--key the sockets are CURVE-encrypted and only nodes holding the key file are "
+        "accepted.";
+    spec.example =
+        "rgbd-capture --rig rig.json --listen tcp://*:5555 -o cap/ --key rig.key "
+        "--metrics hub.json";
+    spec.reads_stream = false;
+    spec.writes_stream = false;
+    spec.add_options = [](cli::po::options_description& o) {
+        o.add_options()("rig", cli::po::value<std::string>()->value_name("FILE"),
+                        "rig.json of the sensors to record (required)")(
+            "listen", cli::po::value<std::string>()->default_value("tcp://*:5555"),
+            "frame endpoint to listen on")("control",
+                                           cli::po::value<std::string>()->value_name("ENDPOINT"),
+                                           "control endpoint (default: --listen's port + 1)")(
+            "tolerance-ms", cli::po::value<double>()->default_value(16.7),
+            "largest spread of a frame set (hub time)")(
+            "latency-ms", cli::po::value<double>()->default_value(1000.0),
+            "wait this long for late frames before forming a set")(
+            "probes", cli::po::value<int>()->default_value(16), "clock probes per burst")(
+            "probe-interval-ms", cli::po::value<double>()->default_value(1000.0),
+            "time between probe bursts per node")(
+            "drift-window-s", cli::po::value<double>()->default_value(60.0),
+            "fit offset and drift over this many seconds of bursts")(
+            "duration-s", cli::po::value<double>()->default_value(0.0),
+            "stop after S seconds (0 = until a signal)")(
+            "exit-after-bye", "stop when every node that joined has finished")(
+            "png-compression", cli::po::value<int>()->default_value(1),
+            "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
+            "key", cli::po::value<std::string>()->value_name("FILE"),
+            "CURVE key file: encrypt, and refuse nodes without the key")(
+            "make-key", cli::po::value<std::string>()->value_name("FILE"),
+            "write a new CURVE key file and exit");
+    };
+    return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) {
+        try {
+            run_capture(ctx);
+        } catch (const zmq::error_t& e) {
+            throw IoError(std::string("ZeroMQ: ") + e.what());
+        }
+    });
+}
