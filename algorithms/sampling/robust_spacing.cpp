@@ -15,18 +15,22 @@
 namespace rgbd::sampling {
 
 double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t seed) {
-    const std::size_t n = points.size();
+    RGBD_CHECK(points.size() >= 2,
+               "robust_spacing: needs at least 2 points, got " + std::to_string(points.size()));
+    std::vector<Eigen::Vector3d> xyz;
+    xyz.reserve(points.size());
+    for (auto idx : points) xyz.push_back(to_eigen(points.point(idx)));
+    return robust_spacing(xyz, sample, seed);
+}
+
+double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sample,
+                      std::uint64_t seed) {
+    const std::size_t n = xyz.size();
     RGBD_CHECK(n >= 2, "robust_spacing: needs at least 2 points, got " + std::to_string(n));
     RGBD_CHECK(sample >= 1, "robust_spacing: sample size must be positive");
-
-    std::vector<Eigen::Vector3d> xyz;
-    xyz.reserve(n);
-    for (auto idx : points) {
-        const Eigen::Vector3d p = to_eigen(points.point(idx));
-        RGBD_CHECK(p.allFinite(), "robust_spacing: point " + std::to_string(xyz.size()) +
-                                      " has a non-finite coordinate");
-        xyz.push_back(p);
-    }
+    for (std::size_t i = 0; i < n; ++i)
+        RGBD_CHECK(xyz[i].allFinite(),
+                   "robust_spacing: point " + std::to_string(i) + " has a non-finite coordinate");
 
     // Sample without replacement: partial Fisher-Yates with a fixed-seed generator.
     std::vector<std::uint32_t> queries(n);
