@@ -14,6 +14,7 @@
 
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/spacing_sample.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
 
@@ -216,6 +217,9 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     const internal::KdTree tree(world);
     const std::size_t k_ref = std::min<std::size_t>(std::size_t(options.k_ref), n - 1);
     std::vector<double> measured(n), expected(n, 0.0);
+    // Squared distance to the nearest other point of the same view when it is among the k
+    // neighbours (-1 otherwise): the per-view spacing of the cluster pass without a tree per view.
+    std::vector<double> own_sq(n, -1.0);
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
             std::vector<std::uint32_t> ids(k + 1);
@@ -224,6 +228,11 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                 const std::size_t found = tree.knn(world[i], k + 1, ids.data(), sq.data());
                 const double dk2 = std::max(sq[found - 1], 1e-18);
                 measured[i] = double(found - 1) / (std::numbers::pi * dk2);
+                for (std::size_t j = 0; j < found; ++j)  // sorted by distance
+                    if (ids[j] != i && owner[ids[j]] == owner[i]) {
+                        own_sq[i] = sq[j];
+                        break;
+                    }
                 if (reference != DensityReference::kSensors) continue;
                 Eigen::Vector3d mean = Eigen::Vector3d::Zero();
                 for (std::size_t j = 0; j < found; ++j) mean += world[ids[j]];
@@ -311,14 +320,39 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             for (std::size_t a = 0; a < m; ++a) pts[a] = world[alive[a]];
             // The spacing of one view (median over the views): the merged cloud's spacing
             // shrinks with every interleaved view and would cut the surface into pieces.
+            // robust_spacing() of every view with >= 10 points, from own_sq; a point whose
+            // nearest same-view point was not among its k neighbours is searched in a tree of
+            // its view (built only for such views).
             std::vector<double> spacings;
-            std::vector<Eigen::Vector3d> slice;
             for (std::size_t v = 0, first = 0; v < gathered.size(); ++v) {
                 const std::size_t count = gathered[v].xyz.size();
                 if (count >= 10) {
-                    slice.assign(world.begin() + std::ptrdiff_t(first),
-                                 world.begin() + std::ptrdiff_t(first + count));
-                    spacings.push_back(sampling::robust_spacing(slice, 10000, options.seed));
+                    const std::vector<std::uint32_t> sample =
+                        internal::spacing_sample(count, 10000, options.seed);
+                    std::vector<double> dist(sample.size());
+                    std::vector<std::size_t> misses;
+                    for (std::size_t q = 0; q < sample.size(); ++q) {
+                        const double d2 = own_sq[first + sample[q]];
+                        if (d2 < 0.0)
+                            misses.push_back(q);
+                        else
+                            dist[q] = std::sqrt(d2);
+                    }
+                    if (!misses.empty()) {
+                        const std::vector<Eigen::Vector3d> slice(
+                            world.begin() + std::ptrdiff_t(first),
+                            world.begin() + std::ptrdiff_t(first + count));
+                        const internal::KdTree view_tree(slice);
+                        for (const std::size_t q : misses) {
+                            std::uint32_t idx[2];
+                            double sq2[2];
+                            const std::size_t found = view_tree.knn(slice[sample[q]], 2, idx, sq2);
+                            double d2 = 0.0;
+                            if (found == 2) d2 = idx[0] == sample[q] ? sq2[1] : sq2[0];
+                            dist[q] = std::sqrt(d2);
+                        }
+                    }
+                    spacings.push_back(internal::spacing_median(dist));
                 }
                 first += count;
             }

@@ -10,9 +10,44 @@
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/spacing_sample.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::internal {
+
+std::vector<std::uint32_t> spacing_sample(std::size_t n, std::size_t sample, std::uint64_t seed) {
+    // Sample without replacement: partial Fisher-Yates with a fixed-seed generator.
+    std::vector<std::uint32_t> queries(n);
+    std::iota(queries.begin(), queries.end(), 0u);
+    const std::size_t m = std::min(sample, n);
+    if (m < n) {
+        std::mt19937_64 rng(seed);
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::size_t j = i + static_cast<std::size_t>(rng() % (n - i));
+            std::swap(queries[i], queries[j]);
+        }
+        queries.resize(m);
+    }
+    return queries;
+}
+
+double spacing_median(std::vector<double>& dist) {
+    const std::size_t m = dist.size();
+    if (m == 0) return 0.0;
+    auto mid = dist.begin() + static_cast<std::ptrdiff_t>(m / 2);
+    std::nth_element(dist.begin(), mid, dist.end());
+    if (m % 2 == 1) return *mid;
+    const double upper = *mid;
+    const double lower = *std::max_element(dist.begin(), mid);
+    return 0.5 * (lower + upper);
+}
+
+}  // namespace rgbd::internal
+
 namespace rgbd::sampling {
+
+using internal::spacing_median;
+using internal::spacing_sample;
 
 double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t seed) {
     RGBD_CHECK(points.size() >= 2,
@@ -32,18 +67,8 @@ double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sampl
         RGBD_CHECK(xyz[i].allFinite(),
                    "robust_spacing: point " + std::to_string(i) + " has a non-finite coordinate");
 
-    // Sample without replacement: partial Fisher-Yates with a fixed-seed generator.
-    std::vector<std::uint32_t> queries(n);
-    std::iota(queries.begin(), queries.end(), 0u);
-    const std::size_t m = std::min(sample, n);
-    if (m < n) {
-        std::mt19937_64 rng(seed);
-        for (std::size_t i = 0; i < m; ++i) {
-            const std::size_t j = i + static_cast<std::size_t>(rng() % (n - i));
-            std::swap(queries[i], queries[j]);
-        }
-        queries.resize(m);
-    }
+    const std::vector<std::uint32_t> queries = spacing_sample(n, sample, seed);
+    const std::size_t m = queries.size();
 
     const internal::KdTree tree(xyz);
     std::vector<double> dist(m, 0.0);
@@ -60,12 +85,7 @@ double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sampl
                               dist[i] = std::sqrt(d2);
                           }
                       });
-    auto mid = dist.begin() + static_cast<std::ptrdiff_t>(m / 2);
-    std::nth_element(dist.begin(), mid, dist.end());
-    if (m % 2 == 1) return *mid;
-    const double upper = *mid;
-    const double lower = *std::max_element(dist.begin(), mid);
-    return 0.5 * (lower + upper);
+    return spacing_median(dist);
 }
 
 }  // namespace rgbd::sampling
