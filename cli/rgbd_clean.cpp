@@ -23,8 +23,11 @@ int main(int argc, char** argv) {
     spec.usage =
         "rgbd-clean [--distance | --density | --statistical | --radius] [options] [FILE...] > "
         "cleaned.ply";
+    spec.reads_cloud_files = true;
     spec.description =
-        "Removes noise points from a view stream. --distance (the default for organised views, "
+        "Removes noise points from a view stream, or from plain point-cloud files (.pcd, .xyz, "
+        ".pwn; a .ply file is a stream), each read as one unorganised view. --distance (the "
+        "default for organised views, "
         "i.e. views with a pixel grid, straight from rgbd-cloud; before alignment) works per "
         "view: a pixel with fewer than --c-min neighbours in its 5x5 window that a real surface "
         "at --theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so "

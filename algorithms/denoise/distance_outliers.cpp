@@ -138,9 +138,14 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             step[i] = cam[i].z() / focal * inv_cos;
             sigma[i] = sigma_z_m(options.noise_model, cam[i].z(), 0.0);
         });
+        // |o| of every window offset, computed once (the same values as inline sqrt calls).
+        double offset_norm[2 * kWindow + 1][2 * kWindow + 1];
+        for (int dr = -w; dr <= w; ++dr)
+            for (int dc = -w; dc <= w; ++dc)
+                offset_norm[dr + w][dc + w] = std::sqrt(double(dr * dr + dc * dc));
         // Does j, at pixel offset (dr, dc) from i, support i (the step-1 relation)?
         const auto supports = [&](std::int32_t i, std::int32_t j, int dr, int dc) {
-            const double limit = step[i] * std::sqrt(double(dr * dr + dc * dc)) + 3.0 * sigma[i];
+            const double limit = step[i] * offset_norm[dr + w][dc + w] + 3.0 * sigma[i];
             return (cam[j] - cam[i]).squaredNorm() <= limit * limit;
         };
         const auto depth_at = [&](int rr, int cc) {

@@ -33,8 +33,10 @@ NoiseModel parse_noise_model(const std::string& name) {
 double sigma_z_m(NoiseModel model, double z, double theta) {
     constexpr double kHalfPi = std::numbers::pi / 2.0;
     const double t = std::clamp(theta, 0.0, 89.0 * std::numbers::pi / 180.0);
+    // Head-on (t = 0, the hot case of the filters) the grazing term is 0: skip the pow.
     const double grazing =
-        0.1 * std::pow(std::max(z, 0.0), 1.5) * t * t / ((kHalfPi - t) * (kHalfPi - t));
+        t == 0.0 ? 0.0
+                 : 0.1 * std::pow(std::max(z, 0.0), 1.5) * t * t / ((kHalfPi - t) * (kHalfPi - t));
     switch (model) {
         case NoiseModel::kKinectV2:
             return 1e-3 * std::max(0.5, 1.5 - 0.5 * z + 0.3 * z * z + grazing);

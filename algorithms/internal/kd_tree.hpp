@@ -2,13 +2,12 @@
 // hot loops. Internal to algorithms/: public headers never expose it.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <nanoflann.hpp>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nanoflann.hpp>
 
 namespace rgbd::internal {
 
@@ -39,13 +38,16 @@ public:
         return knn(q, 1, &index, &sq_dist) == 1;
     }
 
-    /// All points within `radius` (not squared) of q, sorted by distance. `out` is reused.
+    /// All points within `radius` (not squared) of q, sorted by distance unless `sorted` is
+    /// false (then in tree order: cheaper when the caller does not need the order). `out` is
+    /// reused.
     std::size_t radius(const Eigen::Vector3d& q, double radius,
-                       std::vector<std::pair<std::uint32_t, double>>& out) const {
+                       std::vector<std::pair<std::uint32_t, double>>& out,
+                       bool sorted = true) const {
         out.clear();
         if (size() == 0) return 0;
         nanoflann::SearchParams params;
-        params.sorted = true;
+        params.sorted = sorted;
         return index_.radiusSearch(q.data(), radius * radius, out, params);
     }
 

@@ -10,24 +10,12 @@
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/spacing_sample.hpp"
 #include "toolkit/error.hpp"
 
-namespace rgbd::sampling {
+namespace rgbd::internal {
 
-double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t seed) {
-    const std::size_t n = points.size();
-    RGBD_CHECK(n >= 2, "robust_spacing: needs at least 2 points, got " + std::to_string(n));
-    RGBD_CHECK(sample >= 1, "robust_spacing: sample size must be positive");
-
-    std::vector<Eigen::Vector3d> xyz;
-    xyz.reserve(n);
-    for (auto idx : points) {
-        const Eigen::Vector3d p = to_eigen(points.point(idx));
-        RGBD_CHECK(p.allFinite(), "robust_spacing: point " + std::to_string(xyz.size()) +
-                                      " has a non-finite coordinate");
-        xyz.push_back(p);
-    }
-
+std::vector<std::uint32_t> spacing_sample(std::size_t n, std::size_t sample, std::uint64_t seed) {
     // Sample without replacement: partial Fisher-Yates with a fixed-seed generator.
     std::vector<std::uint32_t> queries(n);
     std::iota(queries.begin(), queries.end(), 0u);
@@ -40,6 +28,47 @@ double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t 
         }
         queries.resize(m);
     }
+    return queries;
+}
+
+double spacing_median(std::vector<double>& dist) {
+    const std::size_t m = dist.size();
+    if (m == 0) return 0.0;
+    auto mid = dist.begin() + static_cast<std::ptrdiff_t>(m / 2);
+    std::nth_element(dist.begin(), mid, dist.end());
+    if (m % 2 == 1) return *mid;
+    const double upper = *mid;
+    const double lower = *std::max_element(dist.begin(), mid);
+    return 0.5 * (lower + upper);
+}
+
+}  // namespace rgbd::internal
+
+namespace rgbd::sampling {
+
+using internal::spacing_median;
+using internal::spacing_sample;
+
+double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t seed) {
+    RGBD_CHECK(points.size() >= 2,
+               "robust_spacing: needs at least 2 points, got " + std::to_string(points.size()));
+    std::vector<Eigen::Vector3d> xyz;
+    xyz.reserve(points.size());
+    for (auto idx : points) xyz.push_back(to_eigen(points.point(idx)));
+    return robust_spacing(xyz, sample, seed);
+}
+
+double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sample,
+                      std::uint64_t seed) {
+    const std::size_t n = xyz.size();
+    RGBD_CHECK(n >= 2, "robust_spacing: needs at least 2 points, got " + std::to_string(n));
+    RGBD_CHECK(sample >= 1, "robust_spacing: sample size must be positive");
+    for (std::size_t i = 0; i < n; ++i)
+        RGBD_CHECK(xyz[i].allFinite(),
+                   "robust_spacing: point " + std::to_string(i) + " has a non-finite coordinate");
+
+    const std::vector<std::uint32_t> queries = spacing_sample(n, sample, seed);
+    const std::size_t m = queries.size();
 
     const internal::KdTree tree(xyz);
     std::vector<double> dist(m, 0.0);
@@ -56,12 +85,7 @@ double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t 
                               dist[i] = std::sqrt(d2);
                           }
                       });
-    auto mid = dist.begin() + static_cast<std::ptrdiff_t>(m / 2);
-    std::nth_element(dist.begin(), mid, dist.end());
-    if (m % 2 == 1) return *mid;
-    const double upper = *mid;
-    const double lower = *std::max_element(dist.begin(), mid);
-    return 0.5 * (lower + upper);
+    return spacing_median(dist);
 }
 
 }  // namespace rgbd::sampling

@@ -5,8 +5,10 @@
 // See also: algorithms/sampling/voxel_downsample.hpp, algorithms/internal/kd_tree.hpp.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "toolkit/point_cloud.hpp"
 
@@ -20,5 +22,10 @@ namespace rgbd::sampling {
 /// Throws InputError when fewer than 2 points are present or a coordinate is not finite.
 /// Exact duplicates count as distance 0 (the median stays robust to a few of them).
 double robust_spacing(const PointSet& points, std::size_t sample = 10000, std::uint64_t seed = 0);
+
+/// The same estimator over a contiguous array of points (no copy into a PointSet): equal to
+/// robust_spacing() of a PointSet holding these points in this order.
+double robust_spacing(const std::vector<Eigen::Vector3d>& points, std::size_t sample = 10000,
+                      std::uint64_t seed = 0);
 
 }  // namespace rgbd::sampling

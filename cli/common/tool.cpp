@@ -3,6 +3,8 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -10,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::cli {
@@ -85,6 +88,18 @@ ProgressBar Context::progress(const std::string& label) const {
     return ProgressBar(spec_.name + ": " + label, verbosity_ >= 0 && isatty(STDERR_FILENO));
 }
 
+namespace {
+
+/// A plain point-cloud file that is not a PLY stream (read with io::read_point_cloud).
+bool is_cloud_file(const std::string& input) {
+    std::string ext = fs::path(input).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext == ".pcd" || ext == ".xyz" || ext == ".pwn";
+}
+
+}  // namespace
+
 void Context::for_each_document(const std::function<void(io::Document&)>& handler) {
     std::vector<std::string> inputs = inputs_;
     if (inputs.empty()) inputs.push_back("-");
@@ -93,6 +108,17 @@ void Context::for_each_document(const std::function<void(io::Document&)>& handle
         std::unique_ptr<std::ifstream> file;
         std::istream* in = &std::cin;
         std::string name = "<stdin>";
+        if (input != "-" && spec_.reads_cloud_files && is_cloud_file(input)) {
+            RGBD_CHECK_AS(IoError, fs::exists(input), input + ": no such file");
+            io::Document document;
+            document.kind = io::DocumentKind::kPoints;
+            document.cloud = io::read_point_cloud(input);
+            if (document.cloud.view.id < 0) document.cloud.view.id = static_cast<int>(total);
+            if (document.cloud.view.source.empty()) document.cloud.view.source = input;
+            ++total;
+            handler(document);
+            continue;
+        }
         if (input != "-") {
             RGBD_CHECK_AS(IoError, fs::exists(input), input + ": no such file");
             file = std::make_unique<std::ifstream>(input, std::ios::binary);

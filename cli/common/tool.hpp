@@ -36,6 +36,9 @@ struct ToolSpec {
     std::string example;        ///< an example pipeline
     bool writes_stream = true;  ///< writes a binary PLY stream / mesh to stdout by default
     bool reads_stream = true;   ///< positional inputs are PLY streams (none or - = stdin)
+    /// Positional .pcd, .xyz and .pwn files are read with io::read_point_cloud as one
+    /// unorganised view each (no grid, no pose, view id = input position) instead of as streams.
+    bool reads_cloud_files = false;
     bool whole_stream =
         false;  ///< reads the whole stream before writing ("reads the whole stream")
     std::function<void(po::options_description&)> add_options;  ///< tool-specific options
@@ -91,7 +94,8 @@ public:
     ProgressBar progress(const std::string& label) const;
 
     // ---- input ----
-    /// Calls `handler` for every document of every input (files or stdin), in order.
+    /// Calls `handler` for every document of every input (files or stdin), in order; with
+    /// ToolSpec::reads_cloud_files, a .pcd/.xyz/.pwn input is one point document.
     void for_each_document(const std::function<void(io::Document&)>& handler);
     /// Reads every document of every input. Throws InputError for an empty stream.
     std::vector<io::Document> read_all_documents();
