@@ -53,6 +53,10 @@ struct PairIcpOutcome {
     double rmse = 0.0;         ///< m, point-to-point over matched pairs
     double plane_rmse = 0.0;   ///< m, point-to-plane over matched pairs
     double colour_rmse = 0.0;  ///< intensity residual of Park's model over matched pairs
+    /// Matched pairs whose colour agrees (|residual| <= 3 colour_sigma); = matched without
+    /// the colour term. Scores hypotheses: on a surface that slides, geometry alone prefers
+    /// the most overlap, colour prefers the right place.
+    std::size_t consistent = 0;
     int iterations = 0;
     bool converged = false;
     /// Information of the pose of the source frame: sum over matched pairs of G^T G with

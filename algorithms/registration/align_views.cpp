@@ -168,6 +168,10 @@ void MultiViewOptions::check() const {
     RGBD_CHECK(ransac_iterations >= 1 && ransac_iterations <= 10000000,
                "align_views: ransac_iterations must be in [1, 1e7]");
     RGBD_CHECK(max_prior_rotation_deg > 0, "align_views: max_prior_rotation_deg must be > 0");
+    RGBD_CHECK(std::isfinite(max_prior_translation_m) && max_prior_translation_m > 0,
+               "align_views: max_prior_translation_m must be > 0");
+    RGBD_CHECK(std::isfinite(global_min_gain) && global_min_gain >= 0 && global_min_gain <= 1,
+               "align_views: global_min_gain must be in [0, 1]");
     RGBD_CHECK(std::isfinite(colour_weight) && colour_weight >= 0 && colour_weight <= 100,
                "align_views: colour_weight must be in [0, 100]");
     RGBD_CHECK(std::isfinite(colour_sigma) && colour_sigma > 0 && colour_sigma <= 1,
@@ -220,6 +224,7 @@ Report MultiViewResult::to_json() const {
         j["inlier_rmse_m"] = p.inlier_rmse;
         j["colour_rmse"] = p.colour_rmse;
         j["ransac_inliers"] = p.ransac_inliers;
+        j["candidates"] = p.candidates;
         j["in_graph"] = p.in_graph;
         j["ring_rotation_deg"] = p.ring_rotation_deg;
         j["ring_translation_m"] = p.ring_translation_m;
@@ -384,58 +389,93 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             }
         }
         result.pairs.resize(selected.size());
-        std::vector<Eigen::Matrix<double, 6, 6>> information(selected.size());
+        // Candidate outcomes per pair: from the initial pose, and from the global hypothesis
+        // when it ends elsewhere (and within the prior's bounds). Index 0 = the default choice.
+        struct Candidate {
+            internal::PairIcpOutcome outcome;
+            const char* method;
+        };
+        std::vector<std::vector<Candidate>> cands(selected.size());
         tbb::parallel_for(std::size_t{0}, selected.size(), [&](std::size_t k) {
             const auto [a, b] = selected[k];  // target a, source b
             PairAlignment& pa = result.pairs[k];
             pa.target = a;
             pa.source = b;
             const Pose prior = work[a].initial.inverse() * work[b].initial;
-            internal::PairIcpOutcome best = internal::pair_icp(
+            const bool bounded =
+                work[a].direction && work[b].direction && options.max_prior_rotation_deg < 180;
+            const Eigen::Vector3d& c = work[b].reg.centroid;
+            // A result that left the calibration's bounds slid into a wrong basin (a head is
+            // nearly a surface of revolution).
+            auto within = [&](const Pose& z) {
+                if (!bounded) return true;
+                const auto [prot, ptrans] = motion_at(prior.inverse() * z, c);
+                return prot <= options.max_prior_rotation_deg &&
+                       ptrans <= options.max_prior_translation_m;
+            };
+            auto& list = cands[k];
+            internal::PairIcpOutcome first = internal::pair_icp(
                 work[b].reg, work[a].reg, *work[a].tree, prior, pset, eval_distance);
-            pa.method = "initial";
-            if (options.global_registration && !feats[a].empty() && !feats[b].empty()) {
-                RansacOptions ro;
-                ro.iterations = options.ransac_iterations;
-                ro.inlier_distance = 1.5 * options.feature_voxel_factor * voxel;
-                ro.seed = options.seed * 1000003u + a * 1009u + b;
-                if (work[a].direction && work[b].direction &&
-                    options.max_prior_rotation_deg < 180) {
-                    ro.prior = prior;
-                    ro.max_prior_rotation_deg = options.max_prior_rotation_deg;
-                }
-                const RansacResult rr =
-                    ransac_feature_match(fxyz[b], feats[b], fxyz[a], feats[a], ro);
-                pa.ransac_inliers = rr.inliers;
-                // A hypothesis that the initial start already reached needs no second ICP.
-                const auto [drot, dtrans] =
-                    motion_at(best.target_from_source.inverse() * rr.target_from_source,
-                              work[b].reg.centroid);
-                const bool same = drot <= 2.0 && dtrans <= ro.inlier_distance;
-                if (rr.found && !same) {
-                    const internal::PairIcpOutcome g =
-                        internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree,
-                                           rr.target_from_source, pset, eval_distance);
-                    // Refinement may slide away from the prior: the prior bound holds for it too.
-                    const bool plausible =
-                        !ro.prior || rotation_error_deg(g.target_from_source, prior) <=
-                                         options.max_prior_rotation_deg;
-                    if (plausible &&
-                        (g.fitness > best.fitness + 1e-9 ||
-                         (std::abs(g.fitness - best.fitness) <= 1e-9 && g.rmse < best.rmse))) {
-                        best = g;
-                        pa.method = "global";
-                    }
+            if (!within(first.target_from_source)) {  // retry with the fine distances only
+                internal::PairIcpSettings fine = pset;
+                fine.distances.assign(
+                    pset.distances.end() - std::min<std::size_t>(2, pset.distances.size()),
+                    pset.distances.end());
+                first = internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, prior, fine,
+                                           eval_distance);
+                if (!within(first.target_from_source)) {  // keep the calibration, unrefined
+                    fine.max_iterations = 0;
+                    first = internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, prior, fine,
+                                               eval_distance);
                 }
             }
+            list.push_back({std::move(first), "initial"});
+            if (!options.global_registration || feats[a].empty() || feats[b].empty()) return;
+            RansacOptions ro;
+            ro.iterations = options.ransac_iterations;
+            ro.inlier_distance = 1.5 * options.feature_voxel_factor * voxel;
+            ro.seed = options.seed * 1000003u + a * 1009u + b;
+            if (bounded) {
+                ro.prior = prior;
+                ro.max_prior_rotation_deg = options.max_prior_rotation_deg;
+            }
+            const RansacResult rr = ransac_feature_match(fxyz[b], feats[b], fxyz[a], feats[a], ro);
+            pa.ransac_inliers = rr.inliers;
+            if (!rr.found) return;
+            // A hypothesis that the initial start already reached needs no second ICP.
+            auto differs = [&](const Pose& x, const Pose& y) {
+                const auto [r, t] = motion_at(x.inverse() * y, c);
+                return r > 2.0 || t > ro.inlier_distance;
+            };
+            if (!differs(list[0].outcome.target_from_source, rr.target_from_source)) return;
+            internal::PairIcpOutcome g =
+                internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, rr.target_from_source,
+                                   pset, eval_distance);
+            if (!within(g.target_from_source)) return;  // slid out of the bounds
+            if (!differs(list[0].outcome.target_from_source, g.target_from_source)) return;
+            const double n = static_cast<double>(work[b].reg.xyz.size());
+            const bool better = double(g.consistent) / n >=
+                                double(list[0].outcome.consistent) / n + options.global_min_gain;
+            list.push_back({std::move(g), "global"});
+            if (better) std::swap(list[0], list[1]);
+        });
+        if (!report_progress(progress, 0.3)) throw AlgorithmError("align_views: cancelled");
+
+        std::vector<std::size_t> choice(selected.size(), 0);
+        auto fill = [&](std::size_t k) {
+            PairAlignment& pa = result.pairs[k];
+            const internal::PairIcpOutcome& best = cands[k][choice[k]].outcome;
+            pa.method = cands[k][choice[k]].method;
+            pa.candidates = static_cast<int>(cands[k].size());
             pa.target_from_source = best.target_from_source;
             // Fitness as the share of the smaller view: overlap, not view size.
             pa.fitness =
-                static_cast<double>(best.matched) /
-                static_cast<double>(std::min(work[a].reg.xyz.size(), work[b].reg.xyz.size()));
-            pa.fitness = std::min(pa.fitness, 1.0);
+                std::min(1.0, static_cast<double>(best.matched) /
+                                  static_cast<double>(std::min(work[pa.target].reg.xyz.size(),
+                                                               work[pa.source].reg.xyz.size())));
             pa.inlier_rmse = best.rmse;
             pa.colour_rmse = best.colour_rmse;
+            pa.reason.clear();
             if (best.matched < 30 || pa.fitness < options.pair_fail_fitness) {
                 pa.verdict = Verdict::kFail;
                 pa.reason = "too little overlap";
@@ -446,9 +486,63 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                 pa.verdict = Verdict::kPass;
             }
             pa.in_graph = pa.verdict != Verdict::kFail;
-            information[k] = best.information;
-        });
-        if (!report_progress(progress, 0.3)) throw AlgorithmError("align_views: cancelled");
+        };
+        for (std::size_t k = 0; k < selected.size(); ++k) fill(k);
+
+        // On a ring (the usable pairs form one cycle), the loop decides between candidates:
+        // the combination whose composition around the cycle is nearest to the identity
+        // (exhaustive for up to 10 ambiguous pairs, else one pass of coordinate descent).
+        const std::vector<std::size_t> cycle = ring_order(nv, result.pairs);
+        std::vector<std::size_t> ambiguous;
+        for (std::size_t k = 0; k < selected.size(); ++k)
+            if (cands[k].size() > 1 && result.pairs[k].in_graph) ambiguous.push_back(k);
+        if (!cycle.empty() && !ambiguous.empty()) {
+            const double trans_scale = options.prune_translation_spacing * spacing;
+            auto loop_cost = [&]() {
+                Pose loop = Pose::Identity();
+                for (std::size_t i = 0; i < nv; ++i) {
+                    const std::size_t a = cycle[i], b = cycle[(i + 1) % nv];
+                    for (std::size_t k = 0; k < selected.size(); ++k) {
+                        const PairAlignment& pa = result.pairs[k];
+                        if (!((pa.target == a && pa.source == b) ||
+                              (pa.target == b && pa.source == a)))
+                            continue;
+                        const Pose& z = cands[k][choice[k]].outcome.target_from_source;
+                        loop = loop * (pa.target == a ? z : Pose(z.inverse()));
+                    }
+                }
+                const auto [r, t] = motion_at(loop, work[cycle[0]].reg.centroid);
+                return r / options.prune_rotation_deg + t / trans_scale;
+            };
+            std::vector<std::size_t> best_choice = choice;
+            double best_cost = loop_cost();
+            if (ambiguous.size() <= 10) {
+                for (std::size_t mask = 1; mask < (std::size_t{1} << ambiguous.size()); ++mask) {
+                    for (std::size_t q = 0; q < ambiguous.size(); ++q)
+                        choice[ambiguous[q]] = (mask >> q) & 1u;
+                    const double cost = loop_cost();
+                    if (cost < best_cost) {
+                        best_cost = cost;
+                        best_choice = choice;
+                    }
+                }
+            } else {
+                for (std::size_t k : ambiguous) {
+                    choice = best_choice;
+                    choice[k] = 1 - choice[k];
+                    const double cost = loop_cost();
+                    if (cost < best_cost) {
+                        best_cost = cost;
+                        best_choice = choice;
+                    }
+                }
+            }
+            choice = best_choice;
+            for (std::size_t k : ambiguous) fill(k);
+        }
+        std::vector<Eigen::Matrix<double, 6, 6>> information(selected.size());
+        for (std::size_t k = 0; k < selected.size(); ++k)
+            information[k] = cands[k][choice[k]].outcome.information;
 
         // Pose graph over the usable pairs; start from the pairs composed along a spanning tree.
         std::vector<PoseGraphEdge> edges;
@@ -577,7 +671,11 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     std::vector<std::size_t> matched(nv);
     std::vector<double> extent(nv);  // max distance of a view's points from the centre
 
-    for (int round = 0; round < options.rounds; ++round) {
+    // After the pairwise stage and the pose graph the views are close: the joint rounds start at
+    // the finest two distances.
+    const int first_round =
+        options.pairwise ? std::max(0, options.rounds - std::min(options.rounds, 2)) : 0;
+    for (int round = first_round; round < options.rounds; ++round) {
         const double dmax = result.max_distances_m[round];
         const double k = options.icp.kernel_scale * dmax;
         bool round_converged = false;

@@ -98,7 +98,8 @@ struct MultiViewOptions {
     std::size_t fixed_view = 0;
     /// Coarse-to-fine rounds; round r uses stage distance r of `icp` (the last one repeated
     /// when there are more rounds than distances). Each round runs up to
-    /// icp.criteria.max_iterations joint iterations.
+    /// icp.criteria.max_iterations joint iterations. After the pairwise stage (below) the views
+    /// are close, and only the last two rounds (the finest distances) run.
     int rounds = 4;
     /// Distances, kernel, normal gate and max_iterations (ŝ: median of the views' spacings).
     IcpOptions icp;
@@ -132,9 +133,17 @@ struct MultiViewOptions {
     double feature_voxel_factor = 2.5;
     double feature_radius_factor = 5.0;
     int ransac_iterations = 20000;
-    /// RANSAC hypotheses farther than this from the initial relative rotation are discarded
-    /// (when sensor poses are known; >= 180 disables).
-    double max_prior_rotation_deg = 30.0;
+    /// When sensor poses are known, pair results (from either start) that turn more than this
+    /// from the initial relative pose, or move the source's centroid more than
+    /// max_prior_translation_m from where the initial pose puts it, are discarded (a rig
+    /// calibration is roughly right; >= 180 degrees disables both bounds): the initial start
+    /// is then retried with the finest two distances only, else kept unrefined. A global
+    /// hypothesis replaces the initial one only when its share of matched points whose colour
+    /// also agrees (plain fitness without colour) is higher by at least global_min_gain (on a
+    /// shape that slides, geometry prefers the most overlap; colour the right place).
+    double max_prior_rotation_deg = 20.0;
+    double max_prior_translation_m = 0.5;
+    double global_min_gain = 0.02;
     /// Weight of the colour term (Park et al. 2017, intensity residuals scaled by
     /// colour_sigma, geometric ones by ŝ) in the pairwise and joint stages; 0 = geometry only.
     double colour_weight = 0.1;
@@ -159,6 +168,7 @@ struct PairAlignment {
     double inlier_rmse = 0.0;  ///< m
     double colour_rmse = 0.0;  ///< intensity residual (Park's model) over matched pairs
     std::size_t ransac_inliers = 0;
+    int candidates = 1;  ///< distinct poses considered (initial, global)
     /// Disagreement with the final poses: rotation and translation of
     /// measured^-1 * (final relative pose), translation at the source's centroid.
     double ring_rotation_deg = 0.0;

@@ -25,7 +25,7 @@ struct Sums {
     Vec6 g = Vec6::Zero();
     Mat6 info = Mat6::Zero();
     double sq_dist = 0.0, sq_plane = 0.0, sq_colour = 0.0;
-    std::size_t matched = 0;
+    std::size_t matched = 0, consistent = 0;
     void add(const Sums& o) {
         h += o.h;
         g += o.g;
@@ -34,6 +34,7 @@ struct Sums {
         sq_plane += o.sq_plane;
         sq_colour += o.sq_colour;
         matched += o.matched;
+        consistent += o.consistent;
     }
 };
 
@@ -42,7 +43,7 @@ struct Sums {
 /// ordered combine: identical for any thread count.
 Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, const Pose& pose,
                 const Eigen::Vector3d& centre, double dmax, const PairIcpSettings& s, bool solve,
-                std::vector<Sums>& chunk_sums) {
+                std::size_t stride, std::vector<Sums>& chunk_sums) {
     const std::size_t n = src.xyz.size();
     const std::size_t chunks = (n + kChunk - 1) / kChunk;
     chunk_sums.assign(chunks, Sums{});
@@ -58,7 +59,7 @@ Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, co
     tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
         Sums sum;
         const std::size_t end = std::min(n, (c + 1) * kChunk);
-        for (std::size_t i = c * kChunk; i < end; ++i) {
+        for (std::size_t i = c * kChunk; i < end; i += stride) {
             const Eigen::Vector3d p = pose * src.xyz[i];
             std::uint32_t j;
             double d2;
@@ -76,6 +77,7 @@ Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, co
             sum.sq_dist += d2;
             sum.sq_plane += r * r;
             sum.sq_colour += rc * rc;
+            if (!colour || std::abs(rc) <= 3.0 * s.colour_sigma) ++sum.consistent;
             if (!solve) {
                 const Eigen::Vector3d& ps = src.xyz[i];
                 Eigen::Matrix<double, 3, 6> gm;
@@ -154,12 +156,19 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
     std::vector<Sums> chunk_sums;
     double extent = 0.0;  // largest distance of a source point from its centroid
     for (const auto& p : source.xyz) extent = std::max(extent, (p - source.centroid).norm());
-    for (double dmax : settings.distances) {
+    const std::size_t stages = settings.distances.size();
+    for (std::size_t st = 0; st < stages; ++st) {
+        const double dmax = settings.distances[st];
+        // Coarse stages only steer: every 2^k-th source point (k = stages left), at least
+        // ~1000 points; the final stage uses all.
+        std::size_t stride = std::size_t{1} << std::min<std::size_t>(stages - 1 - st, 3);
+        while (stride > 1 && source.xyz.size() / stride < 1000) stride /= 2;
+        const double min_motion = st + 1 < stages ? 5.0 * settings.min_motion : settings.min_motion;
         bool stage_converged = false;
         for (int it = 0; it < settings.max_iterations; ++it) {
             const Eigen::Vector3d centre = pose * source.centroid;
             const Sums s = accumulate(source, target, target_tree, pose, centre, dmax, settings,
-                                      true, chunk_sums);
+                                      true, stride, chunk_sums);
             if (s.matched < 6) break;
             Mat6 h = s.h;
             h.diagonal().array() += 1e-9 * std::max(h.diagonal().maxCoeff(), 1e-300);
@@ -169,7 +178,7 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
             if (!x.allFinite()) break;
             pose = orthonormalized(rigid_update(x, centre) * pose);
             ++out.iterations;
-            if (x.head<3>().norm() * extent + x.tail<3>().norm() <= settings.min_motion) {
+            if (x.head<3>().norm() * extent + x.tail<3>().norm() <= min_motion) {
                 stage_converged = true;
                 break;
             }
@@ -177,9 +186,10 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
         out.converged = stage_converged;
     }
     const Sums s = accumulate(source, target, target_tree, pose, pose * source.centroid,
-                              eval_distance, settings, false, chunk_sums);
+                              eval_distance, settings, false, 1, chunk_sums);
     out.target_from_source = pose;
     out.matched = s.matched;
+    out.consistent = s.consistent;
     out.fitness = source.xyz.empty() ? 0.0 : double(s.matched) / double(source.xyz.size());
     out.rmse = s.matched ? std::sqrt(s.sq_dist / s.matched) : 0.0;
     out.plane_rmse = s.matched ? std::sqrt(s.sq_plane / s.matched) : 0.0;
