@@ -55,6 +55,14 @@ std::vector<std::pair<std::size_t, std::size_t>> select_pairs(const std::vector<
     std::vector<std::pair<std::size_t, std::size_t>> pairs;
     bool directions = true;
     for (const Working& w : work) directions = directions && w.direction.has_value();
+    // Directions that are all the same (poses unknown, every view at the identity) tell
+    // nothing: pair by stream order.
+    if (directions) {
+        bool same = true;
+        for (const Working& w : work)
+            same = same && w.direction->dot(*work[0].direction) > 1 - 1e-9;
+        directions = !same;
+    }
     auto add = [&](std::size_t a, std::size_t b) {
         const auto p = std::minmax(a, b);
         if (std::find(pairs.begin(), pairs.end(), std::make_pair(p.first, p.second)) == pairs.end())
@@ -361,7 +369,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     pset.colour_weight = use_colour ? options.colour_weight : 0.0;
     pset.geometric_sigma = spacing;
     pset.colour_sigma = options.colour_sigma;
-    pset.min_motion = options.min_motion_spacing * spacing;
+    // Pairs only seed the pose graph and the joint rounds: a looser stop than the joint one.
+    pset.min_motion = 2.5 * options.min_motion_spacing * spacing;
     pset.distances = stage;
     const double eval_distance = 2.0 * spacing;
 
@@ -679,7 +688,9 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         const double dmax = result.max_distances_m[round];
         const double k = options.icp.kernel_scale * dmax;
         bool round_converged = false;
-        for (int it = 0; it < crit.max_iterations; ++it) {
+        const int max_it =
+            options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
+        for (int it = 0; it < max_it; ++it) {
             match_all(dmax);
             // Global centre for the rotation parametrisation (conditioning).
             Eigen::Vector3d centre = Eigen::Vector3d::Zero();

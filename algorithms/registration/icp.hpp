@@ -99,7 +99,8 @@ struct MultiViewOptions {
     /// Coarse-to-fine rounds; round r uses stage distance r of `icp` (the last one repeated
     /// when there are more rounds than distances). Each round runs up to
     /// icp.criteria.max_iterations joint iterations. After the pairwise stage (below) the views
-    /// are close, and only the last two rounds (the finest distances) run.
+    /// are close: only the last two rounds (the finest distances) run, with at most 10
+    /// iterations each (on 50-view sequences re-matching jitter otherwise uses them all).
     int rounds = 4;
     /// Distances, kernel, normal gate and max_iterations (ŝ: median of the views' spacings).
     IcpOptions icp;
@@ -122,8 +123,9 @@ struct MultiViewOptions {
     /// fitness wins); then a pose graph over the pairs that pass spreads the loop error and
     /// gives the joint rounds their start. Pairs: when the views' sensor directions are known,
     /// each view with its `pair_neighbours` nearest views by viewing direction within
-    /// `max_pair_angle_deg`; otherwise consecutive views in stream order plus the last-first
-    /// pair (a closed ring or turntable sequence).
+    /// `max_pair_angle_deg`; otherwise (or when all directions are the same: poses unknown)
+    /// consecutive views in stream order plus the last-first pair (a closed ring or
+    /// turntable sequence).
     bool pairwise = true;
     bool global_registration = true;
     int pair_neighbours = 2;
