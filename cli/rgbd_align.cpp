@@ -1,4 +1,5 @@
 // rgbd-align: multi-view registration of a view stream.
+#include "algorithms/registration/duplicate_removal.hpp"
 #include "algorithms/sampling/merge_views.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
@@ -30,7 +31,12 @@ int main(int argc, char** argv) {
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
     spec.whole_stream = true;
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("merge", "emit one merged view instead of one document per view")(
+        o.add_options()("merge",
+                        "emit one merged view instead of one document per view, without "
+                        "duplicates: a point with an earlier view's point within 1 spacing is "
+                        "dropped when their colours agree (Delta E <= 15), else the better "
+                        "observed of the two (nearer, more head-on) stays")(
+            "keep-duplicates", "with --merge: plain concatenation of the views")(
             "fixed-view", cli::po::value<int>()->default_value(0)->value_name("I"),
             "position in the stream of the view that holds the gauge")(
             "rounds", cli::po::value<int>()->default_value(4)->value_name("N"),
@@ -121,7 +127,19 @@ int main(int argc, char** argv) {
         ctx.metrics()["align"] = report;
         if (ctx.options().count("merge")) {
             io::Document merged;
-            merged.cloud = sampling::merge_views(std::move(views));
+            if (ctx.options().count("keep-duplicates")) {
+                merged.cloud = sampling::merge_views(std::move(views));
+            } else {
+                registration::DuplicateReport dup;
+                auto merge_bar = ctx.progress("merge");
+                merged.cloud = registration::merge_without_duplicates(std::move(views), {}, &dup,
+                                                                      merge_bar.callback());
+                ctx.metrics()["merge"] = dup.to_json();
+                ctx.info("merge: " + std::to_string(dup.input) + " points, " +
+                         std::to_string(dup.duplicates) + " duplicates and " +
+                         std::to_string(dup.replaced) + " worse observations dropped, " +
+                         std::to_string(dup.output) + " kept");
+            }
             ctx.write(merged);
         } else {
             for (auto& view : views) {
