@@ -44,6 +44,14 @@ struct PairIcpSettings {
     double geometric_sigma = 0.002;  ///< m, scale of point-to-plane residuals
     double colour_sigma = 0.05;      ///< intensity scale of colour residuals
     double min_motion = 0.0;         ///< m: a stage ends when a step moves no point more
+    /// Also end a stage when the relative change of fitness and of inlier RMSE between two
+    /// iterations are both below these (Open3D ICPConvergenceCriteria; 0 = off), or when a
+    /// step rotates less than min_rotation_rad and translates less than min_translation.
+    double relative_fitness = 0.0, relative_rmse = 0.0;
+    double min_rotation_rad = -1.0, min_translation = -1.0;  ///< < 0 = off
+    /// Coarse stages match every 2^k-th source point (k = stages left, at most 3, at least
+    /// ~1000 points); false: all points in every stage.
+    bool stride_coarse_stages = true;
 };
 
 struct PairIcpOutcome {
@@ -58,7 +66,7 @@ struct PairIcpOutcome {
     /// the most overlap, colour prefers the right place.
     std::size_t consistent = 0;
     int iterations = 0;
-    bool converged = false;
+    bool converged = false;  ///< the last stage met a stop test before max_iterations
     /// Information of the pose of the source frame: sum over matched pairs of G^T G with
     /// G = [-[p]x, I] and p the source point in its own frame (order: rotation, translation).
     Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();

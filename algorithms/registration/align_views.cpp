@@ -374,6 +374,14 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     pset.distances = stage;
     const double eval_distance = 2.0 * spacing;
 
+    // Whether the initial poses say anything (known, and not every view at the same pose).
+    bool all_known = true, all_same = true;
+    for (const Working& w : work) all_known = all_known && w.direction.has_value();
+    if (all_known)
+        for (const Working& w : work)
+            all_same = all_same && w.direction->dot(*work[0].direction) > 1 - 1e-9;
+    const bool poses_known = all_known && !all_same;
+
     // Pairwise stage and pose graph.
     std::vector<int> view_pairs(nv, 0);
     std::vector<bool> tied(nv, false);
@@ -876,7 +884,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         } else if (va.fitness < options.warn_fitness) {
             va.verdict = Verdict::kWarn;
             va.reason = "small overlap";
-        } else if (moved_far) {
+        } else if (moved_far && poses_known) {
             va.verdict = Verdict::kWarn;
             va.reason = "far from its initial pose (calibration off?)";
         }

@@ -161,14 +161,31 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
         const double dmax = settings.distances[st];
         // Coarse stages only steer: every 2^k-th source point (k = stages left), at least
         // ~1000 points; the final stage uses all.
-        std::size_t stride = std::size_t{1} << std::min<std::size_t>(stages - 1 - st, 3);
+        std::size_t stride = settings.stride_coarse_stages
+                                 ? std::size_t{1} << std::min<std::size_t>(stages - 1 - st, 3)
+                                 : 1;
         while (stride > 1 && source.xyz.size() / stride < 1000) stride /= 2;
+        const double used = static_cast<double>((source.xyz.size() + stride - 1) / stride);
+        double prev_fitness = -1, prev_rmse = -1;
         const double min_motion = st + 1 < stages ? 5.0 * settings.min_motion : settings.min_motion;
         bool stage_converged = false;
         for (int it = 0; it < settings.max_iterations; ++it) {
             const Eigen::Vector3d centre = pose * source.centroid;
             const Sums s = accumulate(source, target, target_tree, pose, centre, dmax, settings,
                                       true, stride, chunk_sums);
+            if (settings.relative_fitness > 0 || settings.relative_rmse > 0) {
+                const double fitness = double(s.matched) / used;
+                const double rmse = s.matched ? std::sqrt(s.sq_dist / double(s.matched)) : 0.0;
+                if (prev_fitness >= 0 &&
+                    std::abs(fitness - prev_fitness) <=
+                        settings.relative_fitness * std::max(fitness, 1e-300) &&
+                    std::abs(rmse - prev_rmse) <= settings.relative_rmse * std::max(rmse, 1e-300)) {
+                    stage_converged = true;
+                    break;
+                }
+                prev_fitness = fitness;
+                prev_rmse = rmse;
+            }
             if (s.matched < 6) break;
             Mat6 h = s.h;
             h.diagonal().array() += 1e-9 * std::max(h.diagonal().maxCoeff(), 1e-300);
@@ -178,7 +195,10 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
             if (!x.allFinite()) break;
             pose = orthonormalized(rigid_update(x, centre) * pose);
             ++out.iterations;
-            if (x.head<3>().norm() * extent + x.tail<3>().norm() <= min_motion) {
+            const bool small_step = settings.min_rotation_rad >= 0 &&
+                                    x.head<3>().norm() <= settings.min_rotation_rad &&
+                                    x.tail<3>().norm() <= settings.min_translation;
+            if (x.head<3>().norm() * extent + x.tail<3>().norm() <= min_motion || small_step) {
                 stage_converged = true;
                 break;
             }
