@@ -1,4 +1,5 @@
 // rgbd-align: multi-view registration of a view stream.
+#include "algorithms/registration/duplicate_removal.hpp"
 #include "algorithms/sampling/merge_views.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
@@ -12,24 +13,49 @@ int main(int argc, char** argv) {
     spec.usage = "rgbd-align [options] [FILE...] > aligned.ply";
     spec.description =
         "Registers all views of a stream into one world frame. Each view starts from the pose in "
-        "its metadata (the rig's calibration or a per-frame pose); normals are estimated per view "
-        "and oriented towards its sensor; then every view is refined by point-to-plane ICP "
-        "(robust weights, distance and normal gates, coarse to fine) against all the other views "
-        "at once, for several rounds, with --fixed-view holding the gauge. Each view gets a "
-        "verdict (PASS / WARN / FAIL from its overlap and residual, and from how far it moved), "
-        "printed on stderr and in --metrics. Output: the views in the world frame with their "
-        "refined poses, or one merged view with --merge.";
+        "its metadata (the rig's calibration or a per-frame pose, or none with --ignore-poses). "
+        "1. Pairs: every view with its nearest views by viewing direction (ring neighbours), or "
+        "consecutive views and the last-first pair when the directions are unknown (a "
+        "turntable or walk-around sequence). Each pair is registered by point-to-plane ICP with "
+        "a colour term (robust weights, distance and normal gates, coarse to fine) from the "
+        "initial pose and from an FPFH + RANSAC hypothesis (results that leave the "
+        "calibration's bounds are discarded; on a ring the loop picks between the two). "
+        "2. A pose graph spreads the loop error and prunes pairs that disagree with the ring. "
+        "3. Joint rounds refine all views against all others at once, --fixed-view holding the "
+        "gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with overlap, "
+        "residual and agreement with the ring), and a ring its loop-closure error before and "
+        "after, on stderr and in --metrics. Deterministic for a --seed and any --threads. "
+        "Output: the views in the world frame with their refined poses, or one merged view "
+        "with --merge.";
     spec.example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
     spec.whole_stream = true;
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("merge", "emit one merged view instead of one document per view")(
+        o.add_options()("merge",
+                        "emit one merged view instead of one document per view, without "
+                        "duplicates: a point with an earlier view's point within 1 spacing is "
+                        "dropped when their colours agree (Delta E <= 15), else the better "
+                        "observed of the two (nearer, more head-on) stays")(
+            "keep-duplicates", "with --merge: plain concatenation of the views")(
             "fixed-view", cli::po::value<int>()->default_value(0)->value_name("I"),
             "position in the stream of the view that holds the gauge")(
             "rounds", cli::po::value<int>()->default_value(4)->value_name("N"),
             "rounds of joint refinement")(
             "voxel-m", cli::po::value<double>()->default_value(0.0)->value_name("M"),
-            "voxel size for the registration copies (0 = from the point spacing)");
+            "voxel size for the registration copies (0 = from the point spacing)")(
+            "ignore-poses",
+            "start every view from its own sensor frame (poses unknown); pairs follow the "
+            "stream order and the result is in the first view's frame")(
+            "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
+            "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
+            "colour-weight", cli::po::value<double>()->default_value(0.1)->value_name("W"),
+            "weight of the colour term (0 = geometry only)")(
+            "ransac-iterations", cli::po::value<int>()->default_value(20000)->value_name("N"),
+            "RANSAC hypotheses per pair")(
+            "max-prior-rotation-deg",
+            cli::po::value<double>()->default_value(20.0)->value_name("D"),
+            "pair results farther than this from the initial relative pose are discarded (>= 180 "
+            "disables)");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         registration::MultiViewOptions options;
@@ -38,6 +64,12 @@ int main(int argc, char** argv) {
             options.fixed_view = static_cast<std::size_t>(ctx.get<int>("fixed-view"));
             options.rounds = ctx.get<int>("rounds");
             options.voxel_m = ctx.get<double>("voxel-m");
+            options.pairwise = !ctx.options().count("no-pairwise");
+            options.global_registration = !ctx.options().count("no-global");
+            options.colour_weight = ctx.get<double>("colour-weight");
+            options.ransac_iterations = ctx.get<int>("ransac-iterations");
+            options.max_prior_rotation_deg = ctx.get<double>("max-prior-rotation-deg");
+            options.seed = ctx.seed();
             options.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
@@ -46,12 +78,43 @@ int main(int argc, char** argv) {
         if (options.fixed_view >= views.size())
             throw cli::UsageError("--fixed-view " + std::to_string(options.fixed_view) +
                                   " but the stream has " + std::to_string(views.size()) + " views");
+        if (ctx.options().count("ignore-poses"))
+            for (PointCloud& view : views) {
+                if (view.view.frame == ViewFrame::kWorld && view.view.world_from_sensor)
+                    transform(view, view.view.world_from_sensor->inverse());
+                view.view.frame = ViewFrame::kSensor;
+                view.view.world_from_sensor = Pose::Identity();
+            }
         auto bar = ctx.progress("align");
         Report report = cli::align_stage(views, options, bar.callback());
+        for (const auto& p : report["pairs"]) {
+            const std::string line =
+                "pair " + std::to_string(p["target"].get<int>()) + "-" +
+                std::to_string(p["source"].get<int>()) + ": " + p["verdict"].get<std::string>() +
+                (p.contains("reason") ? " (" + p["reason"].get<std::string>() + ")" : "") +
+                ", fitness " + std::to_string(p["fitness"].get<double>()) + ", rmse " +
+                std::to_string(p["inlier_rmse_m"].get<double>() * 1000) + " mm, start " +
+                p["method"].get<std::string>() + ", off the ring " +
+                std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
+                std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm";
+            if (p["verdict"] == "PASS")
+                ctx.info(line);
+            else
+                ctx.warn(line);
+        }
+        if (report.contains("loop_closure")) {
+            const auto& l = report["loop_closure"];
+            ctx.info("loop closure: " + std::to_string(l["before_rotation_deg"].get<double>()) +
+                     " deg / " + std::to_string(l["before_translation_m"].get<double>() * 1000) +
+                     " mm chained, " + std::to_string(l["after_rotation_deg"].get<double>()) +
+                     " deg / " + std::to_string(l["after_translation_m"].get<double>() * 1000) +
+                     " mm after the pose graph and joint rounds");
+        }
         for (const auto& v : report["views"]) {
             const std::string line =
                 "view " + std::to_string(v["view"].get<int>()) + " (" +
                 v["sensor"].get<std::string>() + "): " + v["verdict"].get<std::string>() +
+                (v.contains("reason") ? " (" + v["reason"].get<std::string>() + ")" : "") +
                 ", fitness " + std::to_string(v["fitness"].get<double>()) + ", rmse " +
                 std::to_string(v["inlier_rmse_m"].get<double>() * 1000) + " mm, moved " +
                 std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
@@ -64,7 +127,19 @@ int main(int argc, char** argv) {
         ctx.metrics()["align"] = report;
         if (ctx.options().count("merge")) {
             io::Document merged;
-            merged.cloud = sampling::merge_views(std::move(views));
+            if (ctx.options().count("keep-duplicates")) {
+                merged.cloud = sampling::merge_views(std::move(views));
+            } else {
+                registration::DuplicateReport dup;
+                auto merge_bar = ctx.progress("merge");
+                merged.cloud = registration::merge_without_duplicates(std::move(views), {}, &dup,
+                                                                      merge_bar.callback());
+                ctx.metrics()["merge"] = dup.to_json();
+                ctx.info("merge: " + std::to_string(dup.input) + " points, " +
+                         std::to_string(dup.duplicates) + " duplicates and " +
+                         std::to_string(dup.replaced) + " worse observations dropped, " +
+                         std::to_string(dup.output) + " kept");
+            }
             ctx.write(merged);
         } else {
             for (auto& view : views) {

@@ -1,13 +1,11 @@
 #include "algorithms/registration/icp.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <string>
 
-#include "algorithms/internal/icp_math.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/pair_icp.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
 
@@ -15,7 +13,6 @@ namespace rgbd::registration {
 
 namespace {
 
-constexpr std::size_t kChunk = 512;
 constexpr double kDegToRad = M_PI / 180.0;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
@@ -45,74 +42,6 @@ Gathered gather(const PointCloud& cloud, const char* role) {
         }
     }
     return g;
-}
-
-/// Sums of one chunk (and of the whole set after the ordered combine).
-struct Sums {
-    Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
-    double sq_dist = 0.0;   // point-to-point, matched pairs
-    double sq_plane = 0.0;  // point-to-plane, matched pairs
-    std::size_t matched = 0;
-
-    void add(const Sums& o) {
-        h += o.h;
-        g += o.g;
-        sq_dist += o.sq_dist;
-        sq_plane += o.sq_plane;
-        matched += o.matched;
-    }
-};
-
-struct PairProblem {
-    const Gathered& source;
-    const Gathered& target;
-    const internal::KdTree& tree;
-    int kernel;
-    double kernel_scale;
-    double cos_gate;  // -2 disables
-};
-
-/// Matches every source point under `pose` and accumulates the normal equations about `centre`.
-/// Fixed chunks written to their own slots, combined in chunk order: bit-identical for any
-/// number of threads.
-Sums accumulate(const PairProblem& pb, const Pose& pose, const Eigen::Vector3d& centre,
-                double max_distance, std::vector<Sums>& chunk_sums) {
-    const std::size_t n = pb.source.xyz.size();
-    const std::size_t chunks = (n + kChunk - 1) / kChunk;
-    chunk_sums.assign(chunks, Sums{});
-    const double max_sq = max_distance * max_distance;
-    const double k = pb.kernel_scale * max_distance;
-    const Eigen::Matrix3d rot = pose.linear();
-    const bool gate = pb.cos_gate > -1.5 && !pb.source.normals.empty();
-    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-        Sums s;
-        const std::size_t end = std::min(n, (c + 1) * kChunk);
-        for (std::size_t i = c * kChunk; i < end; ++i) {
-            const Eigen::Vector3d p = pose * pb.source.xyz[i];
-            std::uint32_t j;
-            double d2;
-            if (!pb.tree.nearest(p, j, d2) || d2 > max_sq) continue;
-            const Eigen::Vector3d& q = pb.target.xyz[j];
-            const Eigen::Vector3d& nq = pb.target.normals[j];
-            if (gate && (rot * pb.source.normals[i]).dot(nq) < pb.cos_gate) continue;
-            const double r = (p - q).dot(nq);
-            const double w = internal::robust_weight(pb.kernel, r, k);
-            ++s.matched;
-            s.sq_dist += d2;
-            s.sq_plane += r * r;
-            if (w <= 0.0) continue;
-            Eigen::Matrix<double, 6, 1> jrow;
-            jrow.head<3>() = (p - centre).cross(nq);
-            jrow.tail<3>() = nq;
-            s.h.noalias() += w * jrow * jrow.transpose();
-            s.g.noalias() += (w * r) * jrow;
-        }
-        chunk_sums[c] = s;
-    });
-    Sums total;
-    for (const Sums& s : chunk_sums) total.add(s);
-    return total;
 }
 
 }  // namespace
@@ -162,8 +91,8 @@ AlignResult align_pair(const PointCloud& source, const PointCloud& target,
                "icp: target " + view_name(target) + " has no normals; estimate them first");
     RGBD_CHECK(initial_target_from_source.matrix().allFinite(),
                "icp: initial pose of source " + view_name(source) + " is not finite");
-    const Gathered src = gather(source, "source");
-    const Gathered tgt = gather(target, "target");
+    Gathered src = gather(source, "source");
+    Gathered tgt = gather(target, "target");
 
     double spacing = options.spacing_m;
     std::vector<double> distances = options.max_distances_m;
@@ -175,65 +104,39 @@ AlignResult align_pair(const PointCloud& source, const PointCloud& target,
         for (double f : options.max_distance_factors) distances.push_back(f * spacing);
     }
 
-    const internal::KdTree tree(tgt.xyz);
-    const PairProblem pb{src,
-                         tgt,
-                         tree,
-                         static_cast<int>(options.kernel),
-                         options.kernel_scale,
-                         options.max_normal_angle_deg >= 180
-                             ? -2.0
-                             : std::cos(options.max_normal_angle_deg * kDegToRad)};
-    Eigen::Vector3d src_centroid = Eigen::Vector3d::Zero();
-    for (const auto& p : src.xyz) src_centroid += p;
-    src_centroid /= static_cast<double>(src.xyz.size());
+    internal::RegCloud src_reg, tgt_reg;
+    src_reg.xyz = std::move(src.xyz);
+    src_reg.normals = std::move(src.normals);
+    for (const auto& p : src_reg.xyz) src_reg.centroid += p;
+    src_reg.centroid /= static_cast<double>(src_reg.xyz.size());
+    tgt_reg.xyz = std::move(tgt.xyz);
+    tgt_reg.normals = std::move(tgt.normals);
+    const internal::KdTree tree(tgt_reg.xyz);
+
+    internal::PairIcpSettings settings;
+    settings.distances = distances;
+    settings.max_iterations = options.criteria.max_iterations;
+    settings.kernel = static_cast<int>(options.kernel);
+    settings.kernel_scale = options.kernel_scale;
+    settings.cos_gate = options.max_normal_angle_deg >= 180
+                            ? -2.0
+                            : std::cos(options.max_normal_angle_deg * kDegToRad);
+    settings.relative_fitness = options.criteria.relative_fitness;
+    settings.relative_rmse = options.criteria.relative_rmse;
+    settings.min_rotation_rad = options.criteria.min_rotation_deg * kDegToRad;
+    settings.min_translation = options.criteria.min_translation_spacing * spacing;
+    settings.stride_coarse_stages = false;
+    const internal::PairIcpOutcome out = internal::pair_icp(
+        src_reg, tgt_reg, tree, initial_target_from_source, settings, distances.back());
 
     AlignResult result;
-    Pose pose = initial_target_from_source;
-    std::vector<Sums> chunk_sums;
-    const IcpCriteria& crit = options.criteria;
-    const double n = static_cast<double>(src.xyz.size());
-    for (double dmax : distances) {
-        bool stage_converged = false;
-        double prev_fitness = -1, prev_rmse = -1;
-        for (int it = 0; it < crit.max_iterations; ++it) {
-            const Eigen::Vector3d centre = pose * src_centroid;
-            const Sums s = accumulate(pb, pose, centre, dmax, chunk_sums);
-            const double fitness = s.matched / n;
-            const double rmse = s.matched ? std::sqrt(s.sq_dist / s.matched) : 0.0;
-            if (prev_fitness >= 0 &&
-                std::abs(fitness - prev_fitness) <=
-                    crit.relative_fitness * std::max(fitness, 1e-300) &&
-                std::abs(rmse - prev_rmse) <= crit.relative_rmse * std::max(rmse, 1e-300)) {
-                stage_converged = true;
-                break;
-            }
-            prev_fitness = fitness;
-            prev_rmse = rmse;
-            if (s.matched < 6) break;
-            Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(s.h);
-            if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 1e-14 * s.h.trace())
-                break;
-            const Eigen::Matrix<double, 6, 1> x = ldlt.solve(-s.g);
-            if (!x.allFinite()) break;
-            pose = orthonormalized(internal::rigid_update(x, centre) * pose);
-            ++result.iterations;
-            if (x.head<3>().norm() <= crit.min_rotation_deg * kDegToRad &&
-                x.tail<3>().norm() <= crit.min_translation_spacing * spacing) {
-                stage_converged = true;
-                break;
-            }
-        }
-        result.converged = stage_converged;
-    }
-
-    // Final evaluation at the final pose and the finest distance.
-    const Sums s = accumulate(pb, pose, pose * src_centroid, distances.back(), chunk_sums);
-    result.target_from_source = pose;
-    result.correspondences = s.matched;
-    result.fitness = s.matched / n;
-    result.inlier_rmse = s.matched ? std::sqrt(s.sq_dist / s.matched) : 0.0;
-    result.plane_rmse = s.matched ? std::sqrt(s.sq_plane / s.matched) : 0.0;
+    result.target_from_source = out.target_from_source;
+    result.correspondences = out.matched;
+    result.fitness = out.fitness;
+    result.inlier_rmse = out.rmse;
+    result.plane_rmse = out.plane_rmse;
+    result.iterations = out.iterations;
+    result.converged = out.converged;
     return result;
 }
 

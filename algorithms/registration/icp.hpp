@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -97,7 +98,9 @@ struct MultiViewOptions {
     std::size_t fixed_view = 0;
     /// Coarse-to-fine rounds; round r uses stage distance r of `icp` (the last one repeated
     /// when there are more rounds than distances). Each round runs up to
-    /// icp.criteria.max_iterations joint iterations.
+    /// icp.criteria.max_iterations joint iterations. After the pairwise stage (below) the views
+    /// are close: only the last two rounds (the finest distances) run, with at most 10
+    /// iterations each (on 50-view sequences re-matching jitter otherwise uses them all).
     int rounds = 4;
     /// Distances, kernel, normal gate and max_iterations (ŝ: median of the views' spacings).
     IcpOptions icp;
@@ -109,9 +112,84 @@ struct MultiViewOptions {
     /// max_rotation_deg / max_translation_m from its initial value; WARN below warn_fitness.
     double fail_fitness = 0.1;
     double warn_fitness = 0.3;
+    /// (For views that no PASS / WARN pair supports; a view tied to the ring by pairs may move
+    /// as far as the pairs say, and gets WARN for a move beyond these.)
     double max_rotation_deg = 20.0;
     double max_translation_m = 0.2;
+
+    /// Pairwise stage (ALGORITHMS.md §6.3), before the joint rounds: every overlapping pair is
+    /// registered by point-to-plane ICP with a colour term from the initial relative pose and,
+    /// with `global_registration`, also from an FPFH + RANSAC hypothesis (the better one by
+    /// fitness wins); then a pose graph over the pairs that pass spreads the loop error and
+    /// gives the joint rounds their start. Pairs: when the views' sensor directions are known,
+    /// each view with its `pair_neighbours` nearest views by viewing direction within
+    /// `max_pair_angle_deg`; otherwise (or when all directions are the same: poses unknown)
+    /// consecutive views in stream order plus the last-first pair (a closed ring or
+    /// turntable sequence).
+    bool pairwise = true;
+    bool global_registration = true;
+    int pair_neighbours = 2;
+    double max_pair_angle_deg = 75.0;
+    /// Voxel of the feature copies as a multiple of the working voxel; FPFH radius as a
+    /// multiple of the feature voxel.
+    double feature_voxel_factor = 2.5;
+    double feature_radius_factor = 5.0;
+    int ransac_iterations = 20000;
+    /// When sensor poses are known, pair results (from either start) that turn more than this
+    /// from the initial relative pose, or move the source's centroid more than
+    /// max_prior_translation_m from where the initial pose puts it, are discarded (a rig
+    /// calibration is roughly right; >= 180 degrees disables both bounds): the initial start
+    /// is then retried with the finest two distances only, else kept unrefined. A global
+    /// hypothesis replaces the initial one only when its share of matched points whose colour
+    /// also agrees (plain fitness without colour) is higher by at least global_min_gain (on a
+    /// shape that slides, geometry prefers the most overlap; colour the right place).
+    double max_prior_rotation_deg = 20.0;
+    double max_prior_translation_m = 0.5;
+    double global_min_gain = 0.02;
+    /// Weight of the colour term (Park et al. 2017, intensity residuals scaled by
+    /// colour_sigma, geometric ones by ŝ) in the pairwise and joint stages; 0 = geometry only.
+    double colour_weight = 0.1;
+    double colour_sigma = 0.05;
+    /// Pair verdicts: FAIL below pair_fail_fitness (share of the smaller view matched within
+    /// 2ŝ), or when the pose graph prunes the pair as inconsistent with the ring; WARN below
+    /// pair_warn_fitness.
+    double pair_fail_fitness = 0.08;
+    double pair_warn_fitness = 0.2;
+    double prune_rotation_deg = 2.0;
+    double prune_translation_spacing = 5.0;  ///< pose-graph pruning translation, × ŝ
+    std::uint64_t seed = 0;
     void check() const;
+};
+
+/// Outcome of one pair of the pairwise stage.
+struct PairAlignment {
+    std::size_t target = 0, source = 0;  ///< positions in the input
+    Pose target_from_source = Pose::Identity();
+    std::string method;        ///< "initial" or "global": which start won
+    double fitness = 0.0;      ///< matched share of the source working points (within 2ŝ)
+    double inlier_rmse = 0.0;  ///< m
+    double colour_rmse = 0.0;  ///< intensity residual (Park's model) over matched pairs
+    std::size_t ransac_inliers = 0;
+    int candidates = 1;  ///< distinct poses considered (initial, global)
+    /// Disagreement with the final poses: rotation and translation of
+    /// measured^-1 * (final relative pose), translation at the source's centroid.
+    double ring_rotation_deg = 0.0;
+    double ring_translation_m = 0.0;
+    bool in_graph = false;  ///< used by the pose graph (not pruned)
+    Verdict verdict = Verdict::kFail;
+    std::string reason;  ///< why not PASS
+};
+
+/// Loop closure of a ring of pairs (when the pairs form one cycle).
+struct LoopClosure {
+    bool found = false;
+    std::vector<std::size_t> order;    ///< positions around the cycle
+    double before_rotation_deg = 0.0;  ///< composed pairwise measurements around the cycle
+    double before_translation_m = 0.0;
+    /// The gap left at the closing pair (last -> first): its measurement against the final
+    /// poses, i.e. the loop error after the pose graph and the joint rounds spread it.
+    double after_rotation_deg = 0.0;
+    double after_translation_m = 0.0;
 };
 
 /// Outcome for one view of align_views.
@@ -128,11 +206,19 @@ struct ViewAlignment {
     bool converged = false;
     double rotation_change_deg = 0.0;   ///< |correction| rotation
     double translation_change_m = 0.0;  ///< |correction| translation at the view's centroid
+    /// Worst disagreement of the view's graph pairs with the final poses.
+    double ring_rotation_deg = 0.0;
+    double ring_translation_m = 0.0;
+    int pairs = 0;  ///< PASS / WARN pairs that tie the view to the ring
     Verdict verdict = Verdict::kFail;
+    std::string reason;  ///< why not PASS
 };
 
 struct MultiViewResult {
-    std::vector<ViewAlignment> views;     ///< same order as the input
+    std::vector<ViewAlignment> views;  ///< same order as the input
+    std::vector<PairAlignment> pairs;  ///< the pairwise stage (empty when off)
+    LoopClosure loop;
+    double pairwise_time_s = 0.0;
     Verdict verdict = Verdict::kFail;     ///< the worst of the views' verdicts
     double spacing_m = 0.0;               ///< ŝ used
     double voxel_m = 0.0;                 ///< voxel used for the working copies

@@ -19,7 +19,8 @@ struct Ring {
     std::vector<Pose> truth;        // true world_from_sensor
 };
 
-Ring make_ring(int n, int stride, std::uint32_t seed) {
+Ring make_ring(int n, int stride, std::uint32_t seed, double calib_deg = 1.5,
+               double calib_m = 0.015) {
     const rgbd::test::BumpyEllipsoid shape;
     std::mt19937 rng(seed);
     Ring ring;
@@ -29,7 +30,7 @@ Ring make_ring(int n, int stride, std::uint32_t seed) {
             rgbd::test::look_at({0.8 * std::sin(yaw), 0.12, -0.8 * std::cos(yaw)}, shape.centre);
         PointCloud view = rgbd::test::render_view(shape, truth, i, 0.0005, 100 + i, stride);
         view.view.world_from_sensor =
-            i == 0 ? truth : Pose(truth * rgbd::test::random_motion(1.5, 0.015, rng));
+            i == 0 ? truth : Pose(truth * rgbd::test::random_motion(calib_deg, calib_m, rng));
         ring.truth.push_back(truth);
         ring.views.push_back(std::move(view));
     }
@@ -70,6 +71,54 @@ TEST(AlignViews, RingOfEightSensorFrameViews) {
     expect_close(ring, result, 0.3, 0.002);
     EXPECT_EQ(result.verdict, Verdict::kPass);
     EXPECT_EQ(result.to_json()["views"].size(), 8u);
+}
+
+TEST(AlignViews, LargeCalibrationErrorIsRecoveredByThePairwiseStage) {
+    // 5 degrees and 50 mm on every sensor but the first: the object moves by up to ~120 mm,
+    // far outside the ICP basin; FPFH + RANSAC hypotheses and the pose graph bring it back.
+    const Ring ring = make_ring(8, 1, 11, 5.0, 0.05);
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    expect_close(ring, result, 0.2, 0.0015);
+    EXPECT_EQ(result.verdict, Verdict::kPass);
+    ASSERT_EQ(result.pairs.size(), 8u);  // ring neighbours only
+    for (const auto& p : result.pairs) {
+        EXPECT_EQ(p.verdict, Verdict::kPass) << p.target << "-" << p.source << " " << p.reason;
+        EXPECT_TRUE(p.in_graph);
+    }
+    ASSERT_TRUE(result.loop.found);
+    EXPECT_EQ(result.loop.order.size(), 8u);
+    // The gap left at the closing pair is smaller than the chained pairs' drift.
+    EXPECT_LT(result.loop.after_rotation_deg, 0.2);
+    EXPECT_LE(result.loop.after_rotation_deg, result.loop.before_rotation_deg + 1e-9);
+}
+
+TEST(AlignViews, TexturedCylinderIsLockedByColour) {
+    // Two views 40 degrees apart of a textured cylinder seen side-on: the second view's pose is
+    // off by 5 degrees about the axis, which geometry cannot see (ALGORITHMS.md §6.2 test).
+    const rgbd::test::TexturedCylinder cyl;
+    const auto paint = [&](const Eigen::Vector3d& p) { return cyl.colour(p); };
+    std::vector<PointCloud> views;
+    std::vector<Pose> truth;
+    for (int i = 0; i < 2; ++i) {
+        const double yaw = (i == 0 ? -20.0 : 20.0) * M_PI / 180.0;
+        const Pose t =
+            rgbd::test::look_at({0.7 * std::sin(yaw), 0.0, -0.7 * std::cos(yaw)}, cyl.centre);
+        PointCloud v = rgbd::test::render_view(cyl, t, i, 0.0005, 40 + i, 2, paint);
+        Pose slid = Pose::Identity();
+        slid.linear() = Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+        v.view.world_from_sensor = i == 0 ? t : Pose(slid * t);
+        views.push_back(std::move(v));
+        truth.push_back(t);
+    }
+    rgbd::registration::MultiViewOptions geometric;
+    geometric.colour_weight = 0.0;
+    const auto g = rgbd::registration::align_views(views, geometric);
+    const double g_err = rgbd::rotation_error_deg(g.views[1].world_from_sensor, truth[1]);
+    const auto c = rgbd::registration::align_views(views, {});
+    const double c_err = rgbd::rotation_error_deg(c.views[1].world_from_sensor, truth[1]);
+    std::cout << "cylinder: geometry only " << g_err << " deg, with colour " << c_err << " deg\n";
+    EXPECT_GT(g_err, 2.0);  // the scene really slides
+    EXPECT_LT(c_err, 0.5);
 }
 
 TEST(AlignViews, WorldFrameViewsAreRefinedToo) {
@@ -116,10 +165,25 @@ TEST(AlignViews, NonOverlappingPairFails) {
     shifted.translation() += Eigen::Vector3d(1.0, 0.0, 0.0);
     far.view.world_from_sensor = shifted;
     ring.views.push_back(far);
+    // The copy 1 m away matches perfectly once moved, but no calibration is off by 1 m: the
+    // global hypothesis is discarded and the pair fails instead of moving the view.
     const auto result = rgbd::registration::align_views(ring.views, {});
     EXPECT_EQ(result.verdict, Verdict::kFail);
     EXPECT_EQ(result.views[1].verdict, Verdict::kFail);
     EXPECT_LT(result.views[1].fitness, 0.1);
+    ASSERT_EQ(result.pairs.size(), 1u);
+    EXPECT_EQ(result.pairs[0].verdict, Verdict::kFail);
+}
+
+TEST(AlignViews, FrontAndBackViewsFail) {
+    // Sensors 180 degrees apart see disjoint halves: no pose is right, so FAIL, not a pose.
+    Ring ring = make_ring(2, 2, 21, 2.0, 0.02);
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    ASSERT_EQ(result.pairs.size(), 1u);
+    EXPECT_EQ(result.pairs[0].verdict, Verdict::kFail) << result.pairs[0].fitness;
+    EXPECT_EQ(result.verdict, Verdict::kFail);
+    EXPECT_EQ(result.views[1].verdict, Verdict::kFail);
+    EXPECT_FALSE(result.views[1].reason.empty());
 }
 
 TEST(AlignViews, BadInput) {

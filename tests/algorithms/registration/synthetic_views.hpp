@@ -1,10 +1,14 @@
-// Synthetic depth views of a bumpy ellipsoid for the registration tests: ray-cast per pixel
-// of a Kinect-v2-like depth camera (512x424, f = 365.5) against an analytic star-shaped
-// surface, Gaussian depth noise, points in the sensor frame (x right, y down, z forward).
+// Synthetic depth views for the registration tests: ray-cast per pixel of a Kinect-v2-like
+// depth camera (512x424, f = 365.5) against an analytic surface (a bumpy ellipsoid, or a
+// textured cylinder whose geometry slides about and along its axis), Gaussian depth noise,
+// optional colour from a function of the world point, points in the sensor frame (x right,
+// y down, z forward).
 #pragma once
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <random>
 
@@ -35,6 +39,26 @@ struct BumpyEllipsoid {
     double max_radius() const { return 0.16 * 1.14; }
 };
 
+/// Open cylinder of radius 0.1 m about the world y axis through `centre`, 1 m tall: seen from
+/// the side at mid height, the views hold no cap, so geometry cannot fix a rotation about the
+/// axis or a slide along it. `colour` paints it (angle and height stripes).
+struct TexturedCylinder {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double r = 0.1, half_height = 0.5;
+    double value(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d d = p - centre;
+        return std::max(std::hypot(d.x(), d.z()) - r, std::abs(d.y()) - half_height);
+    }
+    double max_radius() const { return std::hypot(r, half_height) + 1e-3; }
+    Rgb colour(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d d = p - centre;
+        const double theta = std::atan2(d.z(), d.x());
+        const double v = 0.5 + 0.25 * std::sin(6.0 * theta) + 0.2 * std::cos(25.0 * d.y() + theta);
+        const auto g = static_cast<std::uint8_t>(std::clamp(v, 0.0, 1.0) * 255.0);
+        return {g, static_cast<std::uint8_t>(0.8 * g), static_cast<std::uint8_t>(0.6 * g)};
+    }
+};
+
 /// Camera looking at `target` from `eye`, with world "up" = +y (image y = down).
 inline Pose look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
     const Eigen::Vector3d z = (target - eye).normalized();
@@ -49,8 +73,11 @@ inline Pose look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
 }
 
 /// Ray-cast view of the surface from the camera at `world_from_sensor`; every `stride`-th pixel.
-inline PointCloud render_view(const BumpyEllipsoid& shape, const Pose& world_from_sensor, int id,
-                              double noise_sigma_m, std::uint32_t seed, int stride = 1) {
+/// With `colour`, every point gets colour(world point).
+template <class Shape>
+PointCloud render_view(const Shape& shape, const Pose& world_from_sensor, int id,
+                       double noise_sigma_m, std::uint32_t seed, int stride = 1,
+                       const std::function<Rgb(const Eigen::Vector3d&)>& colour = {}) {
     PointCloud cloud;
     cloud.view.id = id;
     cloud.view.sensor = "synthetic-" + std::to_string(id);
@@ -61,6 +88,8 @@ inline PointCloud render_view(const BumpyEllipsoid& shape, const Pose& world_fro
     const double f = 365.5, cx = 256.0, cy = 212.0;
     const Eigen::Vector3d eye = world_from_sensor.translation();
     const double rmax = shape.max_radius();
+    std::optional<PointCloud::ColorMaps> colours;
+    if (colour) colours = cloud.add_colors();
     for (int v = 0; v < 424; v += stride)
         for (int u = 0; u < 512; u += stride) {
             const Eigen::Vector3d ray_s((u - cx) / f, (v - cy) / f, 1.0);
@@ -89,7 +118,8 @@ inline PointCloud render_view(const BumpyEllipsoid& shape, const Pose& world_fro
             }
             if (hit < 0) continue;
             const double z = hit * dir.dot(world_from_sensor.linear().col(2)) + noise(rng);
-            cloud.points.insert(to_point(ray_s * z));
+            const auto idx = *cloud.points.insert(to_point(ray_s * z));
+            if (colour) colours->set(idx, colour(eye + hit * dir));
         }
     return cloud;
 }

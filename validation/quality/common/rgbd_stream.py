@@ -1,0 +1,81 @@
+"""Small helpers shared by the validation scripts: the PLY view-stream reader, view metadata,
+poses and a shell runner. numpy only (Debian's /usr/bin/python3)."""
+import re
+import subprocess
+import sys
+
+import numpy as np
+
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+             "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+             "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+             "float64": "f8"}
+
+
+def read_stream(path):
+    """Documents of a binary little-endian PLY stream: [(comments, vertex record array)]."""
+    data = open(path, "rb").read()
+    pos, docs = 0, []
+    while pos < len(data):
+        end = data.index(b"end_header\n", pos) + len(b"end_header\n")
+        header = data[pos:end].decode("ascii", "replace").splitlines()
+        comments, fields, count, element, faces = [], [], 0, None, 0
+        for line in header:
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0] == "comment":
+                comments.append(line[len("comment "):])
+            elif parts[0] == "element":
+                element = parts[1]
+                if element == "vertex":
+                    count = int(parts[2])
+                elif element == "face":
+                    faces = int(parts[2])
+            elif parts[0] == "property" and element == "vertex":
+                fields.append((parts[-1], "<" + PLY_TYPES[parts[1]]))
+            elif parts[0] == "format" and parts[1] != "binary_little_endian":
+                sys.exit(f"{path}: only binary_little_endian streams are supported")
+        if faces:
+            sys.exit(f"{path}: meshes are not supported here")
+        dtype = np.dtype(fields)
+        verts = np.frombuffer(data, dtype=dtype, count=count, offset=end)
+        pos = end + count * dtype.itemsize
+        docs.append((comments, verts))
+    return docs
+
+
+def meta(comments, key):
+    """Value of `comment rgbd:<key> ...`, or None."""
+    for c in comments:
+        m = re.match(r"rgbd:" + re.escape(key) + r"\s+(.*)$", c)
+        if m:
+            return m.group(1).strip()
+    return None
+
+
+def pose_of(comments):
+    """4x4 world_from_sensor of a document, or None."""
+    v = meta(comments, "pose.world_from_sensor")
+    if v is None:
+        return None
+    m = np.eye(4)
+    m[:3, :] = np.array([float(x) for x in v.split()]).reshape(3, 4)
+    return m
+
+
+def xyz_of(doc):
+    return np.stack([doc["x"], doc["y"], doc["z"]], 1).astype(np.float64)
+
+
+def rgb_of(doc):
+    if "red" not in doc.dtype.names:
+        return None
+    return np.stack([doc["red"], doc["green"], doc["blue"]], 1).astype(np.float64) / 255.0
+
+
+def run(cmd, **kw):
+    r = subprocess.run(cmd, shell=True, capture_output=True, text=True, **kw)
+    if r.returncode != 0:
+        sys.exit(f"failed: {cmd}\n{r.stderr}")
+    return r.stdout
