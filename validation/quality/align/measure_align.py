@@ -17,8 +17,14 @@ points onto the true ones, Umeyama): per sensor rotation error (degrees), transl
 the sensor centre (mm), and translation at the object (RMS displacement of the view's own
 points, mm). A seed succeeds when every sensor is within 0.2 degrees and 1.5 mm.
 
+With --uva: the real person sequence (shared/data/multiview/uva_cv2_person_kinect1, 50 frames
+around 360 degrees, per-frame pseudo ground truth good to 3-5 mm): rgbd-align --ignore-poses
+(no initial poses at all) against Open3D point-to-plane ICP between consecutive frames from the
+identity plus its pose graph; relative pose error of every consecutive pair against the pseudo
+ground truth (median, p90) and the 360-degree loop closure before / after.
+
 Usage: measure_align.py [--bin build/bin] [--work DIR] [--seeds 20] [--calib-deg 5]
-                        [--calib-mm 50] [--busts max_planck,bust_man_wreath]
+                        [--calib-mm 50] [--busts max_planck,bust_man_wreath] [--uva]
 """
 import argparse
 import json
@@ -31,7 +37,7 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import meta, pose_of, read_stream, rgb_of, run, xyz_of  # noqa: E402
+from rgbd_stream import meta, o3d_view_cloud, pose_of, read_stream, run, xyz_of  # noqa: E402
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..",
                     "shared", "data", "meshes")
@@ -75,15 +81,13 @@ def pose_errors(est, truth, pts):
     return out
 
 
-def o3d_cloud(doc, voxel):
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
-    rgb = rgb_of(doc)
-    if rgb is not None:
-        pc.colors = o3d.utility.Vector3dVector(rgb)
-    pc = pc.voxel_down_sample(voxel)
-    pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
-    pc.orient_normals_towards_camera_location(np.zeros(3))  # sensor frame: camera at origin
-    return pc
+def o3d_p2plane(src, tgt, t):
+    """PEERS.md's coarse-to-fine point-to-plane ICP: 48/24/12/6 mm, 40/40/40/30 iterations."""
+    reg = o3d.pipelines.registration
+    for d, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
+        t = reg.registration_icp(src, tgt, d, t, reg.TransformationEstimationPointToPlane(),
+                                 reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
+    return t
 
 
 def o3d_ring(docs, colored):
@@ -93,10 +97,9 @@ def o3d_ring(docs, colored):
     init = [pose_of(c) for c, _ in docs]
     if colored:
         scales = [(0.02, 50), (0.01, 30), (0.005, 14)]
-        clouds = {v: [o3d_cloud(d, v) for _, d in docs] for v, _ in scales}
+        clouds = {v: [o3d_view_cloud(d, v) for _, d in docs] for v, _ in scales}
     else:
-        clouds = [o3d_cloud(d, 0.005) for _, d in docs]
-        stages = [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]
+        clouds = [o3d_view_cloud(d, 0.005) for _, d in docs]
     graph = reg.PoseGraph()
     for p in init:
         graph.nodes.append(reg.PoseGraphNode(p))
@@ -114,10 +117,7 @@ def o3d_ring(docs, colored):
                     pass
             src, tgt = clouds[0.005][j], clouds[0.005][i]
         else:
-            for d, it in stages:
-                t = reg.registration_icp(clouds[j], clouds[i], d, t,
-                                         reg.TransformationEstimationPointToPlane(),
-                                         reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
+            t = o3d_p2plane(clouds[j], clouds[i], t)
             src, tgt = clouds[j], clouds[i]
         info = reg.get_information_matrix_from_point_clouds(src, tgt, 0.012, t)
         graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
@@ -143,6 +143,78 @@ def summarise(rows, name):
           f"{np.median(worst[:, 2]):.2f} / {np.percentile(worst[:, 2], 95):.2f} | {t:.2f} |")
 
 
+def relative_errors(est, truth):
+    """Rotation (deg) and translation (mm) error of every consecutive relative pose."""
+    rot, trans = [], []
+    for i in range(len(truth) - 1):
+        g = np.linalg.inv(truth[i]) @ truth[i + 1]
+        e = np.linalg.inv(est[i]) @ est[i + 1]
+        d = np.linalg.inv(g) @ e
+        rot.append(np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1, 1))))
+        trans.append(1000 * np.linalg.norm(d[:3, 3]))
+    return np.array(rot), np.array(trans)
+
+
+def o3d_sequence(docs):
+    """Open3D: consecutive point-to-plane ICP from the identity, pose graph with the closure."""
+    reg = o3d.pipelines.registration
+    clouds = [o3d_view_cloud(d, 0.005) for _, d in docs]
+    n = len(clouds)
+    graph = reg.PoseGraph()
+    odometry = np.eye(4)
+    graph.nodes.append(reg.PoseGraphNode(odometry))
+    chained = [np.eye(4)]
+    for i in range(n):
+        j = (i + 1) % n  # source j onto target i
+        t = o3d_p2plane(clouds[j], clouds[i], np.eye(4))
+        info = reg.get_information_matrix_from_point_clouds(clouds[j], clouds[i], 0.012, t)
+        if j != 0:
+            chained.append(chained[-1] @ t)
+            graph.nodes.append(reg.PoseGraphNode(chained[-1]))
+        graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
+    loop = chained[-1] @ graph.edges[-1].transformation  # back at frame 0
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                reg.GlobalOptimizationConvergenceCriteria(),
+                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
+                                                             edge_prune_threshold=0.25,
+                                                             reference_node=0))
+    return [np.asarray(nd.pose) for nd in graph.nodes], loop
+
+
+def uva(b, work):
+    root = os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1")
+    inp = os.path.join(work, "uva_in.ply")
+    run(f"{b}/rgbd-cloud {root} -q > {inp}")
+    docs = read_stream(inp)
+    truth = [pose_of(c) for c, _ in docs]  # per-frame pseudo ground truth
+    out = os.path.join(work, "uva_ours.ply")
+    t0 = time.perf_counter()
+    run(f"{b}/rgbd-align --ignore-poses -q --metrics {work}/uva_ours.json -o {out} < {inp}")
+    t_ours = time.perf_counter() - t0
+    est = [pose_of(c) for c, _ in read_stream(out)]
+    loop = json.load(open(f"{work}/uva_ours.json"))["align"].get("loop_closure", {})
+    t0 = time.perf_counter()
+    o3d_poses, o3d_loop = o3d_sequence(docs)
+    t_o3d = time.perf_counter() - t0
+    print(f"\n### uva person, {len(docs)} frames, no initial poses: consecutive relative pose "
+          "error against the pseudo ground truth")
+    print("| method | rotation deg median / p90 | translation mm median / p90 | loop closure "
+          "before (chained) | after | time s |")
+    print("|---|---|---|---|---|---|")
+    r, t = relative_errors(est, truth)
+    print(f"| ours | {np.median(r):.3f} / {np.percentile(r, 90):.3f} | {np.median(t):.2f} / "
+          f"{np.percentile(t, 90):.2f} | {loop.get('before_rotation_deg', float('nan')):.2f} deg"
+          f" / {1000 * loop.get('before_translation_m', float('nan')):.1f} mm | "
+          f"{loop.get('after_rotation_deg', float('nan')):.3f} deg / "
+          f"{1000 * loop.get('after_translation_m', float('nan')):.2f} mm | {t_ours:.1f} |")
+    r, t = relative_errors(o3d_poses, truth)
+    lr = np.degrees(np.arccos(np.clip((np.trace(o3d_loop[:3, :3]) - 1) / 2, -1, 1)))
+    print(f"| o3d-p2plane + pose graph | {np.median(r):.3f} / {np.percentile(r, 90):.3f} | "
+          f"{np.median(t):.2f} / {np.percentile(t, 90):.2f} | {lr:.2f} deg / "
+          f"{1000 * np.linalg.norm(o3d_loop[:3, 3]):.1f} mm | - | {t_o3d:.1f} |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--bin", default="build/bin")
@@ -153,6 +225,7 @@ def main():
     ap.add_argument("--calib-mm", type=float, default=50.0)
     ap.add_argument("--busts", default="max_planck,bust_man_wreath")
     ap.add_argument("--no-peers", action="store_true", help="skip the Open3D runs")
+    ap.add_argument("--uva", action="store_true", help="also the real person sequence")
     a = ap.parse_args()
     if not os.path.isdir(DATA):
         sys.exit(f"measure_align: {DATA} not found (../shared/data beside the repository)")
@@ -161,7 +234,7 @@ def main():
     b = os.path.abspath(a.bin)
     print(f"work dir {work}; calibration error {a.calib_deg} deg / {a.calib_mm} mm, "
           f"seeds {a.first_seed}..{a.first_seed + a.seeds - 1}")
-    for bust in a.busts.split(","):
+    for bust in [x for x in a.busts.split(",") if x]:
         mesh, extra = BUSTS[bust]
         results = {"ours": [], "o3d-p2plane": [], "o3d-colored": []}
         for seed in range(a.first_seed, a.first_seed + a.seeds):
@@ -207,6 +280,8 @@ def main():
             if rows:
                 summarise(rows, name)
         print(flush=True)
+    if a.uva:
+        uva(b, work)
 
 
 if __name__ == "__main__":

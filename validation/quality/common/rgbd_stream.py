@@ -79,3 +79,17 @@ def run(cmd, **kw):
     if r.returncode != 0:
         sys.exit(f"failed: {cmd}\n{r.stderr}")
     return r.stdout
+
+
+def o3d_view_cloud(doc, voxel):
+    """Open3D cloud of one sensor-frame document: voxel-down-sampled, normals (hybrid radius 4
+    voxels, 30 neighbours) turned towards the camera at the origin, colours when present."""
+    import open3d as o3d
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
+    rgb = rgb_of(doc)
+    if rgb is not None:
+        pc.colors = o3d.utility.Vector3dVector(rgb)
+    pc = pc.voxel_down_sample(voxel)
+    pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
+    pc.orient_normals_towards_camera_location(np.zeros(3))
+    return pc

@@ -19,8 +19,6 @@ Usage: measure_denoise.py [--bin BUILD/bin] [--work DIR] [--seed S]
 """
 import argparse
 import os
-import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,65 +26,15 @@ import time
 import numpy as np
 import open3d as o3d
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from rgbd_stream import meta, read_stream, run  # noqa: E402,F401 (re-exported for siblings)
+
 DATA = "/work/shared/data/meshes"
 BUSTS = [
     ("max_planck", f"{DATA}/max_planck/max-planck.obj", ["--height-m", "0.6"]),
     ("bust_man_wreath", f"{DATA}/danish_statues/BustManWreath_welded.ply",
      ["--height-m", "0.605", "--up", "y"]),
 ]
-PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
-             "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
-             "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
-             "float64": "f8"}
-
-
-def read_stream(path):
-    """Documents of a binary little-endian PLY stream: (comments, vertex record array)."""
-    data = open(path, "rb").read()
-    pos, docs = 0, []
-    while pos < len(data):
-        end = data.index(b"end_header\n", pos) + len(b"end_header\n")
-        header = data[pos:end].decode("ascii", "replace").splitlines()
-        comments, fields, count, element, faces = [], [], 0, None, 0
-        for line in header:
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "comment":
-                comments.append(line[len("comment "):])
-            elif parts[0] == "element":
-                element = parts[1]
-                if element == "vertex":
-                    count = int(parts[2])
-                elif element == "face":
-                    faces = int(parts[2])
-            elif parts[0] == "property" and element == "vertex":
-                fields.append((parts[-1], "<" + PLY_TYPES[parts[1]]))
-            elif parts[0] == "format" and parts[1] != "binary_little_endian":
-                sys.exit(f"{path}: only binary_little_endian streams are supported")
-        if faces:
-            sys.exit(f"{path}: meshes are not supported here")
-        dtype = np.dtype(fields)
-        verts = np.frombuffer(data, dtype=dtype, count=count, offset=end)
-        pos = end + count * dtype.itemsize
-        docs.append((comments, verts))
-    return docs
-
-
-def meta(comments, key):
-    for c in comments:
-        m = re.match(r"rgbd:" + re.escape(key) + r"\s+(.*)$", c)
-        if m:
-            return m.group(1).strip()
-    return None
-
-
-def run(cmd, **kw):
-    r = subprocess.run(cmd, shell=True, capture_output=True, text=True, **kw)
-    if r.returncode != 0:
-        sys.exit(f"failed: {cmd}\n{r.stderr}")
-    return r.stdout
-
 
 def labels_of(cap, docs):
     """gt label of every point of every document (by sensor, frame index and pixel)."""
