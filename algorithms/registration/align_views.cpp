@@ -219,6 +219,9 @@ Report MultiViewResult::to_json() const {
         r["views"].push_back(j);
     }
     r["pairwise_time_s"] = pairwise_time_s;
+    r["start"] = start;
+    r["pairwise_fitness"] = pairwise_fitness;
+    r["joint_only_fitness"] = joint_only_fitness;
     r["pairs"] = Report::array();
     for (const PairAlignment& p : pairs) {
         Report j;
@@ -431,20 +434,29 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                        ptrans <= options.max_prior_translation_m;
             };
             auto& list = cands[k];
+            // From the initial pose: the full coarse-to-fine schedule, and (when the poses are
+            // known) the finest two distances alone, which cannot slide far on smooth, nearly
+            // symmetric shapes; the one with more colour-consistent matches within the bounds.
+            internal::PairIcpSettings fine = pset;
+            fine.distances.assign(
+                pset.distances.end() - std::min<std::size_t>(2, pset.distances.size()),
+                pset.distances.end());
             internal::PairIcpOutcome first = internal::pair_icp(
                 work[b].reg, work[a].reg, *work[a].tree, prior, pset, eval_distance);
-            if (!within(first.target_from_source)) {  // retry with the fine distances only
-                internal::PairIcpSettings fine = pset;
-                fine.distances.assign(
-                    pset.distances.end() - std::min<std::size_t>(2, pset.distances.size()),
-                    pset.distances.end());
+            bool first_ok = within(first.target_from_source);
+            if (bounded) {
+                internal::PairIcpOutcome near = internal::pair_icp(
+                    work[b].reg, work[a].reg, *work[a].tree, prior, fine, eval_distance);
+                if (within(near.target_from_source) &&
+                    (!first_ok || near.consistent > first.consistent)) {
+                    first = std::move(near);
+                    first_ok = true;
+                }
+            }
+            if (!first_ok) {  // keep the calibration, unrefined
+                fine.max_iterations = 0;
                 first = internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, prior, fine,
                                            eval_distance);
-                if (!within(first.target_from_source)) {  // keep the calibration, unrefined
-                    fine.max_iterations = 0;
-                    first = internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, prior, fine,
-                                               eval_distance);
-                }
             }
             list.push_back({std::move(first), "initial"});
             if (!options.global_registration || feats[a].empty() || feats[b].empty()) return;
@@ -688,109 +700,149 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     std::vector<std::size_t> matched(nv);
     std::vector<double> extent(nv);  // max distance of a view's points from the centre
 
-    // After the pairwise stage and the pose graph the views are close: the joint rounds start at
-    // the finest two distances.
-    const int first_round =
-        options.pairwise ? std::max(0, options.rounds - std::min(options.rounds, 2)) : 0;
-    for (int round = first_round; round < options.rounds; ++round) {
-        const double dmax = result.max_distances_m[round];
-        const double k = options.icp.kernel_scale * dmax;
-        bool round_converged = false;
-        const int max_it =
-            options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
-        for (int it = 0; it < max_it; ++it) {
-            match_all(dmax);
-            // Global centre for the rotation parametrisation (conditioning).
-            Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-            for (const auto& p : world) centre += p;
-            centre /= static_cast<double>(total);
-            std::fill(extent.begin(), extent.end(), 0.0);
-            for (std::size_t a = 0; a < total; ++a)
-                extent[owner[a]] = std::max(extent[owner[a]], (world[a] - centre).norm());
+    // Joint rounds from the current poses: all rounds (coarse to fine) from the initial poses,
+    // the finest two (at most 10 iterations each) after the pairwise stage and the pose graph.
+    auto joint_rounds = [&](bool after_pairwise) {
+        const int first_round =
+            after_pairwise ? std::max(0, options.rounds - std::min(options.rounds, 2)) : 0;
+        for (int round = first_round; round < options.rounds; ++round) {
+            const double dmax = result.max_distances_m[round];
+            const double k = options.icp.kernel_scale * dmax;
+            bool round_converged = false;
+            const int max_it =
+                options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
+            for (int it = 0; it < max_it; ++it) {
+                match_all(dmax);
+                // Global centre for the rotation parametrisation (conditioning).
+                Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+                for (const auto& p : world) centre += p;
+                centre /= static_cast<double>(total);
+                std::fill(extent.begin(), extent.end(), 0.0);
+                for (std::size_t a = 0; a < total; ++a)
+                    extent[owner[a]] = std::max(extent[owner[a]], (world[a] - centre).norm());
 
-            // Ordered assembly of the joint normal equations.
-            h.setZero();
-            g.setZero();
-            std::fill(matched.begin(), matched.end(), 0);
-            for (std::size_t a = 0; a < total; ++a) {
-                const Match& m = match[a];
-                if (m.other < 0) continue;
-                const std::size_t b = static_cast<std::size_t>(m.other);
-                const std::size_t i = owner[a], j = owner[b];
-                ++matched[i];
-                const double w = internal::robust_weight(kernel, m.residual, k);
-                if (w <= 0) continue;
-                const Eigen::Vector3d& n = world_n[b];
-                Eigen::Matrix<double, 6, 1> ji, jj;
-                ji.head<3>() = (world[a] - centre).cross(n);
-                ji.tail<3>() = n;
-                jj.head<3>() = -(world[b] - centre).cross(n);
-                jj.tail<3>() = -n;
-                h.block<6, 6>(6 * i, 6 * i).noalias() += w * ji * ji.transpose();
-                h.block<6, 6>(6 * j, 6 * j).noalias() += w * jj * jj.transpose();
-                h.block<6, 6>(6 * i, 6 * j).noalias() += w * ji * jj.transpose();
-                h.block<6, 6>(6 * j, 6 * i).noalias() += w * jj * ji.transpose();
-                g.segment<6>(6 * i) += (w * m.residual) * ji;
-                g.segment<6>(6 * j) += (w * m.residual) * jj;
-                if (!use_colour) continue;
-                // Park et al.'s colour term, in the same units as the geometric one.
-                const Eigen::Vector3d& d = world_d[b];
-                const double rc = intensity[b] + d.dot(world[a] - world[b]) - intensity[a];
-                const double wc =
-                    w * colour_scale * internal::robust_weight(1, rc, 2.0 * options.colour_sigma);
-                ji.head<3>() = (world[a] - centre).cross(d);
-                ji.tail<3>() = d;
-                jj.head<3>() = -(world[b] - centre).cross(d);
-                jj.tail<3>() = -d;
-                h.block<6, 6>(6 * i, 6 * i).noalias() += wc * ji * ji.transpose();
-                h.block<6, 6>(6 * j, 6 * j).noalias() += wc * jj * jj.transpose();
-                h.block<6, 6>(6 * i, 6 * j).noalias() += wc * ji * jj.transpose();
-                h.block<6, 6>(6 * j, 6 * i).noalias() += wc * jj * ji.transpose();
-                g.segment<6>(6 * i) += (wc * rc) * ji;
-                g.segment<6>(6 * j) += (wc * rc) * jj;
-            }
+                // Ordered assembly of the joint normal equations.
+                h.setZero();
+                g.setZero();
+                std::fill(matched.begin(), matched.end(), 0);
+                for (std::size_t a = 0; a < total; ++a) {
+                    const Match& m = match[a];
+                    if (m.other < 0) continue;
+                    const std::size_t b = static_cast<std::size_t>(m.other);
+                    const std::size_t i = owner[a], j = owner[b];
+                    ++matched[i];
+                    const double w = internal::robust_weight(kernel, m.residual, k);
+                    if (w <= 0) continue;
+                    const Eigen::Vector3d& n = world_n[b];
+                    Eigen::Matrix<double, 6, 1> ji, jj;
+                    ji.head<3>() = (world[a] - centre).cross(n);
+                    ji.tail<3>() = n;
+                    jj.head<3>() = -(world[b] - centre).cross(n);
+                    jj.tail<3>() = -n;
+                    h.block<6, 6>(6 * i, 6 * i).noalias() += w * ji * ji.transpose();
+                    h.block<6, 6>(6 * j, 6 * j).noalias() += w * jj * jj.transpose();
+                    h.block<6, 6>(6 * i, 6 * j).noalias() += w * ji * jj.transpose();
+                    h.block<6, 6>(6 * j, 6 * i).noalias() += w * jj * ji.transpose();
+                    g.segment<6>(6 * i) += (w * m.residual) * ji;
+                    g.segment<6>(6 * j) += (w * m.residual) * jj;
+                    if (!use_colour) continue;
+                    // Park et al.'s colour term, in the same units as the geometric one.
+                    const Eigen::Vector3d& d = world_d[b];
+                    const double rc = intensity[b] + d.dot(world[a] - world[b]) - intensity[a];
+                    const double wc = w * colour_scale *
+                                      internal::robust_weight(1, rc, 2.0 * options.colour_sigma);
+                    ji.head<3>() = (world[a] - centre).cross(d);
+                    ji.tail<3>() = d;
+                    jj.head<3>() = -(world[b] - centre).cross(d);
+                    jj.tail<3>() = -d;
+                    h.block<6, 6>(6 * i, 6 * i).noalias() += wc * ji * ji.transpose();
+                    h.block<6, 6>(6 * j, 6 * j).noalias() += wc * jj * jj.transpose();
+                    h.block<6, 6>(6 * i, 6 * j).noalias() += wc * ji * jj.transpose();
+                    h.block<6, 6>(6 * j, 6 * i).noalias() += wc * jj * ji.transpose();
+                    g.segment<6>(6 * i) += (wc * rc) * ji;
+                    g.segment<6>(6 * j) += (wc * rc) * jj;
+                }
 
-            // Free views: all but the gauge and those with too few matches this iteration.
-            std::vector<std::size_t> active;
-            for (std::size_t v = 0; v < nv; ++v)
-                if (v != options.fixed_view && matched[v] >= kMinMatches) active.push_back(v);
-            if (active.empty()) break;
-            const Eigen::Index m = static_cast<Eigen::Index>(6 * active.size());
-            Eigen::MatrixXd hr(m, m);
-            Eigen::VectorXd gr(m);
-            for (std::size_t x = 0; x < active.size(); ++x) {
-                gr.segment<6>(6 * x) = g.segment<6>(6 * active[x]);
-                for (std::size_t y = 0; y < active.size(); ++y)
-                    hr.block<6, 6>(6 * x, 6 * y) = h.block<6, 6>(6 * active[x], 6 * active[y]);
-            }
-            // Tiny Levenberg damping keeps views that slide along a symmetric surface bounded.
-            const double damping = 1e-9 * std::max(hr.diagonal().maxCoeff(), 1e-300);
-            hr.diagonal().array() += damping;
-            Eigen::LDLT<Eigen::MatrixXd> ldlt(hr);
-            if (ldlt.info() != Eigen::Success) break;
-            const Eigen::VectorXd x = ldlt.solve(-gr);
-            if (!x.allFinite()) break;
+                // Free views: all but the gauge and those with too few matches this iteration.
+                std::vector<std::size_t> active;
+                for (std::size_t v = 0; v < nv; ++v)
+                    if (v != options.fixed_view && matched[v] >= kMinMatches) active.push_back(v);
+                if (active.empty()) break;
+                const Eigen::Index m = static_cast<Eigen::Index>(6 * active.size());
+                Eigen::MatrixXd hr(m, m);
+                Eigen::VectorXd gr(m);
+                for (std::size_t x = 0; x < active.size(); ++x) {
+                    gr.segment<6>(6 * x) = g.segment<6>(6 * active[x]);
+                    for (std::size_t y = 0; y < active.size(); ++y)
+                        hr.block<6, 6>(6 * x, 6 * y) = h.block<6, 6>(6 * active[x], 6 * active[y]);
+                }
+                // Tiny Levenberg damping keeps views that slide along a symmetric surface bounded.
+                const double damping = 1e-9 * std::max(hr.diagonal().maxCoeff(), 1e-300);
+                hr.diagonal().array() += damping;
+                Eigen::LDLT<Eigen::MatrixXd> ldlt(hr);
+                if (ldlt.info() != Eigen::Success) break;
+                const Eigen::VectorXd x = ldlt.solve(-gr);
+                if (!x.allFinite()) break;
 
-            // Largest displacement of any working point by this step (bound).
-            double max_motion = 0;
-            for (std::size_t a = 0; a < active.size(); ++a) {
-                const Eigen::Matrix<double, 6, 1> step = x.segment<6>(6 * a);
-                Working& w = work[active[a]];
-                w.pose = orthonormalized(internal::rigid_update(step, centre) * w.pose);
-                ++moved_iterations[active[a]];
-                max_motion = std::max(
-                    max_motion, step.head<3>().norm() * extent[active[a]] + step.tail<3>().norm());
+                // Largest displacement of any working point by this step (bound).
+                double max_motion = 0;
+                for (std::size_t a = 0; a < active.size(); ++a) {
+                    const Eigen::Matrix<double, 6, 1> step = x.segment<6>(6 * a);
+                    Working& w = work[active[a]];
+                    w.pose = orthonormalized(internal::rigid_update(step, centre) * w.pose);
+                    ++moved_iterations[active[a]];
+                    max_motion = std::max(max_motion, step.head<3>().norm() * extent[active[a]] +
+                                                          step.tail<3>().norm());
+                }
+                ++result.iterations;
+                if (max_motion <= options.min_motion_spacing * spacing) {
+                    round_converged = true;
+                    break;
+                }
             }
-            ++result.iterations;
-            if (max_motion <= options.min_motion_spacing * spacing) {
-                round_converged = true;
-                break;
-            }
+            if (round == options.rounds - 1)
+                for (std::size_t v = 0; v < nv; ++v) converged[v] = round_converged ? 1 : 0;
+            if (!report_progress(progress, 0.35 + 0.55 * (round + 1) / options.rounds))
+                throw AlgorithmError("align_views: cancelled");
         }
-        if (round == options.rounds - 1)
-            for (std::size_t v = 0; v < nv; ++v) converged[v] = round_converged ? 1 : 0;
-        if (!report_progress(progress, 0.35 + 0.55 * (round + 1) / options.rounds))
-            throw AlgorithmError("align_views: cancelled");
+    };
+    // Mean share of working points matched to another view at the finest distance.
+    auto overlap_score = [&]() {
+        match_all(result.max_distances_m.back());
+        std::size_t m = 0;
+        for (const Match& x : match) m += x.other >= 0 ? 1 : 0;
+        return static_cast<double>(m) / static_cast<double>(std::max<std::size_t>(total, 1));
+    };
+
+    if (options.pairwise && poses_known) {
+        // Safety net: on smooth, nearly symmetric shapes pairs can slide where the joint
+        // rounds, pinned from both sides, do not. Run those from the initial poses too and keep
+        // them when they match clearly more points (the pairs then show their disagreement).
+        std::vector<Pose> from_pairs(nv);
+        for (std::size_t v = 0; v < nv; ++v) from_pairs[v] = work[v].pose;
+        joint_rounds(true);
+        const double pair_score = overlap_score();
+        std::vector<Pose> pair_result(nv);
+        for (std::size_t v = 0; v < nv; ++v) pair_result[v] = work[v].pose;
+        const auto counters = std::make_pair(moved_iterations, converged);
+        const int pair_iterations = result.iterations;
+        for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
+        std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
+        joint_rounds(false);
+        const double joint_score = overlap_score();
+        result.joint_only_fitness = joint_score;
+        result.pairwise_fitness = pair_score;
+        if (joint_score > pair_score + 0.05) {
+            result.start = "initial poses (joint rounds matched more than the pairwise stage)";
+        } else {
+            for (std::size_t v = 0; v < nv; ++v) work[v].pose = pair_result[v];
+            std::tie(moved_iterations, converged) = counters;
+            result.iterations = pair_iterations;
+            result.start = "pairwise stage and pose graph";
+        }
+    } else {
+        joint_rounds(options.pairwise);
+        result.start = options.pairwise ? "pairwise stage and pose graph" : "initial poses";
     }
 
     // Final per-view evaluation at the finest distance.

@@ -217,6 +217,12 @@ struct ViewAlignment {
 struct MultiViewResult {
     std::vector<ViewAlignment> views;  ///< same order as the input
     std::vector<PairAlignment> pairs;  ///< the pairwise stage (empty when off)
+    /// Where the joint rounds that won started. With known initial poses the joint rounds also
+    /// run from them (all rounds) and win when their mean matched share beats the pairwise
+    /// start's by more than 0.05 (smooth, nearly symmetric shapes where pairs slide).
+    std::string start;
+    double pairwise_fitness = 0.0;    ///< mean matched share from the pairwise start
+    double joint_only_fitness = 0.0;  ///< ... from the initial poses (0 when not run)
     LoopClosure loop;
     double pairwise_time_s = 0.0;
     Verdict verdict = Verdict::kFail;     ///< the worst of the views' verdicts
