@@ -38,6 +38,19 @@ public:
         return knn(q, 1, &index, &sq_dist) == 1;
     }
 
+    /// Nearest neighbour no farther than sqrt(max_sq): the search starts with that bound, so
+    /// branches beyond it are never visited (ICP matching with a correspondence distance).
+    bool nearest_within(const Eigen::Vector3d& q, double max_sq, std::uint32_t& index,
+                        double& sq_dist) const {
+        if (size() == 0) return false;
+        Nearest result(max_sq);
+        index_.findNeighbors(result, q.data(), nanoflann::SearchParams());
+        if (!result.found) return false;
+        index = result.index;
+        sq_dist = result.dist;
+        return true;
+    }
+
     /// All points within `radius` (not squared) of q, sorted by distance unless `sorted` is
     /// false (then in tree order: cheaper when the caller does not need the order). `out` is
     /// reused.
@@ -52,6 +65,24 @@ public:
     }
 
 private:
+    /// nanoflann result set for one neighbour within a bound.
+    struct Nearest {
+        explicit Nearest(double bound) : dist(bound) {}
+        double dist;
+        std::uint32_t index = 0;
+        bool found = false;
+        std::size_t size() const { return found ? 1 : 0; }
+        bool full() const { return true; }
+        bool addPoint(double d, std::uint32_t i) {
+            if (d < dist) {
+                dist = d;
+                index = i;
+                found = true;
+            }
+            return true;
+        }
+        double worstDist() const { return dist; }
+    };
     struct Adaptor {
         const std::vector<Eigen::Vector3d>* points;
         std::size_t kdtree_get_point_count() const { return points->size(); }

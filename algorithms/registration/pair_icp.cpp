@@ -16,6 +16,7 @@ namespace {
 
 constexpr std::size_t kChunk = 512;
 constexpr std::size_t kMaxGradientNeighbours = 64;
+constexpr std::uint32_t kNoHint = 0xffffffffu;
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -43,8 +44,10 @@ struct Sums {
 /// ordered combine: identical for any thread count.
 Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, const Pose& pose,
                 const Eigen::Vector3d& centre, double dmax, const PairIcpSettings& s, bool solve,
-                std::size_t stride, std::vector<Sums>& chunk_sums) {
+                std::size_t stride, std::vector<std::uint32_t>& hint,
+                std::vector<Sums>& chunk_sums) {
     const std::size_t n = src.xyz.size();
+    if (hint.size() != n) hint.assign(n, kNoHint);
     const std::size_t chunks = (n + kChunk - 1) / kChunk;
     chunk_sums.assign(chunks, Sums{});
     const double max_sq = dmax * dmax;
@@ -63,7 +66,18 @@ Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, co
             const Eigen::Vector3d p = pose * src.xyz[i];
             std::uint32_t j;
             double d2;
-            if (!tree.nearest(p, j, d2) || d2 > max_sq) continue;
+            // The previous match bounds the nearest distance: a much smaller search.
+            double bound = max_sq;
+            if (hint[i] != kNoHint) {
+                const double dh = (p - tgt.xyz[hint[i]]).squaredNorm();
+                if (dh < bound) bound = dh * (1.0 + 1e-9) + 1e-300;
+            }
+            if (!tree.nearest_within(p, bound, j, d2)) {
+                hint[i] = kNoHint;
+                continue;
+            }
+            hint[i] = j;
+            if (d2 > max_sq) continue;
             const Eigen::Vector3d& q = tgt.xyz[j];
             const Eigen::Vector3d& nq = tgt.normals[j];
             if (gate) {
@@ -154,7 +168,8 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
     PairIcpOutcome out;
     Pose pose = initial_target_from_source;
     std::vector<Sums> chunk_sums;
-    double extent = 0.0;  // largest distance of a source point from its centroid
+    std::vector<std::uint32_t> hint;  // each source point's last match
+    double extent = 0.0;              // largest distance of a source point from its centroid
     for (const auto& p : source.xyz) extent = std::max(extent, (p - source.centroid).norm());
     const std::size_t stages = settings.distances.size();
     for (std::size_t st = 0; st < stages; ++st) {
@@ -172,7 +187,7 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
         for (int it = 0; it < settings.max_iterations; ++it) {
             const Eigen::Vector3d centre = pose * source.centroid;
             const Sums s = accumulate(source, target, target_tree, pose, centre, dmax, settings,
-                                      true, stride, chunk_sums);
+                                      true, stride, hint, chunk_sums);
             if (settings.relative_fitness > 0 || settings.relative_rmse > 0) {
                 const double fitness = double(s.matched) / used;
                 const double rmse = s.matched ? std::sqrt(s.sq_dist / double(s.matched)) : 0.0;
@@ -206,7 +221,7 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
         out.converged = stage_converged;
     }
     const Sums s = accumulate(source, target, target_tree, pose, pose * source.centroid,
-                              eval_distance, settings, false, 1, chunk_sums);
+                              eval_distance, settings, false, 1, hint, chunk_sums);
     out.target_from_source = pose;
     out.matched = s.matched;
     out.consistent = s.consistent;
