@@ -68,6 +68,17 @@ TEST(Contract, EveryToolHasHelpVersionAndUsageErrors) {
     }
 }
 
+TEST(Contract, AlignRejectsAbsurdParameters) {
+    for (const char* opt : {"--colour-weight -1", "--colour-weight nan", "--ransac-iterations 0",
+                            "--max-prior-rotation-deg -5", "--rounds 0", "--fixed-view -1"}) {
+        SCOPED_TRACE(opt);
+        Outcome r = run(std::string("$BIN/rgbd-align ") + opt + " -o never.ply < /dev/null");
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_EQ(r.err.rfind("rgbd-align: error: ", 0), 0u) << r.err;
+        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+    }
+}
+
 TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
     std::ofstream(temp_root() / "garbage.ply") << "this is not a ply file\n";
     for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh"}) {
