@@ -48,27 +48,19 @@ std::pair<double, double> motion_at(const Pose& d, const Eigen::Vector3d& c) {
     return {rotation_error_deg(d, Pose::Identity()), (d * c - c).norm()};
 }
 
-/// Pairs of the pairwise stage (see MultiViewOptions::pairwise).
+/// Pairs of the pairwise stage (see MultiViewOptions::pairwise). `by_direction`: the views'
+/// viewing directions are known and tell something (not all the same); else stream order.
 std::vector<std::pair<std::size_t, std::size_t>> select_pairs(const std::vector<Working>& work,
-                                                              const MultiViewOptions& o) {
+                                                              const MultiViewOptions& o,
+                                                              bool by_direction) {
     const std::size_t nv = work.size();
     std::vector<std::pair<std::size_t, std::size_t>> pairs;
-    bool directions = true;
-    for (const Working& w : work) directions = directions && w.direction.has_value();
-    // Directions that are all the same (poses unknown, every view at the identity) tell
-    // nothing: pair by stream order.
-    if (directions) {
-        bool same = true;
-        for (const Working& w : work)
-            same = same && w.direction->dot(*work[0].direction) > 1 - 1e-9;
-        directions = !same;
-    }
     auto add = [&](std::size_t a, std::size_t b) {
         const auto p = std::minmax(a, b);
         if (std::find(pairs.begin(), pairs.end(), std::make_pair(p.first, p.second)) == pairs.end())
             pairs.emplace_back(p.first, p.second);
     };
-    if (!directions) {
+    if (!by_direction) {
         for (std::size_t v = 0; v + 1 < nv; ++v) add(v, v + 1);
         if (nv >= 3) add(nv - 1, 0);
     } else {
@@ -115,16 +107,18 @@ std::vector<std::size_t> ring_order(std::size_t nv, const std::vector<PairAlignm
     return order;
 }
 
-const PairAlignment* find_pair(const std::vector<PairAlignment>& list, std::size_t a,
-                               std::size_t b) {
-    for (const PairAlignment& p : list)
-        if ((p.target == a && p.source == b) || (p.target == b && p.source == a)) return &p;
-    return nullptr;
+/// Index in `list` of the pair of views a and b (either order); list.size() when none.
+std::size_t pair_index(const std::vector<PairAlignment>& list, std::size_t a, std::size_t b) {
+    for (std::size_t k = 0; k < list.size(); ++k)
+        if ((list[k].target == a && list[k].source == b) ||
+            (list[k].target == b && list[k].source == a))
+            return k;
+    return list.size();
 }
 
-/// a_from_b of a pair measurement.
-Pose relative(const PairAlignment& p, std::size_t a) {
-    return p.target == a ? p.target_from_source : p.target_from_source.inverse();
+/// a_from_b of a pair measurement target_from_source of the pair whose target is `target`.
+Pose relative(const Pose& target_from_source, std::size_t target, std::size_t a) {
+    return target == a ? target_from_source : Pose(target_from_source.inverse());
 }
 
 /// One source point's match, written by the parallel pass, read in point order.
@@ -293,11 +287,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     MultiViewResult result;
     double spacing = options.icp.spacing_m;
     if (spacing <= 0) {
-        std::vector<double> s(nv);
-        for (std::size_t v = 0; v < nv; ++v)
-            s[v] = sampling::robust_spacing(measured[v]->points, 2000);
-        std::nth_element(s.begin(), s.begin() + nv / 2, s.end());
-        spacing = s[nv / 2];
+        spacing = sampling::median_view_spacing(measured, 2000);
     }
     RGBD_CHECK(spacing > 0, "align_views: the views have zero point spacing");
     double voxel = options.voxel_m > 0 ? options.voxel_m : options.voxel_factor * spacing;
@@ -390,7 +380,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     std::vector<bool> tied(nv, false);
     if (options.pairwise) {
         Stopwatch pair_watch;
-        const auto selected = select_pairs(work, options);
+        const auto selected = select_pairs(work, options, poses_known);
         // Feature copies (coarser voxel) for the global hypotheses.
         std::vector<std::vector<Eigen::Vector3d>> fxyz(nv);
         std::vector<std::vector<Fpfh>> feats(nv);
@@ -527,18 +517,15 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             if (cands[k].size() > 1 && result.pairs[k].in_graph) ambiguous.push_back(k);
         if (!cycle.empty() && !ambiguous.empty()) {
             const double trans_scale = options.prune_translation_spacing * spacing;
+            std::vector<std::size_t> cycle_pair(nv);
+            for (std::size_t i = 0; i < nv; ++i)
+                cycle_pair[i] = pair_index(result.pairs, cycle[i], cycle[(i + 1) % nv]);
             auto loop_cost = [&]() {
                 Pose loop = Pose::Identity();
                 for (std::size_t i = 0; i < nv; ++i) {
-                    const std::size_t a = cycle[i], b = cycle[(i + 1) % nv];
-                    for (std::size_t k = 0; k < selected.size(); ++k) {
-                        const PairAlignment& pa = result.pairs[k];
-                        if (!((pa.target == a && pa.source == b) ||
-                              (pa.target == b && pa.source == a)))
-                            continue;
-                        const Pose& z = cands[k][choice[k]].outcome.target_from_source;
-                        loop = loop * (pa.target == a ? z : Pose(z.inverse()));
-                    }
+                    const std::size_t k = cycle_pair[i];
+                    loop = loop * relative(cands[k][choice[k]].outcome.target_from_source,
+                                           result.pairs[k].target, cycle[i]);
                 }
                 const auto [r, t] = motion_at(loop, work[cycle[0]].reg.centroid);
                 return r / options.prune_rotation_deg + t / trans_scale;
@@ -818,8 +805,6 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         // Safety net: on smooth, nearly symmetric shapes pairs can slide where the joint
         // rounds, pinned from both sides, do not. Run those from the initial poses too and keep
         // them when they match clearly more points (the pairs then show their disagreement).
-        std::vector<Pose> from_pairs(nv);
-        for (std::size_t v = 0; v < nv; ++v) from_pairs[v] = work[v].pose;
         joint_rounds(true);
         const double pair_score = overlap_score();
         std::vector<Pose> pair_result(nv);
@@ -880,10 +865,12 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         Pose before = Pose::Identity();
         for (std::size_t k = 0; k < nv; ++k) {
             const std::size_t a = order[k], b = order[(k + 1) % nv];
-            before = before * relative(*find_pair(result.pairs, a, b), a);
+            const PairAlignment& p = result.pairs[pair_index(result.pairs, a, b)];
+            before = before * relative(p.target_from_source, p.target, a);
         }
         const std::size_t last = order[nv - 1], first = order[0];
-        const Pose after = relative(*find_pair(result.pairs, last, first), last).inverse() *
+        const PairAlignment& closing = result.pairs[pair_index(result.pairs, last, first)];
+        const Pose after = relative(closing.target_from_source, closing.target, last).inverse() *
                            (work[last].pose.inverse() * work[first].pose);
         const Eigen::Vector3d c = work[first].reg.centroid;
         std::tie(loop.before_rotation_deg, loop.before_translation_m) = motion_at(before, c);

@@ -85,7 +85,6 @@ PointCloud merge_without_duplicates(std::vector<PointCloud>&& views,
     std::vector<double> sigma(total, 0.0);
     std::vector<std::array<float, 3>> lab(total, {0, 0, 0});
     std::vector<std::uint32_t> owner(total);
-    std::vector<double> spacings;
     bool colours = true;
     for (const PointCloud& v : views) colours = colours && (v.empty() || v.has_colors());
     for (std::size_t v = 0; v < nv; ++v) {
@@ -117,13 +116,12 @@ PointCloud merge_without_duplicates(std::vector<PointCloud>&& views,
             }
             ++i;
         }
-        if (view.size() >= 2 && options.spacing_m <= 0)
-            spacings.push_back(sampling::robust_spacing(view.points, 2000));
     }
     double spacing = options.spacing_m;
-    if (spacing <= 0 && !spacings.empty()) {
-        std::nth_element(spacings.begin(), spacings.begin() + spacings.size() / 2, spacings.end());
-        spacing = spacings[spacings.size() / 2];
+    if (spacing <= 0) {
+        std::vector<const PointCloud*> all;
+        for (const PointCloud& v : views) all.push_back(&v);
+        spacing = sampling::median_view_spacing(all, 2000);
     }
     const double radius = options.radius_spacing * spacing;
     DuplicateReport rep;

@@ -88,4 +88,13 @@ double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sampl
     return spacing_median(dist);
 }
 
+double median_view_spacing(const std::vector<const PointCloud*>& views, std::size_t sample) {
+    std::vector<double> s;
+    for (const PointCloud* v : views)
+        if (v->size() >= 2) s.push_back(robust_spacing(v->points, sample));
+    if (s.empty()) return 0.0;
+    std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+    return s[s.size() / 2];
+}
+
 }  // namespace rgbd::sampling

@@ -28,4 +28,9 @@ double robust_spacing(const PointSet& points, std::size_t sample = 10000, std::u
 double robust_spacing(const std::vector<Eigen::Vector3d>& points, std::size_t sample = 10000,
                       std::uint64_t seed = 0);
 
+/// ŝ of a set of views: the median (upper median for an even count) over the views of
+/// robust_spacing(view.points, sample); views with fewer than 2 points are skipped. Returns 0
+/// when no view has 2 points.
+double median_view_spacing(const std::vector<const PointCloud*>& views, std::size_t sample = 2000);
+
 }  // namespace rgbd::sampling

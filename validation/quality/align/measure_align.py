@@ -90,6 +90,17 @@ def o3d_p2plane(src, tgt, t):
     return t
 
 
+def optimise(graph):
+    """Open3D's pose graph (PEERS.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
+    reg = o3d.pipelines.registration
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                reg.GlobalOptimizationConvergenceCriteria(),
+                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
+                                                             edge_prune_threshold=0.25,
+                                                             reference_node=0))
+
+
 def o3d_ring(docs, colored):
     """Open3D ring neighbours + pose graph from the rig poses; world_from_sensor per view."""
     reg = o3d.pipelines.registration
@@ -121,12 +132,7 @@ def o3d_ring(docs, colored):
             src, tgt = clouds[j], clouds[i]
         info = reg.get_information_matrix_from_point_clouds(src, tgt, 0.012, t)
         graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
-                                reg.GlobalOptimizationConvergenceCriteria(),
-                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
-                                                             edge_prune_threshold=0.25,
-                                                             reference_node=0))
+    optimise(graph)
     return [np.asarray(node.pose) for node in graph.nodes]
 
 
@@ -173,12 +179,7 @@ def o3d_sequence(docs):
             graph.nodes.append(reg.PoseGraphNode(chained[-1]))
         graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
     loop = chained[-1] @ graph.edges[-1].transformation  # back at frame 0
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
-                                reg.GlobalOptimizationConvergenceCriteria(),
-                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
-                                                             edge_prune_threshold=0.25,
-                                                             reference_node=0))
+    optimise(graph)
     return [np.asarray(nd.pose) for nd in graph.nodes], loop
 
 
