@@ -128,6 +128,50 @@ TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
     EXPECT_GT(m["surface"]["fscore_5mm"].get<double>(), 0.9) << r.out;
 }
 
+TEST_F(Pipeline, AlignOptionsMergeIgnorePosesAndStages) {
+    ASSERT_EQ(run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical > views.ply").code, 0);
+    // --merge drops duplicates (counted in --metrics); --keep-duplicates concatenates.
+    Outcome merged = run("$BIN/rgbd-align --merge --metrics merge.json -o merged.ply < views.ply");
+    ASSERT_EQ(merged.code, 0) << merged.err;
+    Outcome plain = run("$BIN/rgbd-align --merge --keep-duplicates -o plain.ply < views.ply");
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    const auto m = nlohmann::json::parse(slurp(temp_root() / "merge.json"));
+    const auto points = [&](const char* file) {
+        Outcome info = run(std::string("$BIN/rgbd-info --json ") + file);
+        EXPECT_EQ(info.code, 0) << info.err;
+        const auto j = nlohmann::json::parse(info.out);
+        EXPECT_EQ(j[0]["documents"].size(), 1u);
+        return j[0]["documents"][0]["points"].get<std::size_t>();
+    };
+    const std::size_t n_merged = points("merged.ply"), n_plain = points("plain.ply");
+    EXPECT_EQ(m["merge"]["input"].get<std::size_t>(), n_plain);
+    EXPECT_EQ(m["merge"]["output"].get<std::size_t>(), n_merged);
+    EXPECT_GT(m["merge"]["duplicates"].get<std::size_t>(), 0u);
+    EXPECT_LT(n_merged, n_plain);
+    // Pairs and their verdicts are in --metrics; --no-pairwise skips them.
+    ASSERT_EQ(m["align"]["pairs"].size(), 6u);  // a ring of 6: neighbours by direction
+    for (const auto& pair : m["align"]["pairs"]) EXPECT_TRUE(pair.contains("verdict"));
+    Outcome joint =
+        run("$BIN/rgbd-align --no-pairwise --metrics joint.json -o joint.ply < views.ply");
+    ASSERT_EQ(joint.code, 0) << joint.err;
+    const auto j = nlohmann::json::parse(slurp(temp_root() / "joint.json"));
+    EXPECT_TRUE(j["align"]["pairs"].empty());
+    EXPECT_EQ(j["align"]["start"], "initial poses");
+    // --ignore-poses: every view starts at the identity; pairs follow the stream order
+    // (consecutive plus last-first) and the result is in the first view's frame.
+    Outcome ignore =
+        run("$BIN/rgbd-align --ignore-poses --no-global --metrics ignore.json "
+            "-o ignore.ply < views.ply");
+    ASSERT_EQ(ignore.code, 0) << ignore.err;
+    const auto g = nlohmann::json::parse(slurp(temp_root() / "ignore.json"));
+    ASSERT_EQ(g["align"]["pairs"].size(), 6u);
+    for (const auto& pair : g["align"]["pairs"]) {
+        const int t = pair["target"].get<int>(), src = pair["source"].get<int>();
+        EXPECT_TRUE(src == t + 1 || (t == 0 && src == 5)) << t << "-" << src;
+        EXPECT_EQ(pair["method"], "initial");  // --no-global: no RANSAC start
+    }
+}
+
 TEST_F(Pipeline, ReconstructWritesMeshAndReport) {
     Outcome r = run("$BIN/rgbd-reconstruct cap -o rec.ply --report rec_report -q");
     ASSERT_EQ(r.code, 0) << r.err;
