@@ -17,9 +17,11 @@
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 #include <zmq.hpp>
 
+#include "cli/capture_live.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/rvl.hpp"
@@ -315,8 +317,10 @@ struct Job {
 
 class Recorder {
 public:
-    Recorder(const fs::path& root, const io::Rig& rig, int png_compression)
-        : writer_(root, rig), rig_(rig), png_compression_(png_compression) {
+    /// An empty root records nothing (a live stream alone): jobs are only recycled.
+    Recorder(const std::string& root, const io::Rig& rig, int png_compression)
+        : rig_(rig), png_compression_(png_compression) {
+        if (!root.empty()) writer_.emplace(root, rig);
         thread_ = std::thread([this] { run(); });
     }
     ~Recorder() { finish(); }
@@ -360,7 +364,11 @@ public:
         std::lock_guard<std::mutex> lock(mutex_);
         return queue_.size();
     }
-    const fs::path& root() const { return writer_.root(); }
+    bool recording() const { return writer_.has_value(); }
+    fs::path root() const { return writer_ ? writer_->root() : fs::path(); }
+    std::string depth_file(const std::string& sensor, std::int64_t index) const {
+        return writer_->depth_file(sensor, index).string();
+    }
 
 private:
     void run() {
@@ -373,15 +381,15 @@ private:
                 job = std::move(queue_.front());
                 queue_.pop_front();
             }
-            if (!failed_) {
+            if (!failed_ && writer_) {
                 try {
                     if (job->is_set) {
-                        writer_.add_frameset(job->set);
+                        writer_->add_frameset(job->set);
                         ++sets_;
                     } else {
-                        writer_.add_encoded_frame(rig_.sensors[job->sensor].id, job->index,
-                                                  job->hub_ns, job->depth, job->jpeg,
-                                                  png_compression_);
+                        writer_->add_encoded_frame(rig_.sensors[job->sensor].id, job->index,
+                                                   job->hub_ns, job->depth, job->jpeg,
+                                                   png_compression_);
                         ++frames_;
                     }
                 } catch (const std::exception& e) {
@@ -395,7 +403,7 @@ private:
         }
     }
 
-    io::CaptureWriter writer_;
+    std::optional<io::CaptureWriter> writer_;
     const io::Rig& rig_;
     int png_compression_;
     std::mutex mutex_;
@@ -430,7 +438,25 @@ void run_capture(cli::Context& ctx) {
     if (!ctx.inputs().empty())
         throw cli::UsageError("unexpected argument '" + ctx.inputs().front() + "'");
     if (!ctx.has("rig")) throw cli::UsageError("--rig FILE is required");
-    if (ctx.output_path().empty()) throw cli::UsageError("-o FOLDER is required");
+    const bool live = ctx.has("live");
+    if (ctx.output_path().empty() && !live)
+        throw cli::UsageError("-o FOLDER is required (or --live to stream without recording)");
+    cli::LiveOptions live_options;
+    if (live) {
+        live_options.path = ctx.get<std::string>("live");
+        live_options.max_sets = ctx.get<long long>("live-sets");
+        if (live_options.max_sets < 0) throw cli::UsageError("--live-sets must be >= 0");
+        if (live_options.path.empty()) throw cli::UsageError("--live needs a file, a FIFO or -");
+        if (live_options.path == "-" && ctx.has("metrics") &&
+            ctx.get<std::string>("metrics") == "-")
+            throw cli::UsageError("--live - and --metrics - both want stdout");
+        if (!ctx.output_path().empty() && live_options.path != "-" &&
+            fs::path(live_options.path).lexically_normal() ==
+                fs::path(ctx.output_path()).lexically_normal())
+            throw cli::UsageError("--live and -o name the same path");
+    } else if (ctx.has("live-sets")) {
+        throw cli::UsageError("--live-sets needs --live");
+    }
     const double tolerance_ms = ctx.get<double>("tolerance-ms");
     const double latency_ms = ctx.get<double>("latency-ms");
     const double duration_s = ctx.get<double>("duration-s");
@@ -473,6 +499,7 @@ void run_capture(cli::Context& ctx) {
 
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
+    if (live) std::signal(SIGPIPE, SIG_IGN);  // a reader that goes away must not kill the hub
 
     zmq::context_t context(1);
     std::unique_ptr<net::ZapAuthenticator> zap;
@@ -490,13 +517,31 @@ void run_capture(cli::Context& ctx) {
     ControlHub hub(context, control, rig, options, keys.get(), ctx);
     // The output folder is created only once the sockets are up (no empty folders on error).
     Recorder recorder(ctx.output_path(), rig, png);
-    ctx.info("listening on " + listen + " (control " + control + "), recording to " +
-             ctx.output_path());
+    ctx.info("listening on " + listen + " (control " + control + ")" +
+             (recorder.recording() ? ", recording to " + ctx.output_path() : std::string()) +
+             (live ? ", live views to " + live_options.path : std::string()));
 
     const std::size_t n = rig.sensors.size();
     const auto tolerance_ns = static_cast<std::int64_t>(std::llround(tolerance_ms * 1e6));
     const auto latency_ns = static_cast<std::int64_t>(std::llround(latency_ms * 1e6));
     net::FrameGrouper grouper(n, tolerance_ns);
+    // Live stream: frames are kept as long as a set can still be formed from them.
+    std::unique_ptr<cli::FrameHistory> history;
+    std::unique_ptr<cli::LiveStream> stream;
+    std::int64_t sets_formed = 0;
+    if (live) {
+        history =
+            std::make_unique<cli::FrameHistory>(n, latency_ns + 4 * tolerance_ns + 500'000'000);
+        stream = std::make_unique<cli::LiveStream>(
+            rig, live_options, ctx,
+            [&recorder](std::int64_t ordinal) {
+                if (!recorder.recording() || recorder.failed()) return -1;
+                return recorder.sets_written() > ordinal ? 1 : 0;
+            },
+            [&recorder](const std::string& sensor, std::int64_t index) {
+                return recorder.depth_file(sensor, index);
+            });
+    }
     std::vector<SensorStats> stats(n);
     std::vector<io::FrameSet> sets;
     std::map<std::string, std::int64_t> dropped;  // reason -> count
@@ -549,6 +594,9 @@ void run_capture(cli::Context& ctx) {
         job->index = st.recorded++;
         job->hub_ns = hub_ns;
         grouper.add(sensor, hub_ns, job->index);
+        if (history)
+            history->store(sensor, job->index, hub_ns, job->depth, view.color,
+                           view.header.color_bytes);
         recorder.push(std::move(job));
         ++received;
     };
@@ -564,6 +612,8 @@ void run_capture(cli::Context& ctx) {
             job->is_set = true;
             job->set = set;
             recorder.push(std::move(job));
+            if (stream) stream->offer(set, sets_formed, *history);
+            ++sets_formed;
         }
     };
 
@@ -578,6 +628,10 @@ void run_capture(cli::Context& ctx) {
         }
         if (exit_after_bye && hub.all_done()) {
             stop_reason = "all nodes done";
+            break;
+        }
+        if (stream && stream->finished() && !(stream->reader_closed() && recorder.recording())) {
+            stop_reason = stream->reader_closed() ? "live reader closed" : "live sets streamed";
             break;
         }
         zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
@@ -617,6 +671,7 @@ void run_capture(cli::Context& ctx) {
     const std::int64_t end = monotonic_ns();
     hub.stop();
     recorder.finish();
+    if (stream) stream->finish();
     const Report clocks = hub.report(end);
 
     auto& m = ctx.metrics();
@@ -625,7 +680,7 @@ void run_capture(cli::Context& ctx) {
     m["duration_s"] = 1e-9 * static_cast<double>(end - start);
     m["frames_received"] = received;
     m["frames_recorded"] = recorder.frames_written();
-    m["framesets"] = recorder.sets_written();
+    m["framesets"] = recorder.recording() ? recorder.sets_written() : sets_formed;
     m["framesets_complete"] = complete_sets;
     m["missing_slots"] = missing_slots;
     m["max_spread_ns"] = max_spread;
@@ -646,12 +701,21 @@ void run_capture(cli::Context& ctx) {
         per_sensor[rig.sensors[s].id] = r;
     }
     m["sensors"] = per_sensor;
+    if (stream) {
+        m["live"] = stream->metrics();
+        m["live"]["output"] = live_options.path;
+        const Report& l = m["live"];
+        ctx.note("live: " + l["sets_emitted"].dump() + " frame sets streamed (" +
+                 l["views"].dump() + " views), " + l["sets_skipped"].dump() +
+                 " skipped for newer ones, " + l["sets_incomplete"].dump() + " incomplete");
+    }
 
     if (recorder.failed())
         throw IoError("recording stopped: " + recorder.error() + "; " + recorder.root().string() +
                       " holds " + std::to_string(recorder.frames_written()) + " frames and " +
                       std::to_string(recorder.sets_written()) +
                       " frame sets, all complete and readable");
+    if (!recorder.recording()) return;
     // rig.json again, now with each node's clock estimate (times in the capture are hub time).
     for (io::SensorSpec& s : rig.sensors)
         if (clocks.contains(s.id))
@@ -670,7 +734,8 @@ void run_capture(cli::Context& ctx) {
 int main(int argc, char** argv) {
     cli::ToolSpec spec;
     spec.name = "rgbd-capture";
-    spec.usage = "rgbd-capture --rig rig.json [--listen ENDPOINT] -o FOLDER [options]";
+    spec.usage =
+        "rgbd-capture --rig rig.json [--listen ENDPOINT] (-o FOLDER | --live FILE|-) [options]";
     spec.description =
         "The capture hub. Receives frames from rgbd-node processes over ZeroMQ (PULL on "
         "--listen), estimates every node's clock offset and drift with four-timestamp probes "
@@ -684,7 +749,12 @@ int main(int argc, char** argv) {
         "SIGINT/SIGTERM, after --duration-s, or with --exit-after-bye when every node has "
         "finished; on a full disk it stops with what was recorded intact (exit 1). With "
         "--key the sockets are CURVE-encrypted and only nodes holding the key file are "
-        "accepted.";
+        "accepted.\n\n"
+        "Live pipeline: with --live the newest complete frame sets also go out as a view "
+        "stream (one coloured cloud per sensor, in the sensor frame with its rig pose, the same "
+        "views rgbd-cloud makes from the recording); --live-sets 1 takes one snapshot and "
+        "stops, e.g. rgbd-capture --rig rig.json --live - --live-sets 1 | rgbd-clean | "
+        "rgbd-align | rgbd-mesh -o bust.ply.";
     spec.example =
         "rgbd-capture --rig rig.json --listen tcp://*:5555 -o cap/ --key rig.key "
         "--metrics hub.json";
@@ -714,7 +784,13 @@ int main(int argc, char** argv) {
             "key", cli::po::value<std::string>()->value_name("FILE"),
             "CURVE key file: encrypt, and refuse nodes without the key")(
             "make-key", cli::po::value<std::string>()->value_name("FILE"),
-            "write a new CURVE key file and exit");
+            "write a new CURVE key file and exit")(
+            "live", cli::po::value<std::string>()->value_name("FILE"),
+            "also stream the newest complete frame sets as views (a view stream, as rgbd-cloud "
+            "makes from the recording) to FILE, a FIFO or - (stdout); a slow reader gets the "
+            "newest set each time, the sets in between are skipped. Without -o nothing is "
+            "recorded")("live-sets", cli::po::value<long long>()->default_value(0)->value_name("N"),
+                        "with --live: stop after streaming N frame sets (0 = no limit)");
     };
     return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) {
         try {

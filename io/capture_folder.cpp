@@ -888,6 +888,36 @@ Capture open_capture(const fs::path& root) {
          "color/ + depth/ folders, no NNN_camera.xml frames)");
 }
 
+RgbdFrame frame_from_stored(const SensorSpec& s, const cv::Mat& raw, const cv::Mat& color_bgr,
+                            const std::string& what) {
+    if (raw.type() != CV_16UC1) fail(what, "depth image is not 16-bit single-channel");
+    check_size(what, raw, s.depth, "depth");
+    RgbdFrame frame;
+    frame.depth.create(raw.rows, raw.cols, CV_32FC1);
+    const float inv = static_cast<float>(1.0 / s.depth_scale);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int y = 0; y < raw.rows; ++y) {
+        const std::uint16_t* in = raw.ptr<std::uint16_t>(y);
+        float* out = frame.depth.ptr<float>(y);
+        for (int x = 0; x < raw.cols; ++x) out[x] = in[x] == 0 ? nan : in[x] * inv;
+    }
+    if (!color_bgr.empty()) {
+        if (color_bgr.type() != CV_8UC3) fail(what, "colour image is not 8-bit BGR");
+        check_size(what, color_bgr, s.color, "colour");
+        frame.color = color_bgr;
+    }
+    frame.depth_intrinsics = s.depth;
+    frame.color_intrinsics = s.color;
+    frame.color_from_depth = s.color_from_depth;
+    frame.world_from_sensor = s.world_from_depth;
+    frame.has_pose = s.has_world_from_depth;
+    frame.sensor_id = s.id;
+    frame.range_min_m = static_cast<float>(s.range_min_m);
+    frame.range_max_m = static_cast<float>(s.range_max_m);
+    frame.noise_model = s.noise_model;
+    return frame;
+}
+
 RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::size_t position) {
     const SensorSpec& s = capture.rig.sensor(sensor_id);
     const auto it = capture.frames.find(sensor_id);
@@ -899,47 +929,30 @@ RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::
         const fs::path path(p);
         return (path.is_absolute() ? path : capture.root / sensor_id / path).string();
     };
-    RgbdFrame frame;
     const std::string depth_file = resolve(r.depth);
     const cv::Mat raw = read_image(depth_file, cv::IMREAD_UNCHANGED, "depth");
-    if (raw.type() != CV_16UC1) fail(depth_file, "depth image is not 16-bit single-channel");
-    check_size(depth_file, raw, s.depth, "depth");
-    frame.depth.create(raw.rows, raw.cols, CV_32FC1);
-    const float inv = static_cast<float>(1.0 / s.depth_scale);
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    for (int y = 0; y < raw.rows; ++y) {
-        const std::uint16_t* in = raw.ptr<std::uint16_t>(y);
-        float* out = frame.depth.ptr<float>(y);
-        for (int x = 0; x < raw.cols; ++x) out[x] = in[x] == 0 ? nan : in[x] * inv;
-    }
+    cv::Mat color;
+    std::string color_file;
     if (!r.color.empty()) {
-        const std::string color_file = resolve(r.color);
-        frame.color = read_image(color_file, cv::IMREAD_COLOR, "colour");
-        check_size(color_file, frame.color, s.color, "colour");
+        color_file = resolve(r.color);
+        color = read_image(color_file, cv::IMREAD_COLOR, "colour");
+        check_size(color_file, color, s.color, "colour");
     }
+    RgbdFrame frame = frame_from_stored(s, raw, color, depth_file);
     if (!r.mask.empty()) {
         const std::string mask_file = resolve(r.mask);
         const cv::Mat mask = read_image(mask_file, cv::IMREAD_GRAYSCALE, "mask");
         check_size(mask_file, mask, s.depth, "mask");
         cv::compare(mask, 128, frame.mask, cv::CMP_GE);  // JPEG edges are soft: threshold
     }
-    frame.depth_intrinsics = s.depth;
-    frame.color_intrinsics = s.color;
-    frame.color_from_depth = s.color_from_depth;
     if (r.world_from_depth) {
         frame.world_from_sensor = *r.world_from_depth;
         frame.has_pose = true;
-    } else {
-        frame.world_from_sensor = s.world_from_depth;
-        frame.has_pose = s.has_world_from_depth;
     }
     frame.sensor_id = sensor_id;
     frame.frame_index = r.index;
     frame.timestamp_ns = r.time_ns - s.clock_offset_ns;
     frame.source = depth_file;
-    frame.range_min_m = static_cast<float>(s.range_min_m);
-    frame.range_max_m = static_cast<float>(s.range_max_m);
-    frame.noise_model = s.noise_model;
     return frame;
 }
 
@@ -1062,6 +1075,10 @@ void CaptureWriter::add_encoded_frame(const std::string& sensor_id, std::int64_t
     if (!has_file(csv)) append_line(csv, "index,time_ns,depth,color");
     append_line(csv, std::to_string(index) + "," + std::to_string(time_ns) + "," + depth_rel + "," +
                          color_rel);
+}
+
+fs::path CaptureWriter::depth_file(const std::string& sensor_id, std::int64_t index) const {
+    return root_ / sensor_id / ("depth/" + frame_name(index) + ".png");
 }
 
 void CaptureWriter::add_frameset(const FrameSet& set) {

@@ -90,6 +90,14 @@ Capture open_capture(const std::filesystem::path& root);
 /// overrides the sensor's). Hub time = time_ns - clock_offset_ns. Errors name the file.
 RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::size_t position);
 
+/// A frame from images in their stored form, as load_frame builds it from a capture's files:
+/// `depth_raw` CV_16UC1 in the sensor's depth_scale units (0 = invalid), `color_bgr` CV_8UC3
+/// (may be empty), with the sensor's intrinsics, extrinsics, pose, range and noise model.
+/// The caller sets frame_index, timestamp_ns and source. `what` names the images in errors
+/// (a file, or e.g. "live frame of sensor k2_0"); sizes must match the rig (InputError).
+RgbdFrame frame_from_stored(const SensorSpec& sensor, const cv::Mat& depth_raw,
+                            const cv::Mat& color_bgr, const std::string& what);
+
 /// Writes a capture folder v1. Files are written atomically; csv lines are appended and
 /// flushed one by one, so an interrupted recording stays readable.
 class CaptureWriter {
@@ -117,6 +125,9 @@ public:
     /// Appends a framesets.csv line (frames in Rig::sensors order, -1 = missing).
     void add_frameset(const FrameSet& set);
     const std::filesystem::path& root() const { return root_; }
+    /// Where add_encoded_frame / add_frame put the depth image of a frame (root/sensor/depth/
+    /// NNNNNN.png), the path load_frame reports as the frame's source.
+    std::filesystem::path depth_file(const std::string& sensor_id, std::int64_t index) const;
 
 private:
     std::filesystem::path root_;

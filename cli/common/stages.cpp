@@ -90,16 +90,32 @@ std::optional<Eigen::Vector3d> object_centre(
     return frames::axes_convergence_point(poses);
 }
 
+std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig) {
+    std::vector<Pose> poses;
+    for (const io::SensorSpec& sensor : rig.sensors) {
+        if (!sensor.has_world_from_depth) return std::nullopt;
+        poses.push_back(sensor.world_from_depth);
+    }
+    return frames::axes_convergence_point(poses);
+}
+
 PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,
                      const ExtractionOptions& extraction, Report& report) {
-    const RgbdFrame frame = io::load_frame(capture, sensor_id, position);
+    return view_from_frame(io::load_frame(capture, sensor_id, position), view_id, cloud_options,
+                           centre, extraction, report);
+}
+
+PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
+                           const frames::CloudOptions& cloud_options,
+                           const std::optional<Eigen::Vector3d>& centre,
+                           const ExtractionOptions& extraction, Report& report) {
     PointCloud cloud = frames::depth_to_cloud(frame, cloud_options, &report);
     cloud.view.id = view_id;
     cloud.view.frame_index = frame.frame_index;
     report["view"] = view_id;
-    report["sensor"] = sensor_id;
+    report["sensor"] = frame.sensor_id;
     report["frame_index"] = frame.frame_index;
     report["points_in_window"] = cloud.size();
     if (centre && extraction.crop_radius_m > 0)

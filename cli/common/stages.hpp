@@ -39,9 +39,18 @@ struct ExtractionOptions {
 /// poses converge, or nullopt when the poses do not tell (one view, parallel axes, no poses).
 std::optional<Eigen::Vector3d> object_centre(
     const io::Capture& capture, const std::vector<std::pair<std::string, std::size_t>>& jobs);
+/// The same for the rig's sensor poses (nullopt when a sensor has none).
+std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig);
 
-/// Loads one selected frame as a view: depth_to_cloud, then the world-space crop around
-/// `centre` when given. Fills view.id and view.frame_index; the report gets the counts.
+/// One frame as a view: depth_to_cloud, then the world-space crop around `centre` when given.
+/// Fills view.id and view.frame_index; the report gets the counts. rgbd-cloud (through
+/// load_view) and rgbd-capture's live stream both make their views here.
+PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
+                           const frames::CloudOptions& cloud_options,
+                           const std::optional<Eigen::Vector3d>& centre,
+                           const ExtractionOptions& extraction, Report& report);
+
+/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame).
 PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,

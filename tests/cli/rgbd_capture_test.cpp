@@ -25,6 +25,7 @@
 #include <zmq.hpp>
 
 #include "io/capture_folder.hpp"
+#include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
 #include "tests/support/ellipsoid_off.hpp"
@@ -615,3 +616,149 @@ TEST_F(RgbdCapture, LossAndDelayBetweenNetworkNamespaces) {
 }
 
 }  // namespace
+
+namespace {
+
+/// The documents of a view stream file, each written back without its rgbd:history lines
+/// (which name the tool that wrote it), for byte comparison.
+std::vector<std::pair<rgbd::ViewInfo, std::string>> stream_documents(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    rgbd::io::PlyStreamReader reader(in, path.string());
+    std::vector<std::pair<rgbd::ViewInfo, std::string>> out;
+    rgbd::io::Document document;
+    while (reader.next(document)) {
+        document.cloud.view.history.clear();
+        std::ostringstream bytes;
+        rgbd::io::write_document(bytes, document);
+        out.emplace_back(document.cloud.view, bytes.str());
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
+    const int port = free_port();
+    const fs::path dir = temp_root();
+    fs::remove_all(dir / "rec_live");
+    fs::remove(dir / "live.ply");
+    const std::string rig = rig_of(3);
+    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
+    start(dir, "hub_live",
+          "$BIN/rgbd-capture --rig " + rig +
+              " -o rec_live --live live.ply --listen tcp://127.0.0.1:" + std::to_string(port) +
+              " --exit-after-bye --latency-ms 300 --probe-interval-ms 500 --metrics hub_live.json");
+    for (int s = 0; s < 3; ++s)
+        start(dir, "node_live_" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" + hub_at +
+                  " --clock-offset-ms " + std::to_string(200 * s - 200));
+    for (int s = 0; s < 3; ++s) ASSERT_EQ(wait_for(dir, "node_live_" + std::to_string(s), 60), 0);
+    ASSERT_EQ(wait_for(dir, "hub_live", 30), 0) << slurp(dir / "hub_live.err");
+
+    const json hub = read_json(dir / "hub_live.json");
+    const json& live = hub["live"];
+    const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec_live");
+    EXPECT_EQ(cap.frames.at(id(0)).size(), 45u) << "streaming does not cost the recording";
+    const auto views = stream_documents(dir / "live.ply");
+    ASSERT_GE(live["sets_emitted"].get<int>(), 10) << live.dump();
+    EXPECT_EQ(views.size(), 3 * live["sets_emitted"].get<std::size_t>());
+    EXPECT_EQ(live["views"].get<std::size_t>(), views.size());
+    std::int64_t complete = 0;
+    for (const auto& set : cap.framesets)
+        complete += std::count(set.frames.begin(), set.frames.end(), -1) == 0;
+    EXPECT_EQ(live["sets_emitted"].get<std::int64_t>() + live["sets_skipped"].get<std::int64_t>(),
+              complete);
+
+    // Each streamed set is the recording's frame set with the same frames, and its views are
+    // byte for byte what rgbd-cloud makes of that set (first, middle and last set).
+    const std::size_t sets = views.size() / 3;
+    for (std::size_t k : {std::size_t{0}, sets / 2, sets - 1}) {
+        std::optional<std::size_t> match;
+        for (std::size_t f = 0; f < cap.framesets.size() && !match; ++f) {
+            bool same = true;
+            for (std::size_t s = 0; s < 3; ++s)
+                same = same && views[3 * k + s].first.sensor == id(static_cast<int>(s)) &&
+                       views[3 * k + s].first.frame_index == cap.framesets[f].frames[s];
+            if (same) match = f;
+        }
+        ASSERT_TRUE(match) << "streamed set " << k << " is not a recorded frame set";
+        const std::string out = "cloud_live_" + std::to_string(k) + ".ply";
+        Outcome r =
+            run("$BIN/rgbd-cloud rec_live --frameset " + std::to_string(*match) + " -o " + out);
+        ASSERT_EQ(r.code, 0) << r.err;
+        const auto expected = stream_documents(dir / out);
+        ASSERT_EQ(expected.size(), 3u);
+        for (std::size_t s = 0; s < 3; ++s) {
+            EXPECT_EQ(views[3 * k + s].second, expected[s].second)
+                << "set " << k << " view " << s << " differs from rgbd-cloud's";
+            EXPECT_TRUE(fs::exists(dir / views[3 * k + s].first.source))
+                << "the view names its recorded depth image: " << views[3 * k + s].first.source;
+        }
+    }
+}
+
+TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
+    const int port = free_port();
+    const fs::path dir = temp_root();
+    const std::string rig = rig_of(2);
+    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
+    // One frame set to stdout, nothing recorded: a snapshot for a pipeline.
+    start(dir, "hub_snap",
+          "$BIN/rgbd-capture --rig " + rig + " --live - --live-sets 1 --listen tcp://127.0.0.1:" +
+              std::to_string(port) + " --latency-ms 300 --metrics hub_snap.json");
+    for (int s = 0; s < 2; ++s)
+        start(dir, "node_snap_" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 60" + hub_at);
+    ASSERT_EQ(wait_for(dir, "hub_snap", 30), 0) << slurp(dir / "hub_snap.err");
+    for (int s = 0; s < 2; ++s) wait_for(dir, "node_snap_" + std::to_string(s), 30);
+    const json snap = read_json(dir / "hub_snap.json");
+    EXPECT_EQ(snap["stop_reason"], "live sets streamed");
+    EXPECT_EQ(snap["live"]["sets_emitted"], 1);
+    const auto views = stream_documents(dir / "hub_snap.out");
+    ASSERT_EQ(views.size(), 2u);
+    EXPECT_EQ(views[0].first.sensor, id(0));
+    EXPECT_EQ(views[1].first.sensor, id(1));
+    EXPECT_TRUE(views[0].first.source.empty()) << "nothing recorded, no source to name";
+    EXPECT_TRUE(views[0].first.world_from_sensor.has_value());
+
+    // The reader of the live stream exits after a few bytes: the hub records on.
+    const int port2 = free_port();
+    fs::remove_all(dir / "rec_closed");
+    start(dir, "hub_closed",
+          "$BIN/rgbd-capture --rig " + rig +
+              " -o rec_closed --live - --listen tcp://127.0.0.1:" + std::to_string(port2) +
+              " --exit-after-bye --latency-ms 300 --metrics hub_closed.json | head -c 100 "
+              ">/dev/null");
+    for (int s = 0; s < 2; ++s)
+        start(dir, "node_closed_" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" +
+                  " --hub tcp://127.0.0.1:" + std::to_string(port2));
+    for (int s = 0; s < 2; ++s) ASSERT_EQ(wait_for(dir, "node_closed_" + std::to_string(s), 60), 0);
+    ASSERT_EQ(wait_for(dir, "hub_closed", 30), 0);
+    const json closed = read_json(dir / "hub_closed.json");
+    EXPECT_TRUE(closed["live"]["reader_closed"].get<bool>());
+    EXPECT_EQ(closed["stop_reason"], "all nodes done");
+    const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec_closed");
+    EXPECT_EQ(cap.frames.at(id(1)).size(), 45u);
+}
+
+TEST_F(RgbdCapture, LiveOptionErrors) {
+    Outcome r = run("$BIN/rgbd-capture --rig synth/rig.json");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("--live"), std::string::npos) << r.err;
+    r = run("$BIN/rgbd-capture --rig synth/rig.json -o y --live-sets 2");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("--live-sets needs --live"), std::string::npos) << r.err;
+    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --metrics -");
+    EXPECT_EQ(r.code, 2);
+    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --live-sets -1");
+    EXPECT_EQ(r.code, 2);
+    r =
+        run("$BIN/rgbd-capture --rig synth/rig.json --live no_such_dir/live.ply --listen "
+            "tcp://127.0.0.1:" +
+            std::to_string(free_port()));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("no_such_dir"), std::string::npos) << r.err;
+    EXPECT_EQ(rgbd::test::line_count(r.err), 1) << r.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "y"));
+}

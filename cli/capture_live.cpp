@@ -1,0 +1,244 @@
+#include "cli/capture_live.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/common/tool.hpp"
+#include "io/ply_stream.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::cli {
+
+namespace fs = std::filesystem;
+
+// ------------------------------------------------------------------------------ FrameHistory
+
+FrameHistory::FrameHistory(std::size_t sensors, std::int64_t window_ns)
+    : window_ns_(window_ns), frames_(sensors) {}
+
+void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                         const cv::Mat& depth, const std::uint8_t* jpeg, std::size_t jpeg_bytes) {
+    auto& list = frames_.at(sensor);
+    while (!list.empty() && list.front()->hub_ns < hub_ns - window_ns_) {
+        free_.push_back(std::move(list.front()));
+        list.pop_front();
+    }
+    std::unique_ptr<LiveFrame> frame;
+    if (free_.empty()) {
+        frame = std::make_unique<LiveFrame>();
+    } else {
+        frame = std::move(free_.back());
+        free_.pop_back();
+    }
+    frame->index = index;
+    frame->hub_ns = hub_ns;
+    depth.copyTo(frame->depth);  // same size and type: the buffer is reused
+    frame->jpeg.assign(jpeg, jpeg + jpeg_bytes);
+    list.push_back(std::move(frame));
+}
+
+const LiveFrame* FrameHistory::find(std::size_t sensor, std::int64_t index) const {
+    const auto& list = frames_.at(sensor);
+    // Indices grow by one per frame of a sensor (a restarted node goes on counting), so the
+    // frame sits at a known distance from the newest one.
+    for (auto it = list.rbegin(); it != list.rend(); ++it) {
+        if ((*it)->index == index) return it->get();
+        if ((*it)->index < index) break;
+    }
+    return nullptr;
+}
+
+// ------------------------------------------------------------------------------ LiveStream
+
+namespace {
+
+void copy_frame(const LiveFrame& from, LiveFrame& to) {
+    to.index = from.index;
+    to.hub_ns = from.hub_ns;
+    from.depth.copyTo(to.depth);
+    to.jpeg.assign(from.jpeg.begin(), from.jpeg.end());
+}
+
+bool is_fifo(const std::string& path) {
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+}
+
+}  // namespace
+
+LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& context,
+                       std::function<int(std::int64_t)> on_disk,
+                       std::function<std::string(const std::string&, std::int64_t)> depth_file)
+    : rig_(rig),
+      options_(options),
+      context_(context),
+      on_disk_(std::move(on_disk)),
+      depth_file_(std::move(depth_file)),
+      centre_(object_centre(rig)) {
+    if (options_.path == "-") {
+        out_ = &std::cout;
+    } else {
+        const bool fifo = is_fifo(options_.path);
+        if (!fifo) {
+            const fs::path target(options_.path);
+            const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+            if (!fs::is_directory(dir))
+                throw IoError("--live " + options_.path + ": folder " + dir.string() +
+                              " does not exist");
+            temp_path_ = options_.path + ".tmp" + std::to_string(::getpid());
+        }
+        file_ = std::make_unique<std::ofstream>(fifo ? options_.path : temp_path_,
+                                                std::ios::binary | std::ios::trunc);
+        if (!file_->good()) throw IoError("--live " + options_.path + ": cannot open for writing");
+        out_ = file_.get();
+    }
+    thread_ = std::thread([this] { run(); });
+}
+
+LiveStream::~LiveStream() {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        stop_ = true;
+        has_pending_ = false;
+    }
+    wake_.notify_one();
+    if (thread_.joinable()) thread_.join();
+    if (!temp_path_.empty()) {
+        std::error_code ec;
+        fs::remove(temp_path_, ec);  // finish() did not put it in place: no half-written file
+    }
+}
+
+void LiveStream::offer(const io::FrameSet& set, std::int64_t ordinal, const FrameHistory& history) {
+    if (finished_) return;
+    for (const std::int64_t index : set.frames)
+        if (index < 0) {
+            ++incomplete_;
+            return;
+        }
+    staging_.frames.resize(rig_.sensors.size());
+    for (std::size_t s = 0; s < set.frames.size(); ++s) {
+        const LiveFrame* frame = history.find(s, set.frames[s]);
+        if (!frame) {  // older than the history window: cannot happen with matching latency
+            ++incomplete_;
+            return;
+        }
+        copy_frame(*frame, staging_.frames[s]);
+    }
+    staging_.set = set;
+    staging_.ordinal = ordinal;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (has_pending_) ++skipped_;
+        std::swap(staging_, pending_);
+        has_pending_ = true;
+    }
+    wake_.notify_one();
+}
+
+void LiveStream::run() {
+    for (;;) {
+        {
+            std::unique_lock<std::mutex> lock(mutex_);
+            wake_.wait(lock, [&] { return has_pending_ || stop_; });
+            if (!has_pending_) return;
+            std::swap(pending_, working_);
+            has_pending_ = false;
+        }
+        if (finished_) continue;
+        emit(working_);
+        if (options_.max_sets > 0 && emitted_ >= options_.max_sets) finished_ = true;
+    }
+}
+
+void LiveStream::emit(const LiveSet& live) {
+    // With a recording, wait until the set and its frames are on disk, so the views can name
+    // their depth image and a downstream rgbd-upsample can open it (10 s at most).
+    int on_disk = on_disk_(live.ordinal);
+    for (int k = 0; on_disk == 0 && k < 5000; ++k) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        on_disk = on_disk_(live.ordinal);
+    }
+    for (std::size_t s = 0; s < rig_.sensors.size(); ++s) {
+        const io::SensorSpec& spec = rig_.sensors[s];
+        const LiveFrame& frame = live.frames[s];
+        const std::string what =
+            "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
+        io::Document document;
+        Report report;
+        try {
+            color_.release();
+            if (!frame.jpeg.empty()) {
+                color_ = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
+                if (color_.empty()) throw InputError(what + ": cannot decode the colour JPEG");
+            }
+            RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color_, what);
+            rgbd.frame_index = frame.index;
+            rgbd.timestamp_ns = frame.hub_ns;
+            if (on_disk == 1) rgbd.source = depth_file_(spec.id, frame.index);
+            document.cloud = view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
+                                             options_.extraction, report);
+        } catch (const Error& e) {
+            context_.warn(std::string("live stream: ") + e.what() + "; view left out");
+            continue;
+        } catch (const cv::Exception& e) {
+            context_.warn("live stream: " + what + ": " + e.what() + "; view left out");
+            continue;
+        }
+        bool written = true;
+        try {
+            io::write_document(*out_, document);
+        } catch (const IoError&) {  // the writer reports a failed stream
+            written = false;
+        }
+        if (!written || !out_->good()) break;
+        ++views_;
+    }
+    if (out_->good()) out_->flush();
+    if (!out_->good()) {
+        closed_ = true;
+        finished_ = true;
+        context_.warn(
+            "live stream: " + (options_.path == "-" ? std::string("<stdout>") : options_.path) +
+            ": the reader went away; the hub goes on");
+        return;
+    }
+    ++emitted_;
+}
+
+void LiveStream::finish() {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        stop_ = true;
+    }
+    wake_.notify_one();
+    if (thread_.joinable()) thread_.join();
+    if (file_) {
+        file_->close();
+        if (!temp_path_.empty()) {
+            if (!*file_ || closed_)
+                throw IoError("--live " + options_.path + ": write failed (disk full?)");
+            std::error_code ec;
+            fs::rename(temp_path_, options_.path, ec);
+            if (ec)
+                throw IoError("--live " + options_.path +
+                              ": cannot rename into place: " + ec.message());
+            temp_path_.clear();
+        }
+    }
+}
+
+Report LiveStream::metrics() const {
+    return Report{{"sets_emitted", emitted_.load()},
+                  {"sets_skipped", skipped_.load()},
+                  {"sets_incomplete", incomplete_.load()},
+                  {"views", views_.load()},
+                  {"reader_closed", closed_.load()}};
+}
+
+}  // namespace rgbd::cli
