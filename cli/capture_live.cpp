@@ -64,9 +64,10 @@ void copy_frame(const LiveFrame& from, LiveFrame& to) {
     to.jpeg.assign(from.jpeg.begin(), from.jpeg.end());
 }
 
-bool is_fifo(const std::string& path) {
+/// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
+bool is_special(const std::string& path) {
     struct stat st {};
-    return ::stat(path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+    return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
 }
 
 }  // namespace
@@ -83,8 +84,8 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
     if (options_.path == "-") {
         out_ = &std::cout;
     } else {
-        const bool fifo = is_fifo(options_.path);
-        if (!fifo) {
+        const bool special = is_special(options_.path);
+        if (!special) {
             const fs::path target(options_.path);
             const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
             if (!fs::is_directory(dir))
@@ -92,7 +93,7 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
                               " does not exist");
             temp_path_ = options_.path + ".tmp" + std::to_string(::getpid());
         }
-        file_ = std::make_unique<std::ofstream>(fifo ? options_.path : temp_path_,
+        file_ = std::make_unique<std::ofstream>(special ? options_.path : temp_path_,
                                                 std::ios::binary | std::ios::trunc);
         if (!file_->good()) throw IoError("--live " + options_.path + ": cannot open for writing");
         out_ = file_.get();

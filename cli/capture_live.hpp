@@ -61,7 +61,8 @@ struct LiveSet {
 };
 
 struct LiveOptions {
-    std::string path = "-";      ///< "-" = stdout; a FIFO is written directly, a file atomically
+    std::string path =
+        "-";  ///< "-" = stdout; a FIFO or device is written directly, a file atomically
     long long max_sets = 0;      ///< stop after this many sets (0 = no limit)
     frames::CloudOptions cloud;  ///< as rgbd-cloud's defaults
     ExtractionOptions extraction;
