@@ -57,8 +57,8 @@ int main(int argc, char** argv) {
             "statistical", "statistical outlier removal (default for views without a grid)")(
             "radius", "radius outlier removal")(
             "k", cli::po::value<int>()->value_name("N"),
-            "neighbours per point (default 20 for --statistical, 16 for --distance and "
-            "--density)")(
+            "neighbours per point (default 20 for --statistical and --density, 16 for "
+            "--distance)")(
             "std-ratio", cli::po::value<double>()->default_value(2.0)->value_name("X"),
             "--statistical: standard deviations above the mean distance that are kept")(
             "convention",
@@ -88,8 +88,9 @@ int main(int argc, char** argv) {
             "--distance: robust standard deviations of the normalised kNN distance that are kept")(
             "no-pass-a", "--distance: skip the grid support and speckle tests")(
             "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
-            "beta", cli::po::value<double>()->default_value(0.2)->value_name("X"),
-            "--density: keep a point when its density is at least X times the expected one")(
+            "beta", cli::po::value<double>()->value_name("X"),
+            "--density: keep a point when its density is at least X times the expected one "
+            "(default 0.1 against the sensors' expectation, 0.2 against the local median)")(
             "reference", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
             "--density: expected density from the sensors (views' cameras), local (median of "
             "the neighbours) or auto")(
@@ -141,7 +142,8 @@ int main(int argc, char** argv) {
             distance.noise_model = density.noise_model = model;
             if (vm.count("theta-max-deg"))
                 distance.theta_max_deg = density.theta_max_deg = ctx.get<double>("theta-max-deg");
-            distance.k = density.k = has_k ? ctx.get<int>("k") : 16;
+            distance.k = has_k ? ctx.get<int>("k") : 16;
+            density.k = has_k ? ctx.get<int>("k") : 20;
             distance.c_min = ctx.get<int>("c-min");
             distance.line_sigmas = ctx.get<double>("line-sigmas");
             distance.dense_min = ctx.get<int>("dense-min");
@@ -150,7 +152,7 @@ int main(int argc, char** argv) {
             distance.pass_a = vm.count("no-pass-a") == 0;
             distance.pass_b = vm.count("knn-test") != 0;
             distance.mark = mark;
-            density.beta = ctx.get<double>("beta");
+            if (vm.count("beta")) density.beta = density.beta_local = ctx.get<double>("beta");
             const std::string reference = ctx.get<std::string>("reference");
             if (reference == "auto")
                 density.reference = denoise::DensityReference::kAuto;
