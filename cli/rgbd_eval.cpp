@@ -1,9 +1,20 @@
 // rgbd-eval: metrics of a reconstructed mesh or cloud (and of estimated poses) against ground
-// truth.
+// truth; side by side with Open3D's Screened Poisson on the same input (--baseline); a report
+// page with pictures (--report).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <limits>
+#include <sstream>
 
 #include "algorithms/evaluation/metrics.hpp"
+#include "algorithms/render/picture.hpp"
+#include "cli/common/report.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"
@@ -12,10 +23,206 @@
 using namespace rgbd;
 namespace fs = std::filesystem;
 
+namespace {
+
+constexpr const char* kPeerScript = "open3d_screened_poisson.py";
+constexpr const char* kPython = "/usr/bin/python3";
+
+/// The peer script: beside this executable (copied there at build time), else in the source
+/// tree this binary was built from.
+fs::path find_peer_script() {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec && fs::exists(exe.parent_path() / kPeerScript)) return exe.parent_path() / kPeerScript;
+    const fs::path source = fs::path(RGBD_SOURCE_DIR) / "cli" / "peers" / kPeerScript;
+    if (fs::exists(source)) return source;
+    throw IoError(std::string("cannot find ") + kPeerScript + " beside rgbd-eval or in " +
+                  source.parent_path().string());
+}
+
+std::string shell_quote(const std::string& s) {
+    std::string out = "'";
+    for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+}
+
+/// A temporary folder removed on destruction.
+struct TempDir {
+    fs::path path;
+    TempDir() {
+        path = fs::temp_directory_path() / ("rgbd-eval-" + std::to_string(::getpid()));
+        fs::remove_all(path);
+        fs::create_directories(path);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+};
+
+/// Writes the input points for the peer: x y z, normals (given when every view has them),
+/// the position of each point's sensor (NaN when unknown), colours (grey when absent).
+bool write_peer_input(const fs::path& path, const std::vector<PointCloud>& views) {
+    bool normals = !views.empty();
+    std::size_t count = 0;
+    for (const auto& v : views) {
+        normals = normals && v.points.has_normal_map();
+        count += v.size();
+    }
+    std::ofstream out(path, std::ios::binary);
+    out << "ply\nformat binary_little_endian 1.0\ncomment normals "
+        << (normals ? "given" : "missing") << "\nelement vertex " << count << "\n";
+    for (const char* p : {"x", "y", "z", "nx", "ny", "nz", "sx", "sy", "sz"})
+        out << "property float " << p << "\n";
+    out << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (const auto& v : views) {
+        // As render::from_views: a sensor-frame view without a pose is taken as it is.
+        Pose world_from_view = Pose::Identity();
+        if (v.view.frame == ViewFrame::kSensor && v.view.world_from_sensor)
+            world_from_view = *v.view.world_from_sensor;
+        Eigen::Vector3f sensor(nan, nan, nan);
+        if (v.view.world_from_sensor)
+            sensor = v.view.world_from_sensor->translation().cast<float>();
+        else if (v.view.frame == ViewFrame::kSensor && v.view.intrinsics)
+            sensor = Eigen::Vector3f::Zero();
+        std::optional<PointCloud::ColorMaps> colors;
+        if (v.has_colors()) colors = v.colors();
+        for (auto i : v.points) {
+            const Eigen::Vector3f p = (world_from_view * to_eigen(v.points.point(i))).cast<float>();
+            Eigen::Vector3f n = Eigen::Vector3f::Zero();
+            if (normals)
+                n = (world_from_view.linear() * to_eigen(v.points.normal(i))).cast<float>();
+            const float f[9] = {p.x(), p.y(),      p.z(),      n.x(),     n.y(),
+                                n.z(), sensor.x(), sensor.y(), sensor.z()};
+            out.write(reinterpret_cast<const char*>(f), sizeof f);
+            const Rgb c = colors ? colors->get(i) : Rgb{160, 160, 160};
+            const std::uint8_t rgb[3] = {c.r, c.g, c.b};
+            out.write(reinterpret_cast<const char*>(rgb), 3);
+        }
+    }
+    RGBD_CHECK_AS(IoError, out.good(), path.string() + ": cannot write");
+    return normals;
+}
+
+/// Statistics of the per-vertex distance of a mesh to the input points (real data without a
+/// reference: how far the surface strays from what was measured).
+Report input_distance(const Mesh& mesh, const std::vector<Eigen::Vector3d>& input, double tau) {
+    std::vector<Eigen::Vector3d> v;
+    for (const auto i : mesh.vertices()) v.push_back(to_eigen(mesh.point(i)));
+    if (v.empty()) return nullptr;
+    std::vector<double> d = evaluation::distances_to_points(v, input);
+    std::size_t far = 0;
+    for (double x : d) far += x > tau;
+    auto q = [&](double f) {
+        const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(f * d.size()));
+        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+        return d[k];
+    };
+    char key[64];
+    std::snprintf(key, sizeof key, "vertices_farther_than_%gmm", tau * 1000);
+    return {{"median_mm", q(0.5) * 1000},
+            {"p95_mm", q(0.95) * 1000},
+            {key, double(far) / double(d.size())}};
+}
+
+struct BaselineRun {
+    int depth = 0;
+    Mesh mesh;
+    Report report;
+};
+
+/// Runs the peer script at each depth and reads its meshes back.
+std::vector<BaselineRun> run_screened_poisson(const std::vector<PointCloud>& input,
+                                              const std::vector<int>& depths, double trim,
+                                              Report& info, const cli::Context& ctx) {
+    const fs::path script = find_peer_script();
+    RGBD_CHECK_AS(IoError, fs::exists(kPython),
+                  std::string("--baseline screened-poisson needs Debian's ") + kPython +
+                      " with python3-open3d");
+    TempDir tmp;
+    const fs::path points = tmp.path / "input.ply";
+    const bool normals = write_peer_input(points, input);
+    bool colored = !input.empty();
+    for (const auto& v : input) colored = colored && v.has_colors();
+    info["normals"] = normals ? "given" : "estimated (Open3D, oriented towards the sensors)";
+    std::string depth_list;
+    for (int d : depths) depth_list += (depth_list.empty() ? "" : ",") + std::to_string(d);
+    std::ostringstream trim_text;
+    trim_text << trim;
+    const std::string command = std::string(kPython) + " " + shell_quote(script.string()) +
+                                " --input " + shell_quote(points.string()) + " --out-dir " +
+                                shell_quote(tmp.path.string()) + " --depths " + depth_list +
+                                " --trim-quantile " + trim_text.str() +
+                                (colored ? "" : " --no-colors");
+    ctx.info("baseline: " + command);
+    FILE* pipe = ::popen(command.c_str(), "r");
+    RGBD_CHECK_AS(IoError, pipe != nullptr, "cannot run " + std::string(kPython));
+    std::string output;
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) output.append(buf, n);
+    const int status = ::pclose(pipe);
+    const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    if (code == 3)
+        throw InputError(
+            "--baseline screened-poisson needs python3-open3d (apt-get install python3-open3d)");
+    RGBD_CHECK_AS(AlgorithmError, code == 0,
+                  "Open3D Screened Poisson failed (" + script.string() + " exit code " +
+                      std::to_string(code) + ")");
+    std::vector<BaselineRun> runs;
+    std::istringstream lines(output);
+    std::string line;
+    while (std::getline(lines, line)) {
+        if (line.empty()) continue;
+        Report r = Report::parse(line, nullptr, false);
+        RGBD_CHECK_AS(AlgorithmError, r.is_object() && r.contains("file"),
+                      script.string() + ": unexpected output: " + line);
+        BaselineRun run;
+        run.depth = r["depth"].get<int>();
+        run.mesh = io::read_mesh(r["file"].get<std::string>());
+        r.erase("file");
+        run.report = r;
+        runs.push_back(std::move(run));
+    }
+    RGBD_CHECK_AS(AlgorithmError, runs.size() == depths.size(),
+                  script.string() + ": expected " + std::to_string(depths.size()) +
+                      " meshes, got " + std::to_string(runs.size()));
+    return runs;
+}
+
+std::string cell(const Report& r, const std::string& key, double scale = 1.0) {
+    if (!r.is_object() || !r.contains(key) || !r[key].is_number()) return "-";
+    std::ostringstream s;
+    s.precision(4);
+    s << r[key].get<double>() * scale;
+    return s.str();
+}
+
+std::string trim_text(double q) {
+    std::ostringstream s;
+    s << q;
+    return s.str();
+}
+
+/// Parses "WxH".
+std::pair<int, int> parse_size(const std::string& text) {
+    int w = 0, h = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x' || w < 16 ||
+        h < 16 || w > 8192 || h > 8192)
+        throw cli::UsageError("--report-size must be WxH with 16..8192 pixels per side, not '" +
+                              text + "'");
+    return {w, h};
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
     cli::ToolSpec spec;
     spec.name = "rgbd-eval";
-    spec.usage = "rgbd-eval RESULT --reference MESH [options] [-o metrics.json]";
+    spec.usage =
+        "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
+        "[--report DIR] [options] [-o metrics.json]";
     spec.description =
         "Compares a result (a mesh, or a view stream / point file) with a reference surface and "
         "prints the metrics as one JSON object: Chamfer distance (mean of both directed mean "
@@ -24,8 +231,17 @@ int main(int argc, char** argv) {
         "of the result farther than --invented-tau-mm from the reference). Distances are exact "
         "point-to-triangle distances from area-uniform samples. With --gt-poses (a capture's "
         "gt/world_from_depth.json) and a view stream as RESULT, it also reports each view's "
-        "rotation and translation error. The result is read whole.";
-    spec.example = "rgbd-eval bust.ply --reference cap/gt/mesh.ply --tau-mm 2,5 -o metrics.json";
+        "rotation and translation error. With --points (the points the result was made from), "
+        "the distance of the result's vertices to them. --baseline screened-poisson runs Open3D "
+        "0.16's Screened Poisson (Debian's python3-open3d) on the same input points at each "
+        "--baseline-depths, normals as given or estimated by Open3D towards the sensors, times "
+        "it, and evaluates its meshes exactly like the result, side by side (JSON and a table "
+        "on stderr). --report DIR writes a page (index.html, pictures, metrics.json) with "
+        "pictures of the input, the result, the best baseline depth and heat maps of the "
+        "distance to the reference (else to the input points). The result is read whole.";
+    spec.example =
+        "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
+        "screened-poisson --report bust_report/";
     spec.writes_stream = false;
     spec.reads_stream = false;
     spec.add_options = [](cli::po::options_description& o) {
@@ -39,13 +255,33 @@ int main(int argc, char** argv) {
             "surface samples per mesh")(
             "gt-poses", cli::po::value<std::string>()->value_name("JSON"),
             "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
-            "keep-gauge", "do not remove the global gauge before pose errors");
+            "keep-gauge", "do not remove the global gauge before pose errors")(
+            "points", cli::po::value<std::string>()->value_name("STREAM"),
+            "the input points of the result (view stream or point file)")(
+            "baseline", cli::po::value<std::string>()->value_name("NAME"),
+            "run a peer on the same input: screened-poisson (Open3D 0.16)")(
+            "baseline-depths", cli::po::value<std::string>()->default_value("8,9,10"),
+            "octree depths of the Screened Poisson baseline")(
+            "baseline-trim", cli::po::value<double>()->default_value(0.02)->value_name("Q"),
+            "drop baseline vertices below this density quantile (0 = untrimmed)")(
+            "report", cli::po::value<std::string>()->value_name("DIR"),
+            "write a report page with pictures to DIR")(
+            "report-size", cli::po::value<std::string>()->default_value("640x480"),
+            "size of each report picture, WxH");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one RESULT file");
-        if (!ctx.options().count("reference") && !ctx.options().count("gt-poses"))
-            throw cli::UsageError("give --reference MESH and/or --gt-poses JSON");
+        const bool reference_given = ctx.options().count("reference") > 0;
+        const bool baseline_given = ctx.options().count("baseline") > 0;
+        const bool report_given = ctx.options().count("report") > 0;
+        if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given &&
+            !report_given)
+            throw cli::UsageError(
+                "give --reference MESH, --gt-poses JSON, --baseline NAME and/or --report DIR");
         evaluation::MetricOptions options;
+        std::vector<int> depths;
+        double trim = 0;
+        std::pair<int, int> picture_size{640, 480};
         try {
             options.taus_m.clear();
             for (double t : cli::parse_doubles(ctx.get<std::string>("tau-mm"), "tau-mm"))
@@ -57,19 +293,180 @@ int main(int argc, char** argv) {
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
+        if (baseline_given) {
+            if (ctx.get<std::string>("baseline") != "screened-poisson")
+                throw cli::UsageError("--baseline: unknown peer '" +
+                                      ctx.get<std::string>("baseline") + "' (screened-poisson)");
+            for (double d :
+                 cli::parse_doubles(ctx.get<std::string>("baseline-depths"), "baseline-depths")) {
+                if (!(d >= 4 && d <= 12 && d == std::floor(d)))
+                    throw cli::UsageError("--baseline-depths must be integers in 4..12");
+                depths.push_back(static_cast<int>(d));
+            }
+            trim = ctx.get<double>("baseline-trim");
+            if (!(trim >= 0 && trim < 0.5))
+                throw cli::UsageError("--baseline-trim must be in [0, 0.5)");
+        }
+        if (report_given) picture_size = parse_size(ctx.get<std::string>("report-size"));
+
         const std::string input = ctx.inputs().front();
         cli::LoadedResult result = cli::load_result(input);
+        std::optional<cli::LoadedResult> input_points;
+        if (ctx.options().count("points")) {
+            const std::string path = ctx.get<std::string>("points");
+            input_points = cli::load_result(path);
+            RGBD_CHECK(!input_points->mesh, path + ": --points must be points, not a mesh");
+        } else if (!result.mesh) {
+            input_points = cli::LoadedResult{};
+            input_points->views = result.views;  // a cloud result is its own input
+        }
+        if (baseline_given && !input_points)
+            throw cli::UsageError("--baseline needs the input points: give --points STREAM");
+        std::optional<render::Geometry> input_geometry;
+        if (input_points) input_geometry = render::from_views(input_points->views);
+        if (input_geometry && input_geometry->vertices.empty())
+            throw InputError("the input points are empty");
+
         Report out = Report::object();
         out["result"] = input;
-        if (ctx.options().count("reference")) {
+        std::optional<Mesh> reference;
+        if (reference_given) {
             const std::string ref_path = ctx.get<std::string>("reference");
-            const Mesh reference = io::read_mesh(ref_path);
+            reference = io::read_mesh(ref_path);
             out["reference"] = ref_path;
-            out["surface"] = cli::evaluate_surface(result, reference, options);
+            out["surface"] = cli::evaluate_surface(result, *reference, options);
         }
+        if (input_geometry && result.mesh)
+            out["input_distance"] =
+                input_distance(*result.mesh, input_geometry->vertices, options.invented_tau_m);
         if (ctx.options().count("gt-poses")) {
             out["poses"] = cli::evaluate_poses(result.views, ctx.get<std::string>("gt-poses"),
                                                !ctx.options().count("keep-gauge"));
+        }
+
+        std::vector<BaselineRun> runs;
+        int best = -1;
+        if (baseline_given) {
+            Report& b = out["baseline"];
+            b["method"] = "open3d-screened-poisson";
+            b["open3d"] = "0.16 (python3-open3d)";
+            b["trim_quantile"] = trim;
+            {
+                auto bar = ctx.progress("screened poisson");
+                runs = run_screened_poisson(input_points->views, depths, trim, b, ctx);
+            }
+            b["runs"] = Report::array();
+            std::string fkey;  // the F-score at the first tau decides the best depth
+            double best_score = -1;
+            for (std::size_t i = 0; i < runs.size(); ++i) {
+                BaselineRun& run = runs[i];
+                if (reference) {
+                    cli::LoadedResult lr;
+                    lr.mesh = run.mesh;
+                    run.report["surface"] = cli::evaluate_surface(lr, *reference, options);
+                    const Report& s = run.report["surface"];
+                    if (fkey.empty())
+                        for (auto it = s.begin(); it != s.end(); ++it)
+                            if (it.key().rfind("fscore_", 0) == 0) {
+                                fkey = it.key();
+                                break;
+                            }
+                    const double score = s.value(fkey, -1.0);
+                    if (score > best_score) best_score = score, best = static_cast<int>(i);
+                }
+                run.report["input_distance"] =
+                    input_distance(run.mesh, input_geometry->vertices, options.invented_tau_m);
+                b["runs"].push_back(run.report);
+            }
+            if (best < 0) {  // no reference: depth 9 (PEERS.md's choice), else the last
+                best = static_cast<int>(runs.size()) - 1;
+                for (std::size_t i = 0; i < runs.size(); ++i)
+                    if (runs[i].depth == 9) best = static_cast<int>(i);
+                b["best_depth_rule"] = "depth 9 (no reference)";
+            } else {
+                b["best_depth_rule"] = "highest " + fkey;
+            }
+            b["best_depth"] = runs[best].depth;
+
+            // Side by side on stderr.
+            auto pad = [](const std::string& text, std::size_t width) {
+                return std::string(width > text.size() ? width - text.size() : 0, ' ') + text;
+            };
+            auto group_of = [](const Report& r, const std::string& group) {
+                return r.contains(group) ? r[group] : Report();
+            };
+            std::ostringstream t;
+            t << "metric            " << pad("ours", 8);
+            for (const auto& r : runs) t << pad("spr-d" + std::to_string(r.depth), 9);
+            t << "\n";
+            auto row = [&](const std::string& label, const std::string& group,
+                           const std::string& key, double scale) {
+                t << label << std::string(label.size() < 18 ? 18 - label.size() : 1, ' ')
+                  << pad(cell(group_of(out, group), key, scale), 8);
+                for (const auto& r : runs) t << pad(cell(group_of(r.report, group), key, scale), 9);
+                t << "\n";
+            };
+            if (reference) {
+                row("chamfer mm", "surface", "chamfer_m", 1000.0);
+                for (const auto& [k, v] : out["surface"].items())
+                    if (k.rfind("fscore_", 0) == 0) row(k, "surface", k, 1.0);
+                row("invented", "surface", "invented_surface_fraction", 1.0);
+                row("hausdorff p95 mm", "surface", "hausdorff_p95_m", 1000.0);
+            }
+            if (out.contains("input_distance")) {
+                row("input dist med mm", "input_distance", "median_mm", 1.0);
+                row("input dist p95 mm", "input_distance", "p95_mm", 1.0);
+            }
+            t << "time s            " << pad("-", 8);
+            for (const auto& r : runs) t << pad(cell(r.report, "time_s"), 9);
+            t << "\n";
+            std::cerr << t.str();
+        }
+
+        if (report_given) {
+            cli::ReportPage page;
+            page.title = "rgbd-eval: " + fs::path(input).filename().string();
+            page.facts.push_back({"result", input});
+            if (reference) page.facts.push_back({"reference", ctx.get<std::string>("reference")});
+            if (ctx.options().count("points"))
+                page.facts.push_back({"input", ctx.get<std::string>("points")});
+            if (baseline_given)
+                page.facts.push_back({"baseline", "Open3D 0.16 Screened Poisson, depths " +
+                                                      ctx.get<std::string>("baseline-depths") +
+                                                      ", trim quantile " + trim_text(trim) +
+                                                      "; best depth " +
+                                                      std::to_string(runs[best].depth)});
+            cli::PictureInputs pictures;
+            pictures.input = input_geometry ? &*input_geometry : nullptr;
+            pictures.result = result.mesh ? &*result.mesh : nullptr;
+            if (best >= 0) {
+                pictures.baseline = &runs[best].mesh;
+                pictures.baseline_name =
+                    "Open3D Screened Poisson depth " + std::to_string(runs[best].depth);
+            }
+            pictures.reference = reference ? &*reference : nullptr;
+            pictures.camera.width = picture_size.first;
+            pictures.camera.height = picture_size.second;
+            Report picture_info;
+            {
+                auto bar = ctx.progress("pictures");
+                cli::render_report_pictures(pictures, page.images, picture_info);
+            }
+            out["report"] = picture_info;
+            std::vector<std::pair<std::string, Report>> columns;
+            Report ours = Report::object();
+            if (out.contains("surface")) ours["surface"] = out["surface"];
+            if (out.contains("input_distance")) ours["input_distance"] = out["input_distance"];
+            columns.push_back({"ours", ours});
+            for (const auto& r : runs)
+                columns.push_back({"SPR d" + std::to_string(r.depth), r.report});
+            page.tables.push_back(cli::side_by_side("Metrics", columns));
+            if (out.contains("poses"))
+                page.tables.push_back(cli::side_by_side("Poses", {{"poses", out["poses"]}}));
+            page.metrics = out;
+            const fs::path dir = ctx.get<std::string>("report");
+            cli::write_report(dir, page);
+            ctx.note("report: " + (dir / "index.html").string());
         }
         ctx.metrics()["results"] = out;
         ctx.out() << out.dump(2) << "\n";

@@ -5,7 +5,9 @@
 
 #include "algorithms/denoise/statistical_outliers.hpp"
 #include "algorithms/frames/depth_to_cloud.hpp"
+#include "algorithms/render/picture.hpp"
 #include "algorithms/upsample/upsample_view.hpp"
+#include "cli/common/report.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
@@ -17,72 +19,32 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string html_escape(const std::string& s) {
-    std::string out;
-    for (char c : s) {
-        if (c == '<')
-            out += "&lt;";
-        else if (c == '>')
-            out += "&gt;";
-        else if (c == '&')
-            out += "&amp;";
-        else
-            out += c;
-    }
-    return out;
-}
-
-std::string format_value(const Report& v) {
-    if (v.is_number_float()) {
-        std::ostringstream s;
-        s.precision(4);
-        s << v.get<double>();
-        return s.str();
-    }
-    return v.is_string() ? v.get<std::string>() : v.dump();
-}
-
-void table_rows(std::ostringstream& html, const Report& r, const std::string& prefix) {
-    for (auto it = r.begin(); it != r.end(); ++it) {
-        const std::string key = prefix.empty() ? it.key() : prefix + "." + it.key();
-        if (it->is_object())
-            table_rows(html, *it, key);
-        else if (!it->is_array())
-            html << "<tr><td>" << html_escape(key) << "</td><td>" << html_escape(format_value(*it))
-                 << "</td></tr>\n";
-    }
-}
-
-std::string report_html(const Report& report) {
-    std::ostringstream html;
-    html << "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>rgbd-reconstruct report"
-            "</title><style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-            "td{border:1px solid #ccc;padding:2px 8px}td:last-child{text-align:right}"
-            "</style></head><body>\n<h1>rgbd-reconstruct</h1>\n";
-    html << "<p>capture: " << html_escape(report["capture"].get<std::string>())
-         << "<br>mesh: " << html_escape(report["mesh_file"].get<std::string>()) << "</p>\n";
-    if (report.contains("evaluation")) {
-        html << "<h2>Against the ground truth</h2>\n<table>\n";
-        table_rows(html, report["evaluation"], "");
-        html << "</table>\n";
-    }
-    html << "<h2>Stages</h2>\n<table>\n";
-    table_rows(html, report["timings_s"], "time_s");
-    table_rows(html, report["counts"], "");
-    html << "</table>\n<h2>Views</h2>\n<table>\n<tr><td>view</td><td>sensor</td><td>points</td>"
-            "<td>after cleaning</td><td>verdict</td><td>fitness</td><td>rmse (mm)</td></tr>\n";
+/// The report page: pictures (input, mesh, heat map), evaluation, stages, views.
+cli::ReportPage report_page(const Report& report) {
+    cli::ReportPage page;
+    page.title = "rgbd-reconstruct";
+    page.facts = {{"capture", report["capture"].get<std::string>()},
+                  {"mesh", report["mesh_file"].get<std::string>()}};
+    if (report.contains("evaluation"))
+        page.tables.push_back(
+            cli::side_by_side("Against the ground truth", {{"result", report["evaluation"]}}));
+    cli::ReportTable stages = cli::side_by_side(
+        "Stages", {{"", Report{{"time_s", report["timings_s"]}, {"counts", report["counts"]}}}});
+    page.tables.push_back(stages);
+    cli::ReportTable views;
+    views.heading = "Views";
+    views.columns = {"view",    "sensor",  "points",   "after cleaning",
+                     "verdict", "fitness", "rmse (mm)"};
     for (const auto& v : report["align"]["views"]) {
         const int id = v["view"].get<int>();
-        html << "<tr><td>" << id << "</td><td>" << html_escape(v["sensor"].get<std::string>())
-             << "</td><td>" << report["views"][id]["points"] << "</td><td>"
-             << report["views"][id]["points_after_cleaning"] << "</td><td>"
-             << v["verdict"].get<std::string>() << "</td><td>" << format_value(v["fitness"])
-             << "</td><td>" << format_value(Report(v["inlier_rmse_m"].get<double>() * 1000))
-             << "</td></tr>\n";
+        views.rows.push_back({std::to_string(id), v["sensor"].get<std::string>(),
+                              report["views"][id]["points"].dump(),
+                              report["views"][id]["points_after_cleaning"].dump(),
+                              v["verdict"].get<std::string>(), cli::format_value(v["fitness"]),
+                              cli::format_value(Report(v["inlier_rmse_m"].get<double>() * 1000))});
     }
-    html << "</table>\n<p>Full numbers: <a href=\"metrics.json\">metrics.json</a></p>\n"
-            "</body></html>\n";
-    return html.str();
+    page.tables.push_back(views);
+    return page;
 }
 
 }  // namespace
@@ -215,6 +177,9 @@ int main(int argc, char** argv) {
             pose_views.push_back(std::move(p));
         }
 
+        // The aligned points for the report's pictures.
+        const render::Geometry input_geometry = render::from_views(views);
+
         // 4. merge + mesh.
         watch = Stopwatch();
         Mesh mesh;
@@ -238,26 +203,44 @@ int main(int argc, char** argv) {
         std::string reference = ctx.options().count("reference")
                                     ? ctx.get<std::string>("reference")
                                     : (fs::path(root) / "gt" / "mesh.ply").string();
+        std::optional<Mesh> reference_mesh;
         if (fs::exists(reference) || ctx.options().count("reference")) {
             watch = Stopwatch();
             evaluation::MetricOptions metric_options;
             metric_options.seed = ctx.seed();
             cli::LoadedResult result;
-            result.mesh = std::move(mesh);
+            result.mesh = mesh;
+            reference_mesh = io::read_mesh(reference);
             report["evaluation"]["reference"] = reference;
             report["evaluation"]["surface"] =
-                cli::evaluate_surface(result, io::read_mesh(reference), metric_options);
+                cli::evaluate_surface(result, *reference_mesh, metric_options);
             const fs::path gt_poses = fs::path(root) / "gt" / "world_from_depth.json";
             if (fs::exists(gt_poses))
                 report["evaluation"]["poses"] =
                     cli::evaluate_poses(pose_views, gt_poses.string(), /*remove_gauge=*/true);
             timings["evaluation"] = watch.seconds();
         }
-        timings["total"] = total.seconds();
 
-        fs::create_directories(report_dir);
-        io::write_text_atomic(report_dir / "metrics.json", report.dump(2) + "\n");
-        io::write_text_atomic(report_dir / "index.html", report_html(report));
+        // 6. the report page with pictures.
+        watch = Stopwatch();
+        cli::ReportPage page;
+        {
+            auto bar = ctx.progress("pictures");
+            cli::PictureInputs pictures;
+            pictures.input = &input_geometry;
+            pictures.result = &mesh;
+            pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
+            Report picture_info;
+            std::vector<cli::ReportImage> images;
+            cli::render_report_pictures(pictures, images, picture_info);
+            report["report"] = picture_info;
+            timings["pictures"] = watch.seconds();
+            timings["total"] = total.seconds();
+            page = report_page(report);
+            page.images = std::move(images);
+        }
+        page.metrics = report;
+        cli::write_report(report_dir, page);
         ctx.metrics()["reconstruct"] = report;
         ctx.note("mesh: " + mesh_path.string() + " (" +
                  std::to_string(report["counts"]["mesh_faces"].get<std::size_t>()) + " faces)");

@@ -399,4 +399,39 @@ Report PoseErrors::to_json() const {
     return j;
 }
 
+std::vector<double> distances_to_surface(const std::vector<Eigen::Vector3d>& points,
+                                         const Mesh& reference) {
+    for (const auto& p : points) RGBD_CHECK(p.allFinite(), "distance query of a non-finite point");
+    const Triangles tri = collect_triangles(reference, "reference");
+    const MeshDistance dist(reference, tri);
+    std::vector<double> out(points.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              std::uint32_t t = 0;
+                              out[i] = dist.query(points[i], t);
+                          }
+                      });
+    return out;
+}
+
+std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& points,
+                                        const std::vector<Eigen::Vector3d>& cloud) {
+    RGBD_CHECK(!cloud.empty(), "distance query against an empty cloud");
+    for (const auto& p : points) RGBD_CHECK(p.allFinite(), "distance query of a non-finite point");
+    for (const auto& p : cloud) RGBD_CHECK(p.allFinite(), "cloud has a non-finite point");
+    const internal::KdTree tree(cloud);
+    std::vector<double> out(points.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              std::uint32_t j = 0;
+                              double sq = 0.0;
+                              tree.nearest(points[i], j, sq);
+                              out[i] = std::sqrt(sq);
+                          }
+                      });
+    return out;
+}
+
 }  // namespace rgbd::evaluation

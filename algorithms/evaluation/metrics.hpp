@@ -96,6 +96,18 @@ struct SurfaceMetrics {
 SurfaceMetrics compare_to_reference(const Mesh* result_mesh, const PointCloud* result_points,
                                     const Mesh& reference, const MetricOptions& options);
 
+/// Distance (metres) from every point to the surface of `reference` (exact point-to-triangle
+/// distance, zero-area triangles ignored), in parallel: per-vertex error maps (rgbd-eval
+/// --report, rgbd-render --scalar distance).
+/// @throws InputError for an empty or non-triangle reference or a non-finite point.
+std::vector<double> distances_to_surface(const std::vector<Eigen::Vector3d>& points,
+                                         const Mesh& reference);
+
+/// Distance (metres) from every point to the nearest point of `cloud` (kd-tree), in parallel.
+/// @throws InputError for an empty cloud or a non-finite point.
+std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& points,
+                                        const std::vector<Eigen::Vector3d>& cloud);
+
 /// Pose error of one sensor.
 struct PoseError {
     std::string sensor;

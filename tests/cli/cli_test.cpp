@@ -29,8 +29,9 @@ fs::path temp_root() {
 
 Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
 
-const char* kTools[] = {"rgbd-cloud",       "rgbd-clean", "rgbd-align", "rgbd-mesh",    "rgbd-eval",
-                        "rgbd-reconstruct", "rgbd-info",  "rgbd-synth", "rgbd-upsample"};
+const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd-mesh",
+                        "rgbd-eval",     "rgbd-reconstruct", "rgbd-info",  "rgbd-synth",
+                        "rgbd-upsample", "rgbd-render"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {

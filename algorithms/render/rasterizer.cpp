@@ -1,4 +1,4 @@
-#include "validation/synth/rasterizer.hpp"
+#include "algorithms/render/rasterizer.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -6,10 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "toolkit/error.hpp"
 
-namespace rgbd::synth {
+namespace rgbd::render {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -38,7 +39,7 @@ ZBuffer rasterize(const RenderScene& scene, const PinholeIntrinsics& k,
     options.check();
     k.check();
     RGBD_CHECK(k.distortion.is_none(),
-               "synthetic rendering supports pinhole cameras without distortion only");
+               "software rendering supports pinhole cameras without distortion only");
     const Pose camera_from_world = world_from_camera.inverse();
     const auto& verts = scene.vertices();
     const auto& tris = scene.triangles();
@@ -165,6 +166,23 @@ RenderScene::RenderScene(const Mesh& mesh) {
             triangles_.push_back({ids[0], ids[j], ids[j + 1]});
     }
     RGBD_CHECK(!triangles_.empty(), "cannot render a mesh without triangles");
+    compute_normals();
+}
+
+RenderScene::RenderScene(std::vector<Eigen::Vector3d> vertices,
+                         std::vector<std::array<int, 3>> triangles)
+    : vertices_(std::move(vertices)), triangles_(std::move(triangles)) {
+    RGBD_CHECK(!triangles_.empty(), "cannot render a mesh without triangles");
+    for (const auto& p : vertices_)
+        RGBD_CHECK(p.allFinite(), "mesh has non-finite vertex coordinates");
+    const long long n = static_cast<long long>(vertices_.size());
+    for (const auto& t : triangles_)
+        for (int j = 0; j < 3; ++j)
+            RGBD_CHECK(t[j] >= 0 && t[j] < n, "triangle vertex index out of range");
+    compute_normals();
+}
+
+void RenderScene::compute_normals() {
     normals_.resize(triangles_.size());
     for (std::size_t t = 0; t < triangles_.size(); ++t) {
         const auto& tr = triangles_[t];
@@ -243,4 +261,4 @@ cv::Mat render_color(const RenderScene& scene, const PinholeIntrinsics& k,
     return out;
 }
 
-}  // namespace rgbd::synth
+}  // namespace rgbd::render

@@ -1,0 +1,241 @@
+#include "cli/common/report.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <sstream>
+
+#include "algorithms/evaluation/metrics.hpp"
+#include "io/capture_folder.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::cli {
+
+namespace fs = std::filesystem;
+
+std::string html_escape(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        if (c == '<')
+            out += "&lt;";
+        else if (c == '>')
+            out += "&gt;";
+        else if (c == '&')
+            out += "&amp;";
+        else if (c == '"')
+            out += "&quot;";
+        else
+            out += c;
+    }
+    return out;
+}
+
+std::string format_value(const Report& v) {
+    if (v.is_number_float()) {
+        std::ostringstream s;
+        s.precision(4);
+        s << v.get<double>();
+        return s.str();
+    }
+    return v.is_string() ? v.get<std::string>() : v.dump();
+}
+
+void flatten(const Report& r, const std::string& prefix,
+             std::vector<std::pair<std::string, Report>>& out) {
+    if (!r.is_object()) {
+        if (!r.is_array()) out.emplace_back(prefix, r);
+        return;
+    }
+    for (auto it = r.begin(); it != r.end(); ++it) {
+        const std::string key = prefix.empty() ? it.key() : prefix + "." + it.key();
+        flatten(*it, key, out);
+    }
+}
+
+ReportTable side_by_side(const std::string& heading,
+                         const std::vector<std::pair<std::string, Report>>& columns) {
+    ReportTable t;
+    t.heading = heading;
+    t.columns.push_back("");
+    std::vector<std::string> keys;
+    std::vector<std::vector<std::pair<std::string, Report>>> flat(columns.size());
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+        t.columns.push_back(columns[c].first);
+        flatten(columns[c].second, "", flat[c]);
+        for (const auto& [k, v] : flat[c])
+            if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
+    }
+    for (const auto& k : keys) {
+        std::vector<std::string> row{k};
+        for (const auto& f : flat) {
+            auto it =
+                std::find_if(f.begin(), f.end(), [&](const auto& kv) { return kv.first == k; });
+            row.push_back(it == f.end() ? std::string() : format_value(it->second));
+        }
+        t.rows.push_back(std::move(row));
+    }
+    return t;
+}
+
+namespace {
+
+std::string page_html(const ReportPage& page) {
+    std::ostringstream html;
+    html << "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>"
+         << html_escape(page.title)
+         << "</title><style>body{font-family:sans-serif;margin:1em;background:#fff}"
+            "table{border-collapse:collapse;margin-bottom:1em}"
+            "td,th{border:1px solid #ccc;padding:2px 8px}td:not(:first-child){text-align:right}"
+            ".pics{display:flex;flex-wrap:wrap;gap:12px}figure{margin:0}"
+            "figure img{display:block;border:1px solid #ddd}"
+            "figcaption{font-size:90%;color:#333}</style></head><body>\n<h1>"
+         << html_escape(page.title) << "</h1>\n";
+    if (!page.facts.empty()) {
+        html << "<p>";
+        for (std::size_t i = 0; i < page.facts.size(); ++i)
+            html << (i ? "<br>" : "") << html_escape(page.facts[i].first) << ": "
+                 << html_escape(page.facts[i].second);
+        html << "</p>\n";
+    }
+    if (!page.images.empty()) {
+        html << "<div class=\"pics\">\n";
+        for (const auto& im : page.images)
+            html << "<figure><img src=\"" << html_escape(im.file) << "\" width=\"" << im.image.cols
+                 << "\" height=\"" << im.image.rows << "\" alt=\"" << html_escape(im.caption)
+                 << "\"><figcaption>" << html_escape(im.caption) << "</figcaption></figure>\n";
+        html << "</div>\n";
+    }
+    for (const auto& t : page.tables) {
+        html << "<h2>" << html_escape(t.heading) << "</h2>\n<table>\n<tr>";
+        for (const auto& c : t.columns) html << "<th>" << html_escape(c) << "</th>";
+        html << "</tr>\n";
+        for (const auto& row : t.rows) {
+            html << "<tr>";
+            for (const auto& cell : row) html << "<td>" << html_escape(cell) << "</td>";
+            html << "</tr>\n";
+        }
+        html << "</table>\n";
+    }
+    html << "<p>Full numbers: <a href=\"metrics.json\">metrics.json</a></p>\n</body></html>\n";
+    return html.str();
+}
+
+}  // namespace
+
+void write_report(const fs::path& dir_in, const ReportPage& page) {
+    const fs::path dir = fs::absolute(dir_in).lexically_normal();
+    const fs::path parent =
+        dir.has_filename() ? dir.parent_path() : dir.parent_path().parent_path();
+    const std::string name =
+        dir.has_filename() ? dir.filename().string() : dir.parent_path().filename().string();
+    const fs::path target = parent / name;
+    std::error_code ec;
+    if (fs::exists(target)) {
+        RGBD_CHECK_AS(IoError, fs::is_directory(target),
+                      target.string() + ": exists and is not a folder");
+        RGBD_CHECK_AS(IoError, fs::is_empty(target) || fs::exists(target / "index.html"),
+                      target.string() +
+                          ": exists and is not a report folder (no index.html); not replacing it");
+    }
+    fs::create_directories(parent, ec);
+    RGBD_CHECK_AS(IoError, !ec, parent.string() + ": cannot create folder: " + ec.message());
+    const std::string tag = std::to_string(::getpid());
+    const fs::path temp = parent / ("." + name + ".tmp-" + tag);
+    const fs::path old = parent / ("." + name + ".old-" + tag);
+    fs::remove_all(temp, ec);
+    fs::create_directory(temp, ec);
+    RGBD_CHECK_AS(IoError, !ec, temp.string() + ": cannot create folder: " + ec.message());
+    try {
+        for (const auto& im : page.images) io::write_image_atomic(temp / im.file, im.image);
+        io::write_text_atomic(temp / "metrics.json", page.metrics.dump(2) + "\n");
+        io::write_text_atomic(temp / "index.html", page_html(page));
+    } catch (...) {
+        fs::remove_all(temp, ec);
+        throw;
+    }
+    const bool had_old = fs::exists(target);
+    if (had_old) {
+        fs::rename(target, old, ec);
+        if (ec) {
+            fs::remove_all(temp);
+            throw IoError(target.string() + ": cannot replace: " + ec.message());
+        }
+    }
+    fs::rename(temp, target, ec);
+    if (ec) {
+        if (had_old) fs::rename(old, target);
+        fs::remove_all(temp);
+        throw IoError(target.string() + ": cannot write report: " + ec.message());
+    }
+    if (had_old) fs::remove_all(old, ec);
+}
+
+std::string render_report_pictures(const PictureInputs& in, std::vector<ReportImage>& images,
+                                   Report& info) {
+    using render::Geometry;
+    std::optional<Geometry> result, baseline;
+    if (in.result) result = render::from_mesh(*in.result);
+    if (in.baseline) baseline = render::from_mesh(*in.baseline);
+    const Geometry* fit = result ? &*result : in.input;
+    if (!fit) return {};
+    Eigen::Vector3d lo = fit->vertices.front(), hi = lo;
+    for (const auto& v : fit->vertices) {
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+    }
+    const render::Orientation orientation = render::guess_orientation(
+        in.input ? in.input->sensors : std::vector<Pose>{}, 0.5 * (lo + hi), std::nullopt);
+    const render::Camera camera = render::fit_camera(fit->vertices, orientation, in.camera);
+    render::PictureOptions plain;
+    if (in.input) {
+        images.push_back({"input.png",
+                          "input points (" + std::to_string(in.input->vertices.size()) + ")",
+                          render::render_picture(*in.input, camera, plain).image});
+    }
+    if (result)
+        images.push_back({"result.png",
+                          "result (" + std::to_string(result->triangles.size()) + " triangles)",
+                          render::render_picture(*result, camera, plain).image});
+    if (baseline)
+        images.push_back(
+            {"baseline.png",
+             in.baseline_name + " (" + std::to_string(baseline->triangles.size()) + " triangles)",
+             render::render_picture(*baseline, camera, plain).image});
+    // Heat maps: one range for both.
+    std::string against;
+    auto distances = [&](const Geometry& g) {
+        if (in.reference) return evaluation::distances_to_surface(g.vertices, *in.reference);
+        return evaluation::distances_to_points(g.vertices, in.input->vertices);
+    };
+    if (in.reference)
+        against = "distance to the reference";
+    else if (in.input)
+        against = "distance to the input points";
+    else
+        return {};
+    if (result) result->scalars = distances(*result);
+    if (baseline) baseline->scalars = distances(*baseline);
+    auto p98 = [](std::vector<double> d) {
+        const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(0.98 * d.size()));
+        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+        return d[k];
+    };
+    double vmax = 0;
+    if (result) vmax = std::max(vmax, p98(result->scalars));
+    if (baseline) vmax = std::max(vmax, p98(baseline->scalars));
+    render::PictureOptions heat;
+    heat.scalar_min = 0.0;
+    heat.scalar_max = vmax > 0 ? vmax : 1e-3;
+    heat.scalar_label = "mm";
+    heat.scalar_display_scale = 1000.0;
+    info["heat_map"] = {{"distance", against}, {"max_m", *heat.scalar_max}};
+    if (result)
+        images.push_back({"result_error.png", "result: " + against + " (mm)",
+                          render::render_picture(*result, camera, heat).image});
+    if (baseline)
+        images.push_back({"baseline_error.png", in.baseline_name + ": " + against + " (mm)",
+                          render::render_picture(*baseline, camera, heat).image});
+    return against;
+}
+
+}  // namespace rgbd::cli

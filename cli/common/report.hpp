@@ -1,0 +1,78 @@
+// The report folder of rgbd-eval --report and rgbd-reconstruct: one index.html with pictures
+// (PNG files beside it), tables, and metrics.json, written into a temporary folder that then
+// replaces DIR (no half-written report). And the standard pictures of a result: the input
+// cloud, the result, a baseline, and error heat maps, all from one camera.
+#pragma once
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "algorithms/render/picture.hpp"
+#include "toolkit/mesh.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::cli {
+
+/// One picture of a report page.
+struct ReportImage {
+    std::string file;     ///< file name inside the report folder, e.g. "result.png"
+    std::string caption;  ///< shown under the picture
+    cv::Mat image;        ///< CV_8UC3 BGR
+};
+
+/// A table: a header row and rows of cells (the first cell is the row name).
+struct ReportTable {
+    std::string heading;
+    std::vector<std::string> columns;
+    std::vector<std::vector<std::string>> rows;
+};
+
+/// What goes on the page.
+struct ReportPage {
+    std::string title;
+    std::vector<std::pair<std::string, std::string>> facts;  ///< "label: value" lines on top
+    std::vector<ReportImage> images;
+    std::vector<ReportTable> tables;
+    Report metrics;  ///< written as metrics.json and linked from the page
+};
+
+/// Writes DIR/index.html, DIR/metrics.json and the pictures. Everything is written into a
+/// temporary sibling folder first, which then replaces DIR. Refuses (IoError) to replace an
+/// existing DIR that is neither empty nor a report folder (no index.html).
+void write_report(const std::filesystem::path& dir, const ReportPage& page);
+
+/// HTML-escapes text.
+std::string html_escape(const std::string& text);
+/// A number with 4 significant digits; strings as they are; other JSON compactly.
+std::string format_value(const Report& value);
+/// Rows "key", value for every scalar leaf of `report` (nested keys joined with '.').
+void flatten(const Report& report, const std::string& prefix,
+             std::vector<std::pair<std::string, Report>>& out);
+/// A table with one column per report (side by side): rows are the union of their flattened
+/// scalar keys, in first-seen order; missing cells are empty.
+ReportTable side_by_side(const std::string& heading,
+                         const std::vector<std::pair<std::string, Report>>& columns);
+
+/// What to picture: any of these may be null.
+struct PictureInputs {
+    const render::Geometry* input = nullptr;  ///< the input cloud (world frame)
+    const Mesh* result = nullptr;             ///< our result
+    const Mesh* baseline = nullptr;           ///< a peer's result
+    std::string baseline_name = "baseline";
+    const Mesh* reference = nullptr;  ///< true surface: heat maps show distance to it, else
+                                      ///< to the input points
+    render::CameraOptions camera;     ///< size and direction (orientation from the input)
+};
+
+/// Renders the input, the result, the baseline and the heat maps of the result's and the
+/// baseline's per-vertex distance (to the reference, else to the input points; one colour
+/// range for both, in mm) with one camera fitted to the result (else the input). Appends to
+/// `images` and returns a short description of the heat maps' distance ("to the reference").
+std::string render_report_pictures(const PictureInputs& inputs, std::vector<ReportImage>& images,
+                                   Report& info);
+
+}  // namespace rgbd::cli
