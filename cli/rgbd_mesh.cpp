@@ -15,18 +15,28 @@ int main(int argc, char** argv) {
     spec.description =
         "Reconstructs a coloured triangle mesh from the views of a stream (merged into one cloud "
         "in the world frame; normals are estimated per view towards its sensor when missing). "
-        "--method poisson (default) solves CGAL's Poisson reconstruction on the oriented points "
-        "and gives a closed surface; --method advancing-front interpolates the points and keeps "
-        "holes open. Vertices are coloured from the nearest measured points. -o FILE picks the "
-        "format by extension (.ply binary with vertex colours, .obj, .off); without -o a mesh "
-        "document goes to stdout.";
+        "--method front (default) denoises the oriented points by a normal-aware moving-least-"
+        "squares projection (the two sides of thin parts stay apart), thins them to the point "
+        "spacing and interpolates them by CGAL's advancing front restricted to short triangles "
+        "whose corners' normals agree: detail and thin parts survive and no surface is invented "
+        "where no sensor looked, so unseen regions stay open. --watertight closes every "
+        "remaining hole (triangulate, refine and fair) into a closed 2-manifold. --method "
+        "poisson solves CGAL's (unscreened) Poisson reconstruction and gives a closed surface; "
+        "--method advancing-front interpolates the raw points. Components smaller than 1% of "
+        "the largest are dropped. --target-faces N simplifies by edge collapse (Garland-"
+        "Heckbert quadrics). Vertices are coloured from the nearest measured points. -o FILE "
+        "picks the format by extension (.ply binary with vertex colours, .obj, .off); without "
+        "-o a mesh document goes to stdout.";
     spec.example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json";
     spec.whole_stream = true;
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("method",
-                        cli::po::value<std::string>()->default_value("poisson")->value_name("NAME"),
-                        "poisson or advancing-front")(
+                        cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
+                        "front, poisson or advancing-front")(
+            "watertight", "close every hole: the result is a closed 2-manifold")(
+            "target-faces", cli::po::value<std::size_t>()->default_value(0)->value_name("N"),
+            "simplify to at most N faces (0 = no simplification)")(
             "max-points", cli::po::value<std::size_t>()->default_value(60000)->value_name("N"),
             "down-sample the input to at most N points first");
     };
@@ -35,6 +45,8 @@ int main(int argc, char** argv) {
         try {
             options.method = ctx.get<std::string>("method");
             options.max_points = ctx.get<std::size_t>("max-points");
+            options.watertight = ctx.options().count("watertight") > 0;
+            options.target_faces = ctx.get<std::size_t>("target-faces");
             options.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());

@@ -13,13 +13,18 @@
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/reconstruction/mesh_finishing.hpp"
+#include "algorithms/reconstruction/smooth_points.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "toolkit/error.hpp"
@@ -29,9 +34,26 @@ namespace rgbd::reconstruction {
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 void ReconstructionOptions::check() const {
-    RGBD_CHECK(
-        method == "poisson" || method == "advancing-front",
-        "reconstruction: unknown method '" + method + "' (use 'poisson' or 'advancing-front')");
+    RGBD_CHECK(method == "front" || method == "poisson" || method == "advancing-front",
+               "reconstruction: unknown method '" + method +
+                   "' (use 'front', 'poisson' or 'advancing-front')");
+    RGBD_CHECK(target_faces == 0 || (target_faces >= 4 && target_faces <= 2000000000u),
+               "reconstruction: target_faces must be 0 (keep) or in [4, 2e9], got " +
+                   std::to_string(target_faces));
+    RGBD_CHECK(min_component_fraction >= 0 && min_component_fraction <= 1,
+               "reconstruction: min_component_fraction must be in [0, 1]");
+    RGBD_CHECK(smooth_radius > 0 && smooth_radius <= 50,
+               "reconstruction: smooth_radius must be in (0, 50] x spacing");
+    RGBD_CHECK(smooth_iterations >= 0 && smooth_iterations <= 10,
+               "reconstruction: smooth_iterations must be in [0, 10]");
+    RGBD_CHECK(front_voxel >= 0 && front_voxel <= 20,
+               "reconstruction: front_voxel must be in [0, 20] x spacing");
+    RGBD_CHECK(front_max_edge > 0 && front_max_edge <= 1000,
+               "reconstruction: front_max_edge must be in (0, 1000] x spacing");
+    RGBD_CHECK(front_max_normal_angle_deg > 0 && front_max_normal_angle_deg <= 180,
+               "reconstruction: front_max_normal_angle_deg must be in (0, 180]");
+    RGBD_CHECK(front_max_facet_angle_deg > 0 && front_max_facet_angle_deg <= 90,
+               "reconstruction: front_max_facet_angle_deg must be in (0, 90]");
     RGBD_CHECK(max_points == 0 || max_points >= 100,
                "reconstruction: max_points must be 0 or >= 100");
     RGBD_CHECK(sm_angle_deg > 0 && sm_angle_deg <= 30,
@@ -79,23 +101,65 @@ void poisson(const std::vector<Pwn>& pwn, double spacing, const ReconstructionOp
     if (!ok) throw AlgorithmError("reconstruction: the Poisson solver failed");
 }
 
-void advancing_front(const std::vector<Pwn>& pwn, const ReconstructionOptions& o, Mesh& mesh) {
+/// Advancing front's priority for the "front" method: CGAL's (radius of the smallest Delaunay
+/// sphere) for triangles whose edges are at most max_edge and whose corners' normals agree with
+/// each other and with the triangle; every other candidate is never taken.
+struct FrontPriority {
+    const std::vector<Eigen::Vector3d>* points;
+    const std::vector<Eigen::Vector3d>* normals;
+    double max_edge2;
+    double cos_normal;  ///< corners' normals pairwise
+    double cos_facet;   ///< triangle normal against the corners' mean normal
+    template <typename AdvancingFront, typename CellHandle>
+    double operator()(const AdvancingFront& adv, CellHandle& c, const int& index) const {
+        std::size_t id[3];
+        for (int i = 0; i < 3; ++i) {
+            const auto v = c->vertex((index + 1 + i) % 4);
+            if (adv.triangulation_3().is_infinite(v)) return adv.infinity();
+            id[i] = v->id();
+        }
+        const Eigen::Vector3d& a = (*points)[id[0]];
+        const Eigen::Vector3d& b = (*points)[id[1]];
+        const Eigen::Vector3d& d = (*points)[id[2]];
+        if ((b - a).squaredNorm() > max_edge2 || (d - b).squaredNorm() > max_edge2 ||
+            (a - d).squaredNorm() > max_edge2)
+            return adv.infinity();
+        const Eigen::Vector3d& na = (*normals)[id[0]];
+        const Eigen::Vector3d& nb = (*normals)[id[1]];
+        const Eigen::Vector3d& nd = (*normals)[id[2]];
+        if (na.dot(nb) < cos_normal || nb.dot(nd) < cos_normal || nd.dot(na) < cos_normal)
+            return adv.infinity();
+        const Eigen::Vector3d f = (b - a).cross(d - a);
+        const double fn = f.norm();
+        const Eigen::Vector3d m = na + nb + nd;
+        if (fn > 0 && std::abs(f.dot(m)) < cos_facet * fn * m.norm()) return adv.infinity();
+        return adv.smallest_radius_delaunay_sphere(c, index);
+    }
+};
+
+/// Advancing front over points with unit normals; `priority` null = CGAL's default.
+void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
+                     const std::vector<Eigen::Vector3d>& normals, const FrontPriority* priority,
+                     const ReconstructionOptions& o, Mesh& mesh) {
     std::vector<Point_3> points;
-    points.reserve(pwn.size());
-    for (const Pwn& p : pwn) points.push_back(p.first);
+    points.reserve(xyz.size());
+    for (const auto& p : xyz) points.push_back(to_point(p));
     std::vector<std::array<std::size_t, 3>> triangles;
-    CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
-                                                 std::back_inserter(triangles),
-                                                 o.af_radius_ratio_bound, o.af_beta);
+    if (priority)
+        CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
+                                                     std::back_inserter(triangles), *priority,
+                                                     o.af_radius_ratio_bound, o.af_beta);
+    else
+        CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
+                                                     std::back_inserter(triangles),
+                                                     o.af_radius_ratio_bound, o.af_beta);
     std::vector<std::vector<std::size_t>> polygons;
     polygons.reserve(triangles.size());
     // Orient every triangle along the mean input normal of its corners, then make the soup
     // consistently oriented (non-manifold vertices are duplicated) and build the mesh.
     for (const auto& t : triangles) {
-        const Eigen::Vector3d a = to_eigen(points[t[0]]), b = to_eigen(points[t[1]]),
-                              c = to_eigen(points[t[2]]);
-        const Eigen::Vector3d n =
-            to_eigen(pwn[t[0]].second) + to_eigen(pwn[t[1]].second) + to_eigen(pwn[t[2]].second);
+        const Eigen::Vector3d &a = xyz[t[0]], &b = xyz[t[1]], &c = xyz[t[2]];
+        const Eigen::Vector3d n = normals[t[0]] + normals[t[1]] + normals[t[2]];
         if ((b - a).cross(c - a).dot(n) >= 0)
             polygons.push_back({t[0], t[1], t[2]});
         else
@@ -107,6 +171,63 @@ void advancing_front(const std::vector<Pwn>& pwn, const ReconstructionOptions& o
     // orient_polygon_soup may flip whole components; restore agreement with the normals.
     if (CGAL::is_closed(mesh) && !PMP::is_outward_oriented(mesh))
         PMP::reverse_face_orientations(mesh);
+}
+
+/// Averages points and normals per voxel of edge `voxel`, separately for the six dominant
+/// normal directions (the two sides of a part thinner than a voxel stay apart).
+void thin_by_voxel(std::vector<Eigen::Vector3d>& xyz, std::vector<Eigen::Vector3d>& normals,
+                   double voxel) {
+    if (voxel <= 0 || xyz.empty()) return;
+    Eigen::Vector3d lo = xyz.front();
+    for (const auto& p : xyz) lo = lo.cwiseMin(p);
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(xyz.size());
+    tbb::parallel_for(std::size_t(0), xyz.size(), [&](std::size_t i) {
+        const Eigen::Vector3d g = ((xyz[i] - lo) / voxel).array().floor();
+        int axis;
+        normals[i].cwiseAbs().maxCoeff(&axis);
+        const std::uint64_t side = static_cast<std::uint64_t>(2 * axis + (normals[i][axis] < 0));
+        const std::uint64_t key = (static_cast<std::uint64_t>(g.x()) & 0x1FFFFF) |
+                                  ((static_cast<std::uint64_t>(g.y()) & 0x1FFFFF) << 21) |
+                                  ((static_cast<std::uint64_t>(g.z()) & 0x1FFFFF) << 42);
+        keys[i] = {key * 6 + side, static_cast<std::uint32_t>(i)};
+    });
+    std::sort(keys.begin(), keys.end());
+    std::vector<Eigen::Vector3d> out_p, out_n;
+    for (std::size_t i = 0; i < keys.size();) {
+        std::size_t j = i;
+        Eigen::Vector3d p = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
+        for (; j < keys.size() && keys[j].first == keys[i].first; ++j) {
+            p += xyz[keys[j].second];
+            n += normals[keys[j].second];
+        }
+        out_p.push_back(p / static_cast<double>(j - i));
+        out_n.push_back(n.squaredNorm() > 1e-24 ? n.normalized() : normals[keys[i].second]);
+        i = j;
+    }
+    xyz.swap(out_p);
+    normals.swap(out_n);
+}
+
+void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normals, double spacing,
+           const ReconstructionOptions& o, Mesh& mesh, Report& r) {
+    Stopwatch watch;
+    internal::SmoothOptions so;
+    so.radius = o.smooth_radius * spacing;
+    so.iterations = o.smooth_iterations;
+    std::size_t moved = 0;
+    if (o.smooth_iterations > 0) moved = internal::smooth_points(xyz, normals, so);
+    r["smoothed_points"] = moved;
+    r["smooth_radius_m"] = so.radius;
+    r["smooth_time_s"] = watch.seconds();
+    thin_by_voxel(xyz, normals, o.front_voxel * spacing);
+    r["front_points"] = xyz.size();
+    const double max_edge = o.front_max_edge * spacing;
+    const FrontPriority priority{&xyz, &normals, max_edge * max_edge,
+                                 std::cos(o.front_max_normal_angle_deg * M_PI / 180.0),
+                                 std::cos(o.front_max_facet_angle_deg * M_PI / 180.0)};
+    Stopwatch af_watch;
+    advancing_front(xyz, normals, &priority, o, mesh);
+    r["front_time_s"] = af_watch.seconds();
 }
 
 /// IDW colours from the k nearest coloured points; measured points win when one is near.
@@ -125,8 +246,8 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
             orig_rgb.push_back(colors.get(idx));
         }
     }
-    const internal::KdTree all_tree(all_xyz);
-    const internal::KdTree orig_tree(orig_xyz);
+    const rgbd::internal::KdTree all_tree(all_xyz);
+    const rgbd::internal::KdTree orig_tree(orig_xyz);
     const bool separate = synthetic.has_value() && !orig_xyz.empty();
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
@@ -140,7 +261,7 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
                           std::vector<double> sq(k);
                           for (std::size_t v = r.begin(); v != r.end(); ++v) {
                               const Eigen::Vector3d q = to_eigen(mesh.point(vertices[v]));
-                              const internal::KdTree* tree = &all_tree;
+                              const rgbd::internal::KdTree* tree = &all_tree;
                               const std::vector<Rgb>* rgb = &all_rgb;
                               if (separate) {
                                   std::uint32_t i;
@@ -211,17 +332,36 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     const double average_spacing = CGAL::compute_average_spacing<CGAL::Parallel_if_available_tag>(
         pwn, 6, CGAL::parameters::point_map(PointOf()));
     Mesh mesh;
-    if (options.method == "poisson")
+    Report steps = Report::object();
+    if (options.method == "poisson") {
         poisson(pwn, average_spacing, options, mesh);
-    else
-        advancing_front(pwn, options, mesh);
-    if (!report_progress(progress, 0.85)) throw AlgorithmError("reconstruction: cancelled");
+    } else {
+        std::vector<Eigen::Vector3d> xyz, normals;
+        xyz.reserve(pwn.size());
+        normals.reserve(pwn.size());
+        for (const Pwn& p : pwn) {
+            xyz.push_back(to_eigen(p.first));
+            normals.push_back(to_eigen(p.second));
+        }
+        if (options.method == "front")
+            front(std::move(xyz), std::move(normals), spacing, options, mesh, steps);
+        else
+            advancing_front(xyz, normals, nullptr, options, mesh);
+    }
+    if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
 
     PMP::remove_isolated_vertices(mesh);
     mesh.collect_garbage();
     RGBD_CHECK_AS(
         AlgorithmError, mesh.number_of_faces() > 0,
         "reconstruction: " + view_name(cloud) + ": " + options.method + " produced no triangles");
+    steps["components_dropped"] =
+        internal::drop_small_components(mesh, options.min_component_fraction);
+    if (options.watertight && !CGAL::is_closed(mesh)) steps["holes"] = internal::close_holes(mesh);
+    if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
+    if (options.target_faces > 0)
+        steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);
+    if (!report_progress(progress, 0.9)) throw AlgorithmError("reconstruction: cancelled");
     const double mesh_time = watch.seconds();
     Stopwatch color_watch;
     const bool colored = colorize(mesh, cloud, options, spacing);
@@ -237,7 +377,13 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         r["average_spacing_m"] = average_spacing;
         r["vertices"] = mesh.number_of_vertices();
         r["faces"] = mesh.number_of_faces();
+        std::size_t border_edges = 0;
+        for (auto h : mesh.halfedges())
+            if (mesh.is_border(h)) ++border_edges;
+        r["border_edges"] = border_edges;
         r["closed"] = CGAL::is_closed(mesh);
+        r["watertight_requested"] = options.watertight;
+        for (auto it = steps.begin(); it != steps.end(); ++it) r[it.key()] = it.value();
         r["colored"] = colored;
         r["mesh_time_s"] = mesh_time;
         r["color_time_s"] = color_watch.seconds();

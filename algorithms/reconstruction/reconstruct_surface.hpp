@@ -1,9 +1,18 @@
 // Surface reconstruction of an oriented point cloud into a coloured triangle mesh
-// (ALGORITHMS.md §14). Methods: CGAL Poisson (Kazhdan, Bolitho and Hoppe 2006, unscreened,
-// solved on a refined Delaunay triangulation, CGAL poisson_surface_reconstruction_delaunay) and
-// CGAL advancing-front (Cohen-Steiner and Da 2004, interpolating). Vertex colours by inverse-
-// distance weighting of the nearest coloured input points, measured points preferred over
-// synthetic ones. See also: algorithms/normals/estimate_normals.hpp (orient normals first),
+// (ALGORITHMS.md §14). Methods:
+// - "front" (default) [M]: normal-aware MLS projection of the points (smooth_points.hpp: the two
+//   sides of thin parts never mix), thinning to a grid of about the point spacing, then CGAL
+//   advancing front (Cohen-Steiner and Da 2004) restricted to triangles whose edges are short
+//   and whose corners' normals agree: it interpolates the denoised samples, keeps thin parts
+//   and detail, and invents no surface where no sensor looked (holes stay open unless
+//   `watertight`).
+// - "advancing-front": CGAL advancing front on the raw points (interpolates the noise).
+// - "poisson": CGAL Poisson (Kazhdan, Bolitho and Hoppe 2006, unscreened, solved on a refined
+//   Delaunay triangulation, CGAL poisson_surface_reconstruction_delaunay); closed.
+// Then: small components dropped, `watertight` closes every boundary loop (CGAL hole filling,
+// mesh_finishing.hpp), `target_faces` simplifies by edge collapse, and vertex colours come by
+// inverse-distance weighting of the nearest coloured input points, measured points preferred
+// over synthetic ones. See also: algorithms/normals/estimate_normals.hpp (orient normals first),
 // algorithms/sampling/voxel_downsample.hpp, CGAL examples poisson_reconstruction.cpp and
 // reconstruction_surface_mesh.cpp.
 #pragma once
@@ -19,8 +28,31 @@
 namespace rgbd::reconstruction {
 
 struct ReconstructionOptions {
-    /// "poisson" (watertight, approximating) or "advancing-front" (interpolating, keeps holes).
-    std::string method = "poisson";
+    /// "front" (denoised interpolation, the default), "advancing-front" (raw interpolation) or
+    /// "poisson" (closed, approximating).
+    std::string method = "front";
+    /// Close every boundary loop of the result (hole filling), so the mesh is a closed
+    /// 2-manifold.
+    bool watertight = false;
+    /// Simplify by edge collapse to at most this many faces; 0 = keep the reconstruction's.
+    std::size_t target_faces = 0;
+    /// Connected components with fewer faces than this share of the largest one's are dropped
+    /// (noise islands); 0 keeps everything.
+    double min_component_fraction = 0.01;
+    /// front: MLS radius in multiples of ŝ.
+    double smooth_radius = 3.0;
+    /// front: MLS rounds.
+    int smooth_iterations = 1;
+    /// front: thinning voxel in multiples of ŝ (0 = no thinning).
+    double front_voxel = 1.0;
+    /// front: longest triangle edge in multiples of ŝ (gaps wider than this stay open).
+    double front_max_edge = 6.0;
+    /// front: corners whose normals differ by more than this never share a triangle, degrees
+    /// (opposite sides of a thin part differ by about 180, the faces of a square edge by 90).
+    double front_max_normal_angle_deg = 120.0;
+    /// front: triangles tilted more than this from their corners' mean normal are never taken
+    /// (they would stand across the surface), degrees.
+    double front_max_facet_angle_deg = 75.0;
     /// The input is voxel-downsampled (voxel grown from ŝ) until it has at most this many points,
     /// to bound time and memory; 0 = use every point.
     std::size_t max_points = 60000;
@@ -45,11 +77,13 @@ struct ReconstructionOptions {
 
 /// Reconstructs a triangle mesh from a cloud with oriented normals.
 /// Output: a valid CGAL Surface_mesh without isolated vertices, garbage collected; with a
-/// "v:color" map when the cloud has colours. Poisson output is closed for a closed input.
+/// "v:color" map when the cloud has colours. Poisson output, and any output with `watertight`,
+/// is closed.
 /// Throws InputError when the cloud has fewer than 100 points, has no normals ("estimate
 /// them first"), or has non-finite values; AlgorithmError when CGAL fails (e.g. Poisson solver)
 /// or `progress` cancels. Report (if given): method, points_in, points_used, voxel_m,
-/// average_spacing_m, vertices, faces, closed, colored, time_s, color_time_s.
+/// average_spacing_m, smoothing / holes / simplification sub-reports, components_dropped,
+/// vertices, faces, border_edges, closed, colored, mesh_time_s, color_time_s, time_s.
 Mesh reconstruct_surface(const PointCloud& cloud_with_oriented_normals,
                          const ReconstructionOptions& options, Report* report = nullptr,
                          const Progress& progress = {});

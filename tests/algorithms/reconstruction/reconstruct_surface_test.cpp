@@ -1,5 +1,7 @@
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 
+#include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/manifoldness.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 
@@ -47,13 +49,155 @@ void expect_hemisphere_colours(const Mesh& mesh) {
     EXPECT_GT(checked, mesh.number_of_vertices() / 2);
 }
 
-TEST(ReconstructSurface, PoissonSphereIsClosedAccurateAndColoured) {
+/// Every vertex has one umbrella (Surface_mesh edges are manifold by construction).
+void expect_manifold(const Mesh& mesh) {
+    EXPECT_TRUE(mesh.is_valid(false));
+    std::size_t bad = 0;
+    for (auto v : mesh.vertices())
+        if (CGAL::Polygon_mesh_processing::is_non_manifold_vertex(v, mesh)) ++bad;
+    EXPECT_EQ(bad, 0u);
+}
+
+/// Mean |distance to the sphere centre - radius| over the vertices.
+double mean_sphere_error(const Mesh& mesh, double radius) {
+    double sum = 0;
+    for (auto v : mesh.vertices())
+        sum += std::abs(std::sqrt(CGAL::squared_distance(mesh.point(v), rgbd::Point_3(0, 0, 0))) -
+                        radius);
+    return sum / static_cast<double>(mesh.number_of_vertices());
+}
+
+ReconstructionOptions method(const char* name) {
+    ReconstructionOptions o;
+    o.method = name;
+    return o;
+}
+
+TEST(ReconstructSurface, FrontIsTheDefaultAndIsClosedAccurateAndColouredOnASphere) {
     const PointCloud cloud = rgbd::test::coloured_sphere(10000, kRadius, /*with_synthetic=*/true);
     rgbd::Report report;
     const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, {}, &report);
+    EXPECT_EQ(report["method"], "front");
+    expect_sphere_mesh(mesh, 0.002);
+    expect_hemisphere_colours(mesh);
+    expect_manifold(mesh);
+    // A densely sampled closed surface: the front closes it without help.
+    EXPECT_LT(report["border_edges"].get<std::size_t>(), 20u) << report.dump();
+}
+
+// Noise of 0.5 mm on a 10 cm sphere: interpolating the raw points keeps it; the front's MLS
+// projection removes most of it.
+TEST(ReconstructSurface, FrontDenoisesWhereRawInterpolationDoesNot) {
+    const PointCloud cloud = rgbd::test::noisy_sphere(8000, kRadius, 0.0005);
+    const Mesh raw = rgbd::reconstruction::reconstruct_surface(cloud, method("advancing-front"));
+    const Mesh front = rgbd::reconstruction::reconstruct_surface(cloud, method("front"));
+    const double e_raw = mean_sphere_error(raw, kRadius),
+                 e_front = mean_sphere_error(front, kRadius);
+    EXPECT_GT(e_raw, 0.0003);  // about 0.8 sigma
+    EXPECT_LT(e_front, 0.5 * e_raw) << e_front << " vs " << e_raw;
+    expect_manifold(front);
+}
+
+// A sphere without its cap (z > 0.8 r, a hole of radius 0.6 r): the front leaves the hole
+// open and invents nothing there; --watertight closes it with a patch near the sphere.
+TEST(ReconstructSurface, FrontKeepsUnseenHolesOpenAndWatertightClosesThem) {
+    const PointCloud cloud = rgbd::test::noisy_sphere(8000, kRadius, 0.0002, 0.8);
+    rgbd::Report open_report;
+    const Mesh open = rgbd::reconstruction::reconstruct_surface(cloud, {}, &open_report);
+    EXPECT_FALSE(CGAL::is_closed(open));
+    for (auto v : open.vertices()) EXPECT_LT(open.point(v).z(), 0.0805);
+    expect_manifold(open);
+
+    ReconstructionOptions o;
+    o.watertight = true;
+    rgbd::Report report;
+    const Mesh closed = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
+    EXPECT_TRUE(CGAL::is_closed(closed));
+    EXPECT_EQ(report["border_edges"], 0);
+    EXPECT_GE(report["holes"]["holes"].get<int>(), 1);
+    expect_manifold(closed);
+    std::size_t cap_vertices = 0;
+    for (auto v : closed.vertices()) {
+        const rgbd::Point_3& p = closed.point(v);
+        if (p.z() < 0.081) continue;
+        ++cap_vertices;
+        const double d = std::sqrt(CGAL::squared_distance(p, rgbd::Point_3(0, 0, 0)));
+        EXPECT_NEAR(d, kRadius, 0.01);  // a faired patch, not a flat lid (0.08 at the centre)
+    }
+    EXPECT_GT(cap_vertices, 20u);
+    EXPECT_TRUE(rgbd::vertex_colors(closed).has_value());
+}
+
+// A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
+// must survive as separate sheets 3 mm apart, the rim must join them, and no vertex may fall
+// into the middle of the plate.
+TEST(ReconstructSurface, ThinFinSurvives) {
+    const double t = 0.003;
+    const PointCloud cloud = rgbd::test::thin_plate(0.04, 0.02, t, 0.00075, 0.00015);
+    rgbd::Report report;
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, {}, &report);
+    expect_manifold(mesh);
+    std::size_t top = 0, bottom = 0, middle = 0, interior = 0;
+    double err = 0;
+    for (auto v : mesh.vertices()) {
+        const rgbd::Point_3& p = mesh.point(v);
+        if (std::abs(p.x()) > 0.035 || std::abs(p.y()) > 0.015) continue;  // away from the rim
+        ++interior;
+        if (std::abs(p.z()) < t / 4) ++middle;
+        (p.z() > 0 ? top : bottom)++;
+        err += std::abs(std::abs(p.z()) - t / 2);
+    }
+    ASSERT_GT(interior, 1000u);
+    EXPECT_EQ(middle, 0u);
+    EXPECT_GT(top, interior / 3);
+    EXPECT_GT(bottom, interior / 3);
+    EXPECT_LT(err / interior, 0.0001);  // each sheet within 0.1 mm of its face on average
+    // Faces on the top sheet face up, on the bottom sheet down.
+    std::size_t wrong = 0, checked = 0;
+    for (auto f : mesh.faces()) {
+        const auto h = mesh.halfedge(f);
+        const rgbd::Point_3 a = mesh.point(mesh.source(h)), b = mesh.point(mesh.target(h)),
+                            c = mesh.point(mesh.target(mesh.next(h)));
+        const rgbd::Vector_3 n = CGAL::cross_product(b - a, c - a);
+        const double z = (a.z() + b.z() + c.z()) / 3;
+        if (std::abs(a.x()) > 0.035 || std::abs(a.y()) > 0.015) continue;
+        ++checked;
+        if ((z > 0) != (n.z() > 0)) ++wrong;
+    }
+    EXPECT_LT(wrong, checked / 100 + 1);
+    // The rim joins the sheets: with --watertight nothing is left to fill but small gaps.
+    ReconstructionOptions o;
+    o.watertight = true;
+    rgbd::Report closed_report;
+    const Mesh closed = rgbd::reconstruction::reconstruct_surface(cloud, o, &closed_report);
+    EXPECT_TRUE(CGAL::is_closed(closed));
+    expect_manifold(closed);
+}
+
+TEST(ReconstructSurface, TargetFacesIsHonouredAndKeepsTheShape) {
+    const PointCloud cloud = rgbd::test::coloured_sphere(8000, kRadius);
+    ReconstructionOptions o;
+    o.watertight = true;
+    o.target_faces = 2000;
+    rgbd::Report report;
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
+    EXPECT_LE(mesh.number_of_faces(), 2000u);
+    EXPECT_GE(mesh.number_of_faces(), 1800u);
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    expect_manifold(mesh);
+    EXPECT_LT(mean_sphere_error(mesh, kRadius), 0.002 * kRadius);
+    expect_hemisphere_colours(mesh);
+    EXPECT_GT(report["simplification"]["faces_before"].get<std::size_t>(), 10000u);
+}
+
+TEST(ReconstructSurface, PoissonSphereIsClosedAccurateAndColoured) {
+    const PointCloud cloud = rgbd::test::coloured_sphere(10000, kRadius, /*with_synthetic=*/true);
+    rgbd::Report report;
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, method("poisson"), &report);
     EXPECT_TRUE(CGAL::is_closed(mesh));
     EXPECT_EQ(report["closed"], true);
     EXPECT_EQ(report["method"], "poisson");
+    expect_manifold(mesh);
     expect_sphere_mesh(mesh, 0.01);
     expect_hemisphere_colours(mesh);
 }
@@ -71,7 +215,7 @@ TEST(ReconstructSurface, AdvancingFrontInterpolatesTheSamples) {
 
 TEST(ReconstructSurface, PointBudgetIsRespected) {
     const PointCloud cloud = rgbd::test::coloured_sphere(20000, kRadius);
-    ReconstructionOptions options;
+    ReconstructionOptions options = method("poisson");
     options.max_points = 5000;
     rgbd::Report report;
     const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, options, &report);
@@ -85,8 +229,8 @@ TEST(ReconstructSurface, PointBudgetIsRespected) {
 // geometrically: closed, same vertex count within 10%, every vertex on the sphere.
 TEST(ReconstructSurface, PoissonIsGeometricallyRepeatable) {
     const PointCloud cloud = rgbd::test::coloured_sphere(5000, kRadius);
-    const Mesh a = rgbd::reconstruction::reconstruct_surface(cloud, {});
-    const Mesh b = rgbd::reconstruction::reconstruct_surface(cloud, {});
+    const Mesh a = rgbd::reconstruction::reconstruct_surface(cloud, method("poisson"));
+    const Mesh b = rgbd::reconstruction::reconstruct_surface(cloud, method("poisson"));
     EXPECT_TRUE(CGAL::is_closed(a));
     EXPECT_TRUE(CGAL::is_closed(b));
     const double na = static_cast<double>(a.number_of_vertices());
@@ -109,9 +253,20 @@ TEST(ReconstructSurface, BadInput) {
     } catch (const rgbd::InputError& e) {
         EXPECT_NE(std::string(e.what()).find("estimate"), std::string::npos);
     }
+    PointCloud nan = rgbd::test::coloured_sphere(500, kRadius);
+    nan.points.point(*(nan.points.begin() + 250)) = rgbd::Point_3(std::nan(""), 0, 0);
+    EXPECT_THROW(rgbd::reconstruction::reconstruct_surface(nan, {}), rgbd::InputError);
     ReconstructionOptions bad;
     bad.method = "marching-cubes";
     EXPECT_THROW(bad.check(), rgbd::InputError);
+    for (std::size_t faces : {1u, 2u, 3u}) {
+        ReconstructionOptions o;
+        o.target_faces = faces;
+        EXPECT_THROW(o.check(), rgbd::InputError) << faces;
+    }
+    ReconstructionOptions o;
+    o.smooth_radius = -1;
+    EXPECT_THROW(o.check(), rgbd::InputError);
 }
 
 }  // namespace

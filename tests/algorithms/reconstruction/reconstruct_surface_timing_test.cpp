@@ -24,6 +24,8 @@ void time_method(const char* method, int n) {
     }
 }
 
+TEST(ReconstructSurfaceTiming, Front30k) { time_method("front", 30000); }
+TEST(ReconstructSurfaceTiming, Front60k) { time_method("front", 60000); }
 TEST(ReconstructSurfaceTiming, Poisson30k) { time_method("poisson", 30000); }
 TEST(ReconstructSurfaceTiming, Poisson60k) { time_method("poisson", 60000); }
 TEST(ReconstructSurfaceTiming, AdvancingFront30k) { time_method("advancing-front", 30000); }

@@ -1,0 +1,33 @@
+// Finishing steps of a reconstructed mesh (ALGORITHMS.md §14): dropping small components,
+// closing every boundary loop (CGAL Polygon_mesh_processing hole filling: Liepa 2003,
+// "Filling holes in meshes"; triangulate, refine, fair), and edge-collapse simplification to a
+// face budget (CGAL Surface_mesh_simplification with Garland-Heckbert quadrics, "Surface
+// simplification using quadric error metrics", 1997). Internal to algorithms/reconstruction;
+// heavy CGAL templates live in mesh_finishing.cpp only.
+#pragma once
+
+#include <cstddef>
+
+#include "toolkit/mesh.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::reconstruction::internal {
+
+/// Removes connected components with fewer faces than `min_fraction` of the largest one's (and
+/// isolated vertices); returns the number of components removed.
+std::size_t drop_small_components(Mesh& mesh, double min_fraction);
+
+/// Closes every boundary loop. A planar loop along a crease (the faces around it steep to its
+/// plane: a cut base) gets a flat refined patch; other loops are triangulated, refined and
+/// faired (up to `fair_max_edges` edges; larger ones only refined); when CGAL finds no
+/// triangulation, a fan around the loop's centroid, refined and faired. The result is closed
+/// (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans, faces_added,
+/// largest_hole_edges, time_s.
+Report close_holes(Mesh& mesh, std::size_t fair_max_edges = 300);
+
+/// Edge collapse (Garland-Heckbert plane quadrics, bounded normal change) until the mesh has
+/// at most `target_faces` faces (or no collapse is possible). Borders stay borders and a
+/// closed mesh stays closed. Report: faces_before, faces_after, collapsed_edges, time_s.
+Report simplify_to_faces(Mesh& mesh, std::size_t target_faces);
+
+}  // namespace rgbd::reconstruction::internal
