@@ -84,6 +84,11 @@ void BoundaryOptions::check() const {
         std::isfinite(small_max_diameter) && small_max_diameter > 0 && small_max_diameter <= 1e4,
         "holes: small-hole diameter must be in (0, 1e4] spacings");
     RGBD_CHECK(small_max_points >= 1, "holes: small-hole point limit must be >= 1");
+    RGBD_CHECK(std::isfinite(hysteresis_threshold) && hysteresis_threshold >= 0 &&
+                   hysteresis_threshold <= threshold,
+               "holes: hysteresis threshold must be in [0, threshold]");
+    RGBD_CHECK(hysteresis_rings >= 0 && hysteresis_rings <= 100,
+               "holes: hysteresis rings must be in [0, 100]");
     RGBD_CHECK(std::isfinite(link_distance) && link_distance > 0 && link_distance <= 20,
                "holes: link distance must be in (0, 20] spacings");
     RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
@@ -464,8 +469,9 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
     }
     std::size_t coherent = 0;
     for (auto c : candidate) coherent += c;
-    // Loops: connected components of boundary points, linked within link_distance spacings
-    // (bridges the odd rim point that failed the threshold, like closing chains in §10.8).
+    // Loops: connected components of boundary points, linked along the neighbourhood graph and
+    // within link_distance spacings (bridges the odd rim point that failed the threshold, like
+    // closing chains in §10.8).
     r.boundary.assign(n, 0);
     std::vector<std::uint32_t> component(n, kNone);
     std::vector<std::uint32_t> stack;
@@ -493,6 +499,13 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
             for (const auto& [k, d2] : linked) {
                 const std::uint32_t j = rim_index[k];
                 if (component[j] == kNone) {
+                    component[j] = component[seed];
+                    stack.push_back(j);
+                }
+            }
+            for (std::uint32_t e = graph.offset[i]; e < graph.offset[i + 1]; ++e) {
+                const std::uint32_t j = graph.index[e];
+                if (candidate[j] && component[j] == kNone) {
                     component[j] = component[seed];
                     stack.push_back(j);
                 }
@@ -539,6 +552,29 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
         for (auto i : loop.points) r.boundary[i] = 1;
         r.loops.push_back(std::move(loop));
     }
+    // Hysteresis [M]: rims grow into graph neighbours above the low threshold, a few rings at
+    // most (rim points at sharp hole corners, where the gap is only ~90 degrees).
+    std::size_t grown = 0;
+    if (options.hysteresis_threshold > 0) {
+        for (std::uint32_t l = 0; l < r.loops.size(); ++l) {
+            std::vector<std::uint32_t> frontier = r.loops[l].points, next;
+            for (int ring = 0; ring < options.hysteresis_rings && !frontier.empty(); ++ring) {
+                next.clear();
+                for (auto i : frontier)
+                    for (std::uint32_t e = graph.offset[i]; e < graph.offset[i + 1]; ++e) {
+                        const std::uint32_t j = graph.index[e];
+                        if (r.boundary[j] || r.probability[j] < options.hysteresis_threshold)
+                            continue;
+                        r.boundary[j] = 1;
+                        next.push_back(j);
+                    }
+                r.loops[l].points.insert(r.loops[l].points.end(), next.begin(), next.end());
+                grown += next.size();
+                frontier.swap(next);
+            }
+            std::sort(r.loops[l].points.begin(), r.loops[l].points.end());
+        }
+    }
     if (report) {
         std::size_t flagged = 0, small = 0, openings = 0, occlusions = 0;
         for (auto b : r.boundary) flagged += b;
@@ -551,6 +587,7 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
         (*report)["points"] = n;
         (*report)["candidates"] = candidates;
         (*report)["after_coherence"] = coherent;
+        (*report)["hysteresis_added"] = grown;
         (*report)["boundary_points"] = flagged;
         (*report)["loops"] = r.loops.size();
         (*report)["small_loops"] = small;

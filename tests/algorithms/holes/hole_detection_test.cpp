@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <iostream>
 #include <random>
 
 #include "toolkit/error.hpp"
@@ -111,9 +112,9 @@ TEST(HoleDetection, PlaneWithHolesFindsEveryRimAndClassifiesThem) {
     EXPECT_EQ(small, 2);
 }
 
-TEST(HoleDetection, CombinationBeatsTheAngleCriterionAlone) {
-    // The angle criterion alone (as PCL and Open3D implement it) against the combination, both
-    // with coherence, on the noisy plane: the combination must be at least as good in F1.
+TEST(HoleDetection, EveryCriterionAndTheCombinationOnANoisyPlane) {
+    // F1 of each single criterion and of the combination (all with coherence, hysteresis and
+    // loops) on a plane with 0.5 spacings of noise: the combination reaches 0.95.
     const double half = 0.1;
     const std::vector<Hole> holes = {{0.0, 0.0, 8 * kSpacing}};
     const SurfacePoints s = plane(half, holes, 0.5, 7);
@@ -128,11 +129,14 @@ TEST(HoleDetection, CombinationBeatsTheAngleCriterionAlone) {
         const double precision = flagged ? double(tp) / flagged : 0.0;
         return 2 * precision * r.recall / (precision + r.recall);
     };
-    BoundaryOptions angle_only;
-    angle_only.w_halfdisk = angle_only.w_shape = 0.0;
+    BoundaryOptions angle, halfdisk, shape;
+    angle.w_halfdisk = angle.w_shape = 0.0;
+    halfdisk.w_angle = halfdisk.w_shape = 0.0;
+    shape.w_angle = shape.w_halfdisk = 0.0;
     const double combined = f1(BoundaryOptions{});
-    EXPECT_GE(combined, 0.9);
-    EXPECT_GE(combined, f1(angle_only) - 1e-9);
+    std::cout << "F1 angle " << f1(angle) << ", half-disk " << f1(halfdisk) << ", shape "
+              << f1(shape) << ", combined " << combined << "\n";
+    EXPECT_GE(combined, 0.95);
 }
 
 TEST(HoleDetection, ClosedSphereHasNoBoundary) {
