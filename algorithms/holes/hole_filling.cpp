@@ -43,6 +43,8 @@ void FillOptions::check() const {
                    duplicate_distance < step * 1.5,
                "fill: duplicate distance must be in (0, 1.5 x step)");
     RGBD_CHECK(max_sweeps >= 1 && max_sweeps <= 1000, "fill: max_sweeps must be in [1, 1000]");
+    RGBD_CHECK(std::isfinite(grid_clearance) && grid_clearance > 0 && grid_clearance <= 5,
+               "fill: grid clearance must be in (0, 5] spacings");
     RGBD_CHECK(
         std::isfinite(inside_max_gap_deg) && inside_max_gap_deg > 30 && inside_max_gap_deg < 360,
         "fill: inside gap must be in (30, 360) degrees");
@@ -240,7 +242,9 @@ private:
         if (!quad.fit(points_.position, idx.data(), m)) return false;
         q = quad.lift(0.0, 0.0, normal);
         if (normal.dot(n) < 0) normal = -normal;
-        return q.allFinite() && (q - q0).norm() < 3.0 * spacing_;
+        // On a smooth surface the lift from the tangent plane is tiny at one spacing; a larger
+        // move means the quadric extrapolates wildly (noisy, one-sided fit): no point.
+        return q.allFinite() && (q - q0).norm() < options_.step * spacing_;
     }
 
     Rgb idw_color(const Eigen::Vector3d& q, std::vector<std::uint32_t>& idx,
@@ -268,7 +272,7 @@ private:
         std::vector<std::uint32_t> idx;
         std::vector<double> d2, scratch;
         std::vector<std::pair<std::uint32_t, double>> within;
-        const double dup = std::max(options_.duplicate_distance, 0.7) * spacing_;
+        const double dup = options_.grid_clearance * spacing_;
         for (std::size_t r = 0; r < regions_.size(); ++r) {
             const LoopRegion& region = regions_[r];
             // One quadric for the whole hole, fitted to the original points around it.
