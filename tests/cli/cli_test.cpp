@@ -31,7 +31,7 @@ Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(),
 
 const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd-mesh",
                         "rgbd-eval",     "rgbd-reconstruct", "rgbd-info",  "rgbd-synth",
-                        "rgbd-upsample", "rgbd-render"};
+                        "rgbd-upsample", "rgbd-render",      "rgbd-fill"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {
@@ -82,7 +82,7 @@ TEST(Contract, AlignRejectsAbsurdParameters) {
 
 TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
     std::ofstream(temp_root() / "garbage.ply") << "this is not a ply file\n";
-    for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh"}) {
+    for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh", "rgbd-fill"}) {
         SCOPED_TRACE(tool);
         Outcome garbage = run(std::string("$BIN/") + tool + " garbage.ply -o never.ply");
         EXPECT_EQ(garbage.code, 1);

@@ -1,0 +1,602 @@
+#include "algorithms/holes/hole_detection.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/sampling/robust_spacing.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::holes {
+
+namespace {
+
+constexpr std::uint32_t kNone = UINT32_MAX;
+
+void check_points(const SurfacePoints& points) {
+    RGBD_CHECK(points.size() >= 4,
+               "holes: need at least 4 points, got " + std::to_string(points.size()));
+    for (const auto& p : points.position)
+        RGBD_CHECK(p.allFinite(), "holes: a point has a non-finite coordinate");
+    RGBD_CHECK(points.normal.empty() || points.normal.size() == points.size(),
+               "holes: normal count differs from point count");
+    RGBD_CHECK(points.color.empty() || points.color.size() == points.size(),
+               "holes: colour count differs from point count");
+    RGBD_CHECK(points.view.empty() || points.view.size() == points.size(),
+               "holes: view count differs from point count");
+}
+
+/// Any unit vector orthogonal to n, chosen consistently.
+Eigen::Vector3d orthogonal(const Eigen::Vector3d& n) {
+    const Eigen::Vector3d axis =
+        std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    return n.cross(axis).normalized();
+}
+
+}  // namespace
+
+const char* to_string(HoleKind kind) {
+    switch (kind) {
+        case HoleKind::kOcclusion:
+            return "occlusion";
+        case HoleKind::kOpening:
+            return "opening";
+        default:
+            return "unknown";
+    }
+}
+
+void NeighbourhoodOptions::check() const {
+    RGBD_CHECK(k >= 3 && k <= 256, "holes: k must be in [3, 256]");
+    RGBD_CHECK(std::isfinite(radius_factor) && radius_factor >= 0.0 && radius_factor <= 50.0,
+               "holes: radius factor must be in [0, 50]");
+    RGBD_CHECK(max_neighbours >= k && max_neighbours <= 1024,
+               "holes: max_neighbours must be in [k, 1024]");
+}
+
+void GradientOptions::check() const { neighbourhood.check(); }
+
+void BoundaryOptions::check() const {
+    neighbourhood.check();
+    RGBD_CHECK(std::isfinite(spacing_m) && spacing_m >= 0.0, "holes: spacing must be >= 0");
+    RGBD_CHECK(std::isfinite(w_angle) && std::isfinite(w_halfdisk) && std::isfinite(w_shape) &&
+                   w_angle >= 0 && w_halfdisk >= 0 && w_shape >= 0 &&
+                   w_angle + w_halfdisk + w_shape > 0,
+               "holes: criterion weights must be >= 0 and not all 0");
+    RGBD_CHECK(std::isfinite(threshold) && threshold > 0.0 && threshold <= 1.0,
+               "holes: threshold must be in (0, 1]");
+    RGBD_CHECK(std::isfinite(lambda_b0) && std::isfinite(lambda_b1) && lambda_b0 >= lambda_b1 &&
+                   lambda_b1 >= 0 && lambda_b0 + lambda_b1 <= 1.0 + 1e-9,
+               "holes: lambda_b must be ordered and sum to at most 1");
+    RGBD_CHECK(coherence_passes >= 0 && coherence_passes <= 100,
+               "holes: coherence passes must be in [0, 100]");
+    RGBD_CHECK(min_loop_points >= 1 && min_loop_points <= 100000,
+               "holes: min loop points must be in [1, 100000]");
+    RGBD_CHECK(
+        std::isfinite(small_max_diameter) && small_max_diameter > 0 && small_max_diameter <= 1e4,
+        "holes: small-hole diameter must be in (0, 1e4] spacings");
+    RGBD_CHECK(small_max_points >= 1, "holes: small-hole point limit must be >= 1");
+    RGBD_CHECK(std::isfinite(hysteresis_threshold) && hysteresis_threshold >= 0 &&
+                   hysteresis_threshold <= threshold,
+               "holes: hysteresis threshold must be in [0, threshold]");
+    RGBD_CHECK(hysteresis_rings >= 0 && hysteresis_rings <= 100,
+               "holes: hysteresis rings must be in [0, 100]");
+    RGBD_CHECK(std::isfinite(link_distance) && link_distance > 0 && link_distance <= 20,
+               "holes: link distance must be in (0, 20] spacings");
+    RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
+                   visible_max_angle_deg < 90,
+               "holes: visibility angle must be in (0, 90) degrees");
+    RGBD_CHECK(std::isfinite(ray_clearance) && ray_clearance > 0 && ray_clearance <= 20,
+               "holes: ray clearance must be in (0, 20] spacings");
+}
+
+SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
+                           std::vector<SensorView>* sensors) {
+    SurfacePoints out;
+    bool normals = true, colors = true;
+    std::size_t total = 0, non_empty = 0;
+    for (const PointCloud* v : views) {
+        if (v->empty()) continue;
+        total += v->size();
+        ++non_empty;
+        normals = normals && v->points.has_normal_map();
+        colors = colors && v->has_colors();
+    }
+    out.position.reserve(total);
+    if (normals) out.normal.reserve(total);
+    if (colors) out.color.reserve(total);
+    out.view.reserve(total);
+    for (const PointCloud* v : views) {
+        if (v->empty()) continue;
+        // A lone sensor-frame view without a pose (a plain point file) is taken as it is.
+        Pose world_from_view = Pose::Identity();
+        const bool lone = non_empty == 1;
+        if (v->view.frame == ViewFrame::kSensor) {
+            RGBD_CHECK(
+                v->view.world_from_sensor.has_value() || lone,
+                "view " + std::to_string(v->view.id) + " is in its sensor frame and has no pose");
+            if (v->view.world_from_sensor) world_from_view = *v->view.world_from_sensor;
+        }
+        int sensor = -1;
+        if (sensors && v->view.world_from_sensor) {
+            sensor = static_cast<int>(sensors->size());
+            sensors->push_back({*v->view.world_from_sensor, v->view.intrinsics});
+        }
+        const auto color_maps = colors ? std::optional(v->colors()) : std::nullopt;
+        for (auto idx : v->points) {
+            out.position.push_back(world_from_view * to_eigen(v->points.point(idx)));
+            if (normals)
+                out.normal.push_back(
+                    (world_from_view.linear() * to_eigen(v->points.normal(idx))).normalized());
+            if (colors) out.color.push_back(color_maps->get(idx));
+            out.view.push_back(sensor);
+        }
+    }
+    return out;
+}
+
+Neighbourhood build_neighbourhood(const std::vector<Eigen::Vector3d>& points, double spacing_m,
+                                  const NeighbourhoodOptions& options) {
+    options.check();
+    const std::size_t n = points.size();
+    const std::size_t cap = static_cast<std::size_t>(options.max_neighbours);
+    internal::KdTree tree(points);
+    std::vector<std::uint32_t> directed(n * cap);
+    std::vector<std::uint32_t> count(n, 0);
+    const double radius = options.radius_factor * spacing_m;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        std::vector<std::uint32_t> idx(options.k + 1);
+        std::vector<double> d2(options.k + 1);
+        std::vector<std::pair<std::uint32_t, double>> within;
+        std::vector<std::pair<double, std::uint32_t>> merged;
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+            merged.clear();
+            const std::size_t found = tree.knn(points[i], options.k + 1, idx.data(), d2.data());
+            for (std::size_t j = 0; j < found; ++j)
+                if (idx[j] != i) merged.emplace_back(d2[j], idx[j]);
+            if (radius > 0) {
+                tree.radius(points[i], radius, within, /*sorted=*/false);
+                for (const auto& [j, dd] : within)
+                    if (j != i) merged.emplace_back(dd, j);
+            }
+            std::sort(merged.begin(), merged.end());
+            merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
+            std::uint32_t c = 0;
+            for (std::size_t j = 0; j < merged.size() && c < cap; ++j) {
+                if (j > 0 && merged[j].second == merged[j - 1].second) continue;
+                directed[i * cap + c++] = merged[j].second;
+            }
+            count[i] = c;
+        }
+    });
+    Neighbourhood graph;
+    graph.offset.assign(n + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        graph.offset[i + 1] += count[i];
+        if (options.symmetric)
+            for (std::uint32_t c = 0; c < count[i]; ++c) graph.offset[directed[i * cap + c] + 1]++;
+    }
+    for (std::size_t i = 0; i < n; ++i) graph.offset[i + 1] += graph.offset[i];
+    graph.index.resize(graph.offset[n]);
+    std::vector<std::uint32_t> fill(graph.offset.begin(), graph.offset.end() - 1);
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::uint32_t c = 0; c < count[i]; ++c) {
+            const std::uint32_t j = directed[i * cap + c];
+            graph.index[fill[i]++] = j;
+            if (options.symmetric) graph.index[fill[j]++] = static_cast<std::uint32_t>(i);
+        }
+    if (!options.symmetric) return graph;
+    // Sort and deduplicate each row, then compact.
+    std::vector<std::uint32_t> unique_count(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+            auto b = graph.index.begin() + graph.offset[i];
+            auto e = graph.index.begin() + graph.offset[i + 1];
+            std::sort(b, e);
+            unique_count[i] = static_cast<std::uint32_t>(std::unique(b, e) - b);
+        }
+    });
+    std::size_t write = 0;
+    std::uint32_t start = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t old_start = graph.offset[i];
+        for (std::uint32_t c = 0; c < unique_count[i]; ++c)
+            graph.index[write++] = graph.index[old_start + c];
+        graph.offset[i] = start;
+        start = static_cast<std::uint32_t>(write);
+    }
+    graph.offset[n] = start;
+    graph.index.resize(write);
+    return graph;
+}
+
+SurfaceGradient compute_surface_gradient(const SurfacePoints& points, double spacing_m,
+                                         const std::vector<SensorView>& sensors,
+                                         const GradientOptions& options) {
+    options.check();
+    check_points(points);
+    const std::size_t n = points.size();
+    const Neighbourhood graph =
+        build_neighbourhood(points.position, spacing_m, options.neighbourhood);
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& p : points.position) centroid += p;
+    centroid /= static_cast<double>(n);
+    const bool given = !points.normal.empty() && !options.recompute_normals;
+    SurfaceGradient g;
+    g.normal.resize(n);
+    g.e1.resize(n);
+    g.e2.resize(n);
+    g.variation.resize(n);
+    if (!points.color.empty()) g.color_gradient.assign(n, Eigen::Vector3d::Zero());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+            const Eigen::Vector3d& p = points.position[i];
+            const std::uint32_t* nb = graph.index.data() + graph.offset[i];
+            const std::size_t m = graph.degree(i);
+            Eigen::Vector3d mean = p;
+            for (std::size_t j = 0; j < m; ++j) mean += points.position[nb[j]];
+            mean /= static_cast<double>(m + 1);
+            Eigen::Matrix3d cov = (p - mean) * (p - mean).transpose();
+            for (std::size_t j = 0; j < m; ++j) {
+                const Eigen::Vector3d d = points.position[nb[j]] - mean;
+                cov += d * d.transpose();
+            }
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+            eig.computeDirect(cov);
+            const Eigen::Vector3d l = eig.eigenvalues().cwiseMax(0.0);
+            const double sum = l.sum();
+            g.variation[i] = sum > 0 ? static_cast<float>(l[0] / sum) : 0.0f;
+            Eigen::Vector3d normal;
+            if (given) {
+                normal = points.normal[i].normalized();
+            } else {
+                normal = eig.eigenvectors().col(0).normalized();
+                if (m < 2 || !normal.allFinite()) normal = Eigen::Vector3d::UnitZ();
+                Eigen::Vector3d towards = p - centroid;
+                if (!points.view.empty() && points.view[i] >= 0 &&
+                    points.view[i] < static_cast<int>(sensors.size()))
+                    towards = sensors[points.view[i]].world_from_sensor.translation() - p;
+                if (normal.dot(towards) < 0) normal = -normal;
+            }
+            g.normal[i] = normal;
+            g.e1[i] = orthogonal(normal);
+            g.e2[i] = normal.cross(g.e1[i]);
+            if (!points.color.empty()) {
+                auto intensity = [&](std::uint32_t q) {
+                    const Rgb& c = points.color[q];
+                    return (double(c.r) + c.g + c.b) / 3.0;
+                };
+                const double ip = intensity(static_cast<std::uint32_t>(i));
+                Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
+                Eigen::Vector2d b = Eigen::Vector2d::Zero();
+                for (std::size_t j = 0; j < m; ++j) {
+                    const Eigen::Vector3d d = points.position[nb[j]] - p;
+                    const Eigen::Vector2d x(d.dot(g.e1[i]), d.dot(g.e2[i]));
+                    a += x * x.transpose();
+                    b += x * (intensity(nb[j]) - ip);
+                }
+                if (std::abs(a.determinant()) > 1e-30) {
+                    const Eigen::Vector2d d2 = a.ldlt().solve(b);
+                    g.color_gradient[i] = d2.x() * g.e1[i] + d2.y() * g.e2[i];
+                }
+            }
+        }
+    });
+    return g;
+}
+
+PointCriteria point_criteria(const Eigen::Vector3d& p, const Eigen::Vector3d& e1,
+                             const Eigen::Vector3d& e2, const std::vector<Eigen::Vector3d>& all,
+                             const std::uint32_t* neighbours, std::size_t count,
+                             const BoundaryOptions& options) {
+    PointCriteria c;
+    if (count < 2) {
+        c.p_angle = c.p_halfdisk = 1.0f;
+        c.probability =
+            static_cast<float>((options.w_angle + options.w_halfdisk) /
+                               (options.w_angle + options.w_halfdisk + options.w_shape));
+        return c;
+    }
+    // Projected coordinates; small fixed buffers (neighbour sets are capped by the caller).
+    thread_local std::vector<std::pair<double, std::uint32_t>> angles;
+    thread_local std::vector<Eigen::Vector2d> xy;
+    angles.clear();
+    xy.clear();
+    double rbar = 0, rmax = 0;
+    for (std::size_t j = 0; j < count; ++j) {
+        const Eigen::Vector3d d = all[neighbours[j]] - p;
+        const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
+        xy.push_back(x);
+        const double rho = x.norm();
+        rbar += rho;
+        rmax = std::max(rmax, rho);
+        angles.emplace_back(std::atan2(x.y(), x.x()), neighbours[j]);
+    }
+    rbar /= static_cast<double>(count);
+    // Angle criterion: the largest gap between consecutive directions (wrap-around included).
+    std::sort(angles.begin(), angles.end());
+    double gap = angles.front().first + 2 * M_PI - angles.back().first;
+    std::size_t gap_end = 0;  // the gap runs from angles[gap_end - 1] to angles[gap_end]
+    for (std::size_t j = 1; j < angles.size(); ++j) {
+        const double g = angles[j].first - angles[j - 1].first;
+        if (g > gap) {
+            gap = g;
+            gap_end = j;
+        }
+    }
+    c.gap_a = angles[(gap_end + angles.size() - 1) % angles.size()].second;
+    c.gap_b = angles[gap_end].second;
+    const double even = 2 * M_PI / static_cast<double>(count);
+    c.p_angle = static_cast<float>(std::clamp((gap - even) / (M_PI - even), 0.0, 1.0));
+    // Half-disk criterion: Gaussian-weighted centroid against the half-disc centroid 4R/(3 pi).
+    Eigen::Vector2d mu = Eigen::Vector2d::Zero();
+    double wsum = 0;
+    const double r2 = std::max(rbar * rbar, 1e-300);
+    for (const auto& x : xy) {
+        const double w = std::exp(-x.squaredNorm() / r2);
+        mu += w * x;
+        wsum += w;
+    }
+    mu /= wsum;
+    const double half = 4.0 * rmax / (3.0 * M_PI);
+    c.p_halfdisk = static_cast<float>(half > 0 ? std::min(mu.norm() / half, 1.0) : 0.0);
+    // Shape criterion: normalised eigenvalues of the projected neighbourhood (p included)
+    // about its centroid, against the ideal boundary signature.
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& x : xy) mean += x;
+    mean /= static_cast<double>(count + 1);
+    Eigen::Matrix2d cov = mean * mean.transpose();
+    for (const auto& x : xy) cov += (x - mean) * (x - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
+    eig.computeDirect(cov);
+    const double l0 = std::max(eig.eigenvalues()[1], 0.0), l1 = std::max(eig.eigenvalues()[0], 0.0);
+    const double sum = l0 + l1;
+    if (sum > 0) {
+        const double a = l0 / sum - options.lambda_b0, b = l1 / sum - options.lambda_b1;
+        const double ia = 0.5 - options.lambda_b0, ib = 0.5 - options.lambda_b1;
+        const double sigma2 = std::max(ia * ia + ib * ib, 1e-6);
+        c.p_shape = static_cast<float>(std::exp(-(a * a + b * b) / sigma2));
+    }
+    const double wsum_all = options.w_angle + options.w_halfdisk + options.w_shape;
+    c.probability =
+        static_cast<float>((options.w_angle * c.p_angle + options.w_halfdisk * c.p_halfdisk +
+                            options.w_shape * c.p_shape) /
+                           wsum_all);
+    return c;
+}
+
+namespace {
+
+/// Does a sensor have a clear, front-facing line of sight to the region of a loop?
+bool sees(const SensorView& sensor, const BoundaryLoop& loop, double radius_m, double spacing,
+          const internal::KdTree& tree, const BoundaryOptions& options) {
+    const Eigen::Vector3d s = sensor.world_from_sensor.translation();
+    const Eigen::Vector3d to_sensor = s - loop.centre;
+    const double dist = to_sensor.norm();
+    if (dist <= 0) return false;
+    const Eigen::Vector3d dir = to_sensor / dist;
+    if (std::abs(dir.dot(loop.normal)) < std::cos(options.visible_max_angle_deg * M_PI / 180.0))
+        return false;
+    if (sensor.intrinsics) {
+        const Eigen::Vector3d c = sensor.world_from_sensor.inverse() * loop.centre;
+        if (c.z() <= 0) return false;
+        const auto& k = *sensor.intrinsics;
+        const double u = k.fx * c.x() / c.z() + k.cx, v = k.fy * c.y() / c.z() + k.cy;
+        if (u < 0 || v < 0 || u > k.width - 1 || v > k.height - 1) return false;
+    }
+    // March from the region towards the sensor; the first stretch (inside the hole, where the
+    // ray leaves the surface) is skipped up to where the ray has cleared the rim.
+    const double clearance = options.ray_clearance * spacing;
+    const double start = std::max(0.5 * radius_m, 0.0) + 2.0 * clearance;
+    std::uint32_t idx;
+    double d2;
+    for (double t = start; t < dist; t += clearance) {
+        const Eigen::Vector3d q = loop.centre + t * dir;
+        if (tree.nearest_within(q, clearance * clearance, idx, d2)) return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+BoundaryResult detect_boundaries(const SurfacePoints& points,
+                                 const std::vector<SensorView>& sensors,
+                                 const BoundaryOptions& options, Report* report,
+                                 const Progress& progress) {
+    options.check();
+    check_points(points);
+    Stopwatch watch;
+    const std::size_t n = points.size();
+    BoundaryResult r;
+    r.spacing_m =
+        options.spacing_m > 0 ? options.spacing_m : sampling::robust_spacing(points.position);
+    RGBD_CHECK(r.spacing_m > 0, "holes: the points have zero spacing (all duplicates?)");
+    GradientOptions gradient_options;
+    r.gradient = compute_surface_gradient(points, r.spacing_m, sensors, gradient_options);
+    if (!report_progress(progress, 0.3)) throw AlgorithmError("cancelled");
+    const Neighbourhood graph =
+        build_neighbourhood(points.position, r.spacing_m, options.neighbourhood);
+    if (!report_progress(progress, 0.5)) throw AlgorithmError("cancelled");
+    r.p_angle.resize(n);
+    r.p_halfdisk.resize(n);
+    r.p_shape.resize(n);
+    r.probability.resize(n);
+    r.gap_a.resize(n);
+    r.gap_b.resize(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+            const PointCriteria c = point_criteria(
+                points.position[i], r.gradient.e1[i], r.gradient.e2[i], points.position,
+                graph.index.data() + graph.offset[i], graph.degree(i), options);
+            r.p_angle[i] = c.p_angle;
+            r.p_halfdisk[i] = c.p_halfdisk;
+            r.p_shape[i] = c.p_shape;
+            r.probability[i] = c.probability;
+            r.gap_a[i] = c.gap_a;
+            r.gap_b[i] = c.gap_b;
+        }
+    });
+    if (!report_progress(progress, 0.8)) throw AlgorithmError("cancelled");
+    std::vector<std::uint8_t> candidate(n);
+    std::size_t candidates = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        candidate[i] = r.probability[i] >= options.threshold;
+        candidates += candidate[i];
+    }
+    // Coherence: a rim is a curve, so the neighbours bounding the gap must be candidates too
+    // (both, or at least one: the default, see BoundaryOptions::coherence_both).
+    for (int pass = 0; pass < options.coherence_passes; ++pass) {
+        std::vector<std::uint8_t> next(candidate);
+        bool changed = false;
+        for (std::size_t i = 0; i < n; ++i)
+            if (candidate[i] &&
+                (r.gap_a[i] == kNone || r.gap_b[i] == kNone ||
+                 (options.coherence_both ? !candidate[r.gap_a[i]] || !candidate[r.gap_b[i]]
+                                         : !candidate[r.gap_a[i]] && !candidate[r.gap_b[i]]))) {
+                next[i] = 0;
+                changed = true;
+            }
+        candidate.swap(next);
+        if (!changed) break;
+    }
+    std::size_t coherent = 0;
+    for (auto c : candidate) coherent += c;
+    // Loops: connected components of boundary points, linked along the neighbourhood graph and
+    // within link_distance spacings (bridges the odd rim point that failed the threshold, like
+    // closing chains in §10.8).
+    r.boundary.assign(n, 0);
+    std::vector<std::uint32_t> component(n, kNone);
+    std::vector<std::uint32_t> stack;
+    internal::KdTree tree(points.position);
+    std::vector<Eigen::Vector3d> rim_positions;
+    std::vector<std::uint32_t> rim_index;
+    for (std::size_t i = 0; i < n; ++i)
+        if (candidate[i]) {
+            rim_positions.push_back(points.position[i]);
+            rim_index.push_back(static_cast<std::uint32_t>(i));
+        }
+    internal::KdTree rim_tree(rim_positions);
+    std::vector<std::pair<std::uint32_t, double>> linked;
+    for (std::size_t seed = 0; seed < n; ++seed) {
+        if (!candidate[seed] || component[seed] != kNone) continue;
+        BoundaryLoop loop;
+        stack.assign(1, static_cast<std::uint32_t>(seed));
+        component[seed] = static_cast<std::uint32_t>(r.loops.size());
+        while (!stack.empty()) {
+            const std::uint32_t i = stack.back();
+            stack.pop_back();
+            loop.points.push_back(i);
+            rim_tree.radius(points.position[i], options.link_distance * r.spacing_m, linked,
+                            /*sorted=*/false);
+            for (const auto& [k, d2] : linked) {
+                const std::uint32_t j = rim_index[k];
+                if (component[j] == kNone) {
+                    component[j] = component[seed];
+                    stack.push_back(j);
+                }
+            }
+            for (std::uint32_t e = graph.offset[i]; e < graph.offset[i + 1]; ++e) {
+                const std::uint32_t j = graph.index[e];
+                if (candidate[j] && component[j] == kNone) {
+                    component[j] = component[seed];
+                    stack.push_back(j);
+                }
+            }
+        }
+        if (static_cast<int>(loop.points.size()) < options.min_loop_points) {
+            for (auto i : loop.points) component[i] = kNone - 1;  // noise, never revisited
+            continue;
+        }
+        std::sort(loop.points.begin(), loop.points.end());
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (auto i : loop.points) mean += points.position[i];
+        mean /= static_cast<double>(loop.points.size());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
+        double far = 0;
+        for (auto i : loop.points) {
+            const Eigen::Vector3d d = points.position[i] - mean;
+            cov += d * d.transpose();
+            normal_sum += r.gradient.normal[i];
+            far = std::max(far, d.norm());
+        }
+        double diameter = 0;
+        for (auto i : loop.points) {
+            // Largest extent, approximated through the farthest point from the centre.
+            diameter = std::max(diameter, (points.position[i] - mean).norm() * 2.0);
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+        Eigen::Vector3d normal = eig.eigenvectors().col(0);
+        // A rim that is nearly straight or tiny has no plane: fall back to the mean normal.
+        if (eig.eigenvalues()[1] < 1e-3 * eig.eigenvalues()[2] && normal_sum.norm() > 0)
+            normal = normal_sum.normalized();
+        if (normal.dot(normal_sum) < 0) normal = -normal;
+        loop.centre = mean;
+        loop.normal = normal;
+        loop.diameter_m = diameter;
+        loop.small = diameter <= options.small_max_diameter * r.spacing_m &&
+                     static_cast<int>(loop.points.size()) <= options.small_max_points;
+        if (!sensors.empty()) {
+            for (const SensorView& s : sensors)
+                loop.seen_by += sees(s, loop, far, r.spacing_m, tree, options) ? 1 : 0;
+            loop.kind = loop.seen_by > 0 ? HoleKind::kOpening : HoleKind::kOcclusion;
+        }
+        for (auto i : loop.points) r.boundary[i] = 1;
+        r.loops.push_back(std::move(loop));
+    }
+    // Hysteresis [M]: rims grow into graph neighbours above the low threshold, a few rings at
+    // most (rim points at sharp hole corners, where the gap is only ~90 degrees).
+    std::size_t grown = 0;
+    if (options.hysteresis_threshold > 0) {
+        for (std::uint32_t l = 0; l < r.loops.size(); ++l) {
+            std::vector<std::uint32_t> frontier = r.loops[l].points, next;
+            for (int ring = 0; ring < options.hysteresis_rings && !frontier.empty(); ++ring) {
+                next.clear();
+                for (auto i : frontier)
+                    for (std::uint32_t e = graph.offset[i]; e < graph.offset[i + 1]; ++e) {
+                        const std::uint32_t j = graph.index[e];
+                        if (r.boundary[j] || r.probability[j] < options.hysteresis_threshold)
+                            continue;
+                        r.boundary[j] = 1;
+                        next.push_back(j);
+                    }
+                r.loops[l].points.insert(r.loops[l].points.end(), next.begin(), next.end());
+                grown += next.size();
+                frontier.swap(next);
+            }
+            std::sort(r.loops[l].points.begin(), r.loops[l].points.end());
+        }
+    }
+    if (report) {
+        std::size_t flagged = 0, small = 0, openings = 0, occlusions = 0;
+        for (auto b : r.boundary) flagged += b;
+        for (const auto& l : r.loops) {
+            small += l.small;
+            openings += l.kind == HoleKind::kOpening;
+            occlusions += l.kind == HoleKind::kOcclusion;
+        }
+        (*report)["spacing_m"] = r.spacing_m;
+        (*report)["points"] = n;
+        (*report)["candidates"] = candidates;
+        (*report)["after_coherence"] = coherent;
+        (*report)["hysteresis_added"] = grown;
+        (*report)["boundary_points"] = flagged;
+        (*report)["loops"] = r.loops.size();
+        (*report)["small_loops"] = small;
+        (*report)["opening_loops"] = openings;
+        (*report)["occlusion_loops"] = occlusions;
+        (*report)["detect_time_s"] = watch.seconds();
+    }
+    report_progress(progress, 1.0);
+    return r;
+}
+
+}  // namespace rgbd::holes

@@ -1,0 +1,234 @@
+// rgbd-fill: hole detection and small-hole filling on aligned views (ALGORITHMS.md §9-§11).
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "algorithms/holes/hole_detection.hpp"
+#include "algorithms/holes/hole_filling.hpp"
+#include "cli/common/tool.hpp"
+#include "toolkit/error.hpp"
+
+using namespace rgbd;
+
+namespace {
+
+/// Debug colours of added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow).
+Rgb mechanism_color(holes::FillMechanism m) {
+    switch (m) {
+        case holes::FillMechanism::kOnePoint:
+            return {230, 40, 40};
+        case holes::FillMechanism::kFourPoints:
+            return {40, 200, 40};
+        case holes::FillMechanism::kThreePoints:
+            return {40, 80, 230};
+        default:
+            return {240, 210, 20};
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    cli::ToolSpec spec;
+    spec.name = "rgbd-fill";
+    spec.usage =
+        "rgbd-fill [--mechanism NAME] [--detect-only] [--mark] [options] [FILE...] > "
+        "filled.ply";
+    spec.reads_cloud_files = true;
+    spec.whole_stream = true;
+    spec.description =
+        "Finds holes in the surface sampled by a stream of aligned views and fills the small "
+        "ones (ALGORITHMS.md §9-§11); reads the whole stream. All views are taken together in "
+        "the world frame (sensor-frame views are moved with their pose). Per point: normal and "
+        "tangent frame (the views' normals, else PCA over the neighbours), then the boundary "
+        "probability of Bendels et al. combining the angle criterion (largest angular gap "
+        "between the neighbours projected on the tangent plane), the half-disk criterion "
+        "(offset of the neighbourhood's centroid) and the shape criterion (eigenvalues of the "
+        "neighbourhood), over a symmetric kNN-or-radius neighbourhood; a candidate must be "
+        "coherent (a neighbour bounding its gap is a candidate too; both with --coherence-both), "
+        "and rims grow one ring into neighbours above --hysteresis. Connected rims of "
+        "boundary points are loops, small when their diameter is at most --small-diameter "
+        "spacings. The views' sensor poses tell an occlusion hole (no sensor had a clear, "
+        "front-facing line of sight to it: fill it) from a real opening (a sensor looked "
+        "through it and measured nothing, like the gap between an arm and the body: left "
+        "open unless --fill-openings). Small occlusion holes are filled by one of the four "
+        "mechanisms of §11: 'one' point at the largest angle of each rim point, 'four' points "
+        "at its four largest angles, 'three' points splitting its largest angle (all swept "
+        "until the hole closes), or 'interpolation' (default, the best measured: a quadric "
+        "fitted around the hole, lifted hexagonal grid at the point spacing). New points lie "
+        "on a quadric fitted to the measured points, never outside the rim, and get an "
+        "interpolated colour. Output: the input documents unchanged (with --mark, each point "
+        "gets the properties boundary = 0/1 and boundary_probability), then one new world-frame "
+        "document with the added "
+        "points (sensor 'rgbd-fill', synthetic = 1, fill_mechanism = 1-4, normals, colours). "
+        "--detect-only writes no new document. Large holes (inpainting, §12) and the head top "
+        "(§13) are not filled yet; their loops are counted in --metrics.";
+    spec.example =
+        "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-clean --density | rgbd-fill | "
+        "rgbd-mesh -o bust.ply";
+    spec.add_options = [](cli::po::options_description& o) {
+        o.add_options()(
+            "mechanism",
+            cli::po::value<std::string>()->default_value("interpolation")->value_name("NAME"),
+            "small-hole filling: one, four, three or interpolation (§11 M1-M4)")(
+            "detect-only", "detect holes, add no points")(
+            "mark",
+            "add the properties boundary (0/1) and boundary_probability to every input point")(
+            "debug-colors",
+            "colour added points by mechanism (M1 red, M2 green, M3 blue, M4 "
+            "yellow) instead of the interpolated colour")(
+            "fill-openings", "also fill small holes that a sensor saw through")(
+            "ignore-poses", "no visibility test: every small hole is filled")(
+            "k", cli::po::value<int>()->default_value(10)->value_name("N"),
+            "nearest neighbours of the boundary criteria")(
+            "radius-factor", cli::po::value<double>()->default_value(2.5)->value_name("X"),
+            "radius neighbours within X spacings join the nearest ones")(
+            "spacing-m", cli::po::value<double>()->value_name("M"),
+            "point spacing in metres (default: the robust spacing of the points)")(
+            "threshold", cli::po::value<double>()->default_value(0.5)->value_name("P"),
+            "boundary when the combined probability is at least P")(
+            "weights",
+            cli::po::value<std::string>()->default_value("0.4,0.4,0.2")->value_name("A,H,S"),
+            "weights of the angle, half-disk and shape criteria")(
+            "coherence", cli::po::value<int>()->default_value(1)->value_name("N"),
+            "coherence passes (0 = off): a candidate needs a candidate among the two "
+            "neighbours bounding its largest gap")(
+            "coherence-both", "coherence needs both gap neighbours to be candidates")(
+            "hysteresis", cli::po::value<double>()->default_value(0.3)->value_name("P"),
+            "rims grow into neighbours with a probability of at least P (0 = off)")(
+            "hysteresis-rings", cli::po::value<int>()->default_value(1)->value_name("N"),
+            "rings of neighbours the rims grow at most")(
+            "min-loop", cli::po::value<int>()->default_value(8)->value_name("N"),
+            "rims with fewer boundary points are noise")(
+            "small-diameter", cli::po::value<double>()->default_value(20.0)->value_name("X"),
+            "small hole: rim diameter at most X spacings")(
+            "small-points", cli::po::value<int>()->default_value(200)->value_name("N"),
+            "small hole: at most N rim points")(
+            "visible-angle-deg", cli::po::value<double>()->default_value(60.0)->value_name("DEG"),
+            "a sensor sees a hole region facing it within DEG")(
+            "step", cli::po::value<double>()->default_value(1.0)->value_name("X"),
+            "distance of new points, in spacings")(
+            "max-sweeps", cli::po::value<int>()->default_value(20)->value_name("N"),
+            "sweeps over the rim at most (one, four, three)");
+    };
+    return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
+        const auto& vm = ctx.options();
+        holes::BoundaryOptions detect;
+        holes::FillOptions fill;
+        try {
+            detect.neighbourhood.k = ctx.get<int>("k");
+            detect.neighbourhood.radius_factor = ctx.get<double>("radius-factor");
+            if (vm.count("spacing-m")) {
+                detect.spacing_m = ctx.get<double>("spacing-m");
+                if (!(detect.spacing_m > 0))
+                    throw cli::UsageError("--spacing-m must be a positive number");
+            }
+            detect.threshold = ctx.get<double>("threshold");
+            const auto w = cli::parse_doubles(ctx.get<std::string>("weights"), "--weights");
+            if (w.size() != 3) throw cli::UsageError("--weights needs three numbers A,H,S");
+            detect.w_angle = w[0];
+            detect.w_halfdisk = w[1];
+            detect.w_shape = w[2];
+            detect.coherence_passes = ctx.get<int>("coherence");
+            detect.coherence_both = vm.count("coherence-both") > 0;
+            detect.hysteresis_threshold = ctx.get<double>("hysteresis");
+            detect.hysteresis_rings = ctx.get<int>("hysteresis-rings");
+            detect.min_loop_points = ctx.get<int>("min-loop");
+            detect.small_max_diameter = ctx.get<double>("small-diameter");
+            detect.small_max_points = ctx.get<int>("small-points");
+            detect.visible_max_angle_deg = ctx.get<double>("visible-angle-deg");
+            detect.check();
+            fill.mechanism = holes::parse_fill_mechanism(ctx.get<std::string>("mechanism"));
+            fill.step = ctx.get<double>("step");
+            fill.max_sweeps = ctx.get<int>("max-sweeps");
+            fill.fill_openings = vm.count("fill-openings") > 0;
+            fill.check();
+        } catch (const InputError& e) {
+            throw cli::UsageError(e.what());
+        }
+        const bool detect_only = vm.count("detect-only") > 0;
+        const bool mark = vm.count("mark") > 0;
+
+        std::vector<io::Document> documents = ctx.read_all_documents();
+        std::vector<PointCloud*> views;
+        int max_id = -1;
+        for (std::size_t d = 0; d < documents.size(); ++d) {
+            max_id = std::max(max_id, documents[d].cloud.view.id);
+            if (documents[d].kind != io::DocumentKind::kPoints) {
+                ctx.warn("document " + std::to_string(d) + " is a mesh; passed through");
+                continue;
+            }
+            views.push_back(&documents[d].cloud);
+        }
+        std::vector<holes::SensorView> sensors;
+        holes::SurfacePoints points = holes::gather_views({views.begin(), views.end()}, &sensors);
+        if (vm.count("ignore-poses")) sensors.clear();
+        if (points.size() < 4) {
+            ctx.warn("the stream has " + std::to_string(points.size()) +
+                     " points; nothing to fill");
+            for (auto& document : documents) ctx.write(document);
+            return;
+        }
+        auto bar = ctx.progress("fill");
+        Report report;
+        report["views"] = views.size();
+        report["sensors"] = sensors.size();
+        const holes::BoundaryResult detection = holes::detect_boundaries(
+            points, sensors, detect, &report, [&](double f) { return bar.update(0.5 * f); });
+        Report loops = Report::array();
+        for (const auto& loop : detection.loops)
+            loops.push_back({{"points", loop.points.size()},
+                             {"diameter_m", loop.diameter_m},
+                             {"small", loop.small},
+                             {"kind", holes::to_string(loop.kind)},
+                             {"seen_by", loop.seen_by}});
+        report["loop_list"] = loops;
+        if (mark) {
+            std::size_t offset = 0;
+            for (PointCloud* view : views) {
+                if (view->empty()) continue;
+                PointCloud& cloud = *view;
+                auto flag = cloud.add_flag(prop::kBoundary);
+                auto probability = cloud.add_float(prop::kBoundaryProbability);
+                std::size_t j = 0;
+                for (auto idx : cloud.points) {
+                    flag[idx] = detection.boundary[offset + j];
+                    probability[idx] = detection.probability[offset + j++];
+                }
+                offset += cloud.size();
+            }
+        }
+        holes::FillResult added;
+        if (!detect_only) {
+            added = holes::fill_small_holes(points, detection, fill, &report,
+                                            [&](double f) { return bar.update(0.5 + 0.5 * f); });
+        }
+        ctx.add_document_metrics(report);
+        ctx.info("fill: " + report.dump());
+        ctx.note(std::to_string(detection.loops.size()) + " hole loops (" +
+                 std::to_string(report["small_loops"].get<std::size_t>()) + " small), " +
+                 std::to_string(added.position.size()) + " points added");
+        for (auto& document : documents) ctx.write(document);
+        if (detect_only || added.position.empty()) return;
+        io::Document filled;
+        filled.kind = io::DocumentKind::kPoints;
+        PointCloud& cloud = filled.cloud;
+        cloud.view.id = max_id + 1;
+        cloud.view.sensor = "rgbd-fill";
+        cloud.view.frame = ViewFrame::kWorld;
+        cloud.points.add_normal_map();
+        const auto colors = cloud.add_colors();
+        const auto synthetic = cloud.add_flag(prop::kSynthetic);
+        const auto mechanism = cloud.add_flag(prop::kFillMechanism);
+        const bool debug = vm.count("debug-colors") > 0;
+        for (std::size_t i = 0; i < added.position.size(); ++i) {
+            const auto idx = *cloud.points.insert(to_point(added.position[i]));
+            cloud.points.normal(idx) =
+                Vector_3(added.normal[i].x(), added.normal[i].y(), added.normal[i].z());
+            colors.set(idx, debug ? mechanism_color(added.mechanism[i]) : added.color[i]);
+            synthetic[idx] = 1;
+            mechanism[idx] = static_cast<std::uint8_t>(added.mechanism[i]);
+        }
+        ctx.write(filled);
+    });
+}
