@@ -37,15 +37,9 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import meta, o3d_view_cloud, pose_of, read_stream, run, xyz_of  # noqa: E402
+from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, pose_of, read_stream, run,  # noqa: E402
+                         xyz_of)
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..",
-                    "shared", "data", "meshes")
-BUSTS = {
-    "max_planck": ("max_planck/max-planck.obj", ["--height-m", "0.6"]),
-    "bust_man_wreath": ("danish_statues/BustManWreath_welded.ply",
-                        ["--height-m", "0.605", "--up", "y"]),
-}
 
 
 def umeyama(src, dst):

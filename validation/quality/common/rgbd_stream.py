@@ -1,5 +1,6 @@
 """Small helpers shared by the validation scripts: the PLY view-stream reader, view metadata,
 poses and a shell runner. numpy only (Debian's /usr/bin/python3)."""
+import os
 import re
 import subprocess
 import sys
@@ -93,3 +94,39 @@ def o3d_view_cloud(doc, voxel):
     pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
     pc.orient_normals_towards_camera_location(np.zeros(3))
     return pc
+
+
+# ../shared/data beside the repository, and the busts of the validation scripts with the
+# rgbd-synth arguments that size and orient them (mesh path relative to DATA).
+DATA = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
+                                     "..", "shared", "data", "meshes"))
+BUSTS = {
+    "max_planck": ("max_planck/max-planck.obj", ["--height-m", "0.6"]),
+    "bust_man_wreath": ("danish_statues/BustManWreath_welded.ply",
+                        ["--height-m", "0.605", "--up", "y"]),
+}
+
+
+def write_points(path, xyz, normals=None, rgb=None):
+    """One world-frame point document (binary PLY view stream) with optional normals / colours."""
+    n = len(xyz)
+    fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    header = ("ply\nformat binary_little_endian 1.0\ncomment rgbd:stream 1\n"
+              "comment rgbd:kind points\ncomment rgbd:view.id 0\ncomment rgbd:view.frame world\n"
+              f"element vertex {n}\nproperty double x\nproperty double y\nproperty double z\n")
+    if normals is not None:
+        fields += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
+        header += "property float nx\nproperty float ny\nproperty float nz\n"
+    if rgb is not None:
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+        header += "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    rec = np.zeros(n, dtype=fields)
+    rec["x"], rec["y"], rec["z"] = np.asarray(xyz).T
+    if normals is not None:
+        rec["nx"], rec["ny"], rec["nz"] = np.asarray(normals).T
+    if rgb is not None:
+        rec["red"], rec["green"], rec["blue"] = np.asarray(rgb).T
+    with open(path, "wb") as f:
+        f.write((header + "end_header\n").encode("ascii"))
+        f.write(rec.tobytes())
+

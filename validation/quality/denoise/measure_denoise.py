@@ -27,14 +27,11 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import meta, read_stream, run  # noqa: E402,F401 (re-exported for siblings)
+from rgbd_stream import BUSTS as BUSTS_BY_NAME  # noqa: E402
+from rgbd_stream import DATA, meta, read_stream, run  # noqa: E402,F401 (re-exported for siblings)
 
-DATA = "/work/shared/data/meshes"
-BUSTS = [
-    ("max_planck", f"{DATA}/max_planck/max-planck.obj", ["--height-m", "0.6"]),
-    ("bust_man_wreath", f"{DATA}/danish_statues/BustManWreath_welded.ply",
-     ["--height-m", "0.605", "--up", "y"]),
-]
+# (name, mesh path, rgbd-synth arguments) of the validation busts.
+BUSTS = [(name, os.path.join(DATA, mesh), args) for name, (mesh, args) in BUSTS_BY_NAME.items()]
 
 def labels_of(cap, docs):
     """gt label of every point of every document (by sensor, frame index and pixel)."""

@@ -65,24 +65,11 @@ def segment_distance(points, a, b, chunk=4096):
     return out
 
 
-def write_stream(path, xyz, normals):
-    n = len(xyz)
-    header = ("ply\nformat binary_little_endian 1.0\ncomment rgbd:stream 1\n"
-              "comment rgbd:kind points\ncomment rgbd:view.id 0\ncomment rgbd:view.frame world\n"
-              f"element vertex {n}\nproperty double x\nproperty double y\nproperty double z\n"
-              "property float nx\nproperty float ny\nproperty float nz\nend_header\n")
-    rec = np.zeros(n, dtype=[("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("nx", "<f4"),
-                             ("ny", "<f4"), ("nz", "<f4")])
-    rec["x"], rec["y"], rec["z"] = xyz.T
-    rec["nx"], rec["ny"], rec["nz"] = normals.T
-    with open(path, "wb") as f:
-        f.write(header.encode("ascii"))
-        f.write(rec.tobytes())
 
 
 def ours(xyz, normals, tool, tmp):
     src, dst = os.path.join(tmp, "in.ply"), os.path.join(tmp, "out.ply")
-    write_stream(src, xyz, normals)
+    rgbd_stream.write_points(src, xyz, normals=normals)
     t0 = time.time()
     rgbd_stream.run(f"{tool} --detect-only --mark -q {src} -o {dst}")
     elapsed = time.time() - t0

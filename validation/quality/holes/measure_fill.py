@@ -45,19 +45,6 @@ def texture(p):
     return np.clip(np.round(c), 0, 255).astype(np.uint8)
 
 
-def write_stream(path, xyz, rgb):
-    n = len(xyz)
-    header = ("ply\nformat binary_little_endian 1.0\ncomment rgbd:stream 1\n"
-              "comment rgbd:kind points\ncomment rgbd:view.id 0\ncomment rgbd:view.frame world\n"
-              f"element vertex {n}\nproperty double x\nproperty double y\nproperty double z\n"
-              "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n")
-    rec = np.zeros(n, dtype=[("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "u1"),
-                             ("green", "u1"), ("blue", "u1")])
-    rec["x"], rec["y"], rec["z"] = xyz.T
-    rec["red"], rec["green"], rec["blue"] = rgb.T
-    with open(path, "wb") as f:
-        f.write(header.encode("ascii"))
-        f.write(rec.tobytes())
 
 
 def write_png(path, img):
@@ -166,7 +153,7 @@ def main():
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         src = os.path.join(tmp, "cut.ply")
-        write_stream(src, cut_xyz, texture(cut_xyz))
+        rgbd_stream.write_points(src, cut_xyz, rgb=texture(cut_xyz))
         for m in MECHANISMS:
             dst = os.path.join(out_dir, f"filled_{m}.ply")
             metrics = os.path.join(tmp, f"{m}.json")

@@ -42,16 +42,12 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import read_stream, rgb_of, run, xyz_of  # noqa: E402
+from rgbd_stream import BUSTS, DATA, read_stream, rgb_of, run, xyz_of  # noqa: E402
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..",
-                    "shared", "data", "meshes")
-BUSTS = {
-    "max_planck": ("max_planck/max-planck.obj", ["--height-m", "0.6"]),
-    "bust_man_wreath": ("danish_statues/BustManWreath_welded.ply",
-                        ["--height-m", "0.605", "--up", "y"]),
+BUSTS = dict(BUSTS)  # the validation busts, plus the bunny
+BUSTS.update({
     "stanford_bunny": ("stanford_bunny/stanford-bunny.obj", ["--height-m", "0.35", "--up", "y"]),
-}
+})
 
 
 def merged_points(stream):
