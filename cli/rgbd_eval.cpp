@@ -14,7 +14,7 @@
 
 #include "algorithms/evaluation/metrics.hpp"
 #include "algorithms/render/picture.hpp"
-#include "cli/common/report.hpp"
+#include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"

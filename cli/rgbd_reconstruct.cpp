@@ -7,7 +7,7 @@
 #include "algorithms/frames/depth_to_cloud.hpp"
 #include "algorithms/render/picture.hpp"
 #include "algorithms/upsample/upsample_view.hpp"
-#include "cli/common/report.hpp"
+#include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"

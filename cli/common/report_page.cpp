@@ -1,4 +1,4 @@
-#include "cli/common/report.hpp"
+#include "cli/common/report_page.hpp"
 
 #include <unistd.h>
 
