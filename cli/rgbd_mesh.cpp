@@ -35,18 +35,27 @@ int main(int argc, char** argv) {
                         cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
                         "front, poisson or advancing-front")(
             "watertight", "close every hole: the result is a closed 2-manifold")(
-            "target-faces", cli::po::value<std::size_t>()->default_value(0)->value_name("N"),
+            "target-faces", cli::po::value<long long>()->default_value(0)->value_name("N"),
             "simplify to at most N faces (0 = no simplification)")(
-            "max-points", cli::po::value<std::size_t>()->default_value(60000)->value_name("N"),
+            "max-points", cli::po::value<long long>()->default_value(60000)->value_name("N"),
             "down-sample the input to at most N points first");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         reconstruction::ReconstructionOptions options;
         try {
             options.method = ctx.get<std::string>("method");
-            options.max_points = ctx.get<std::size_t>("max-points");
+            // Read signed, so that a negative count is named as given, not as its wrap-around.
+            const long long max_points = ctx.get<long long>("max-points");
+            const long long target_faces = ctx.get<long long>("target-faces");
+            if (max_points < 0)
+                throw cli::UsageError("--max-points must be >= 0, got " +
+                                      std::to_string(max_points));
+            if (target_faces < 0)
+                throw cli::UsageError("--target-faces must be 0 (keep) or >= 4, got " +
+                                      std::to_string(target_faces));
+            options.max_points = static_cast<std::size_t>(max_points);
             options.watertight = ctx.options().count("watertight") > 0;
-            options.target_faces = ctx.get<std::size_t>("target-faces");
+            options.target_faces = static_cast<std::size_t>(target_faces);
             options.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());

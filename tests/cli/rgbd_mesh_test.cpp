@@ -117,7 +117,8 @@ TEST_F(Mesh, BadInputGivesOneLineErrorAndNoOutput) {
     for (const Case& c :
          {Case{"nan.ply", 1, "nan.ply"}, Case{"tiny.ply", 1, "100"},
           Case{"- < /dev/null", 1, "rgbd-mesh"}, Case{"sphere.ply --target-faces 2", 2, "target"},
-          Case{"sphere.ply --target-faces -5", 2, "target"},
+          Case{"sphere.ply --target-faces -5", 2, "got -5"},
+          Case{"sphere.ply --max-points -1", 2, "got -1"},
           Case{"sphere.ply --method marching-cubes", 2, "marching-cubes"},
           Case{"sphere.ply --max-points 7", 2, "max_points"}}) {
         SCOPED_TRACE(c.args);
