@@ -45,7 +45,8 @@ wait
 
 echo "== RVL depth codec (ratio = raw 16-bit bytes / compressed bytes; CPU time per frame)"
 if [ -x "$B/bench_rvl" ]; then
-  for cap in "$OUT/kinect_v2" "$OUT/synth" /work/shared/data/multiview/uva_cv2_person_kinect1; do
+  SHARED=$(cd "$(dirname "$0")/../.." && pwd)/../shared/data
+  for cap in "$OUT/kinect_v2" "$OUT/synth" "$SHARED/multiview/uva_cv2_person_kinect1"; do
     [ -d "$cap" ] || continue
     "$B/bench_rvl" "$cap" --benchmark_min_time=0.3 2>&1 | tee -a "$OUT/bench_rvl.txt" | tail -1
   done

@@ -29,14 +29,10 @@ import time
 import numpy as np
 import open3d as o3d
 
-from measure_denoise import meta, read_stream, run
+from measure_denoise import DATA as MESHES, meta, read_stream, run  # noqa: E402
+from rgbd_stream import xyz_of  # noqa: E402
 
-DATA = "/work/shared/data/rgbd/open3d_livingroom1_augmented_iclnuim"
-
-
-def xyz_of(doc):
-    v = doc[1]
-    return np.stack([v["x"], v["y"], v["z"]], 1).astype(np.float64)
+DATA = os.path.normpath(os.path.join(MESHES, "..", "rgbd", "open3d_livingroom1_augmented_iclnuim"))
 
 
 def sigma_z(z):
@@ -105,9 +101,9 @@ def main():
     grid += [(f"O3D ROR({n}, {r})", o3d_method(lambda pc, n=n, r=r: pc.remove_radius_outlier(n, r)))
              for n in (4, 8, 16, 32) for r in (0.01, 0.02, 0.05)]
 
-    clean_pcs = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(d)))
+    clean_pcs = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(d[1])))
                  for d in clean_docs]
-    noisy_xyz = [xyz_of(d) for d in noisy_docs]
+    noisy_xyz = [xyz_of(d[1]) for d in noisy_docs]
 
     def evaluate(fn):
         per = [scores(xyz, fn(i, xyz), clean_pcs[i]) for i, xyz in enumerate(noisy_xyz)]

@@ -3,18 +3,19 @@
 #  1. 8-Kinect ring captures of the two busts (rgbd-synth): rgbd-upsample 8/4 and midpoints vs
 #     CGAL edge_aware_upsample_point_set on the same views, measured by the same code
 #     (upsample_quality), all on one thread; PCL MLS upsampling (pcl-tools) where it can.
-#  2. Real frames in /work/shared/data: rgbd-cloud CAPTURE | rgbd-upsample, point ratio and time;
+#  2. Real frames in ../shared/data: rgbd-cloud CAPTURE | rgbd-upsample, point ratio and time;
 #     a before/after picture of the person's face (OUT/face_uva_view0.png).
 #  3. Benchmark (bench_upsample, Google Benchmark) on one Kinect v2 view of the Max Planck
 #     capture, pinned to one core.
 #  4. The criteria, PASS/FAIL.
 # Usage: run.sh BUILD_DIR OUT_DIR   (builds the tools and validation targets it needs)
 set -euo pipefail
-BUILD=${1:-/work/wt4/build}
+REPO=$(cd "$(dirname "$0")/../../.." && pwd)
+BUILD=${1:-$REPO/build}
 OUT=${2:-/tmp/upsample_validation}
 B=$BUILD/bin
 PY=/usr/bin/python3
-SHARED=/work/shared/data
+SHARED=$(cd "$REPO/.." && pwd)/shared/data
 DATA=$SHARED/meshes
 mkdir -p "$OUT"
 cmake --build "$BUILD" -j2 --target rgbd-synth rgbd-cloud rgbd-clean rgbd-upsample \
