@@ -14,6 +14,16 @@ double rotation_error_deg(const Pose& a, const Pose& b) {
     return std::acos(c) * 180.0 / M_PI;
 }
 
+std::optional<Eigen::Vector3d> sensors_up(const std::vector<Pose>& world_from_sensor,
+                                          double min_agreement) {
+    if (world_from_sensor.empty()) return std::nullopt;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const Pose& pose : world_from_sensor) sum -= pose.linear().col(1);
+    const Eigen::Vector3d mean = sum / static_cast<double>(world_from_sensor.size());
+    if (!mean.allFinite() || mean.norm() < std::max(min_agreement, 1e-12)) return std::nullopt;
+    return mean.normalized();
+}
+
 double translation_error_m(const Pose& a, const Pose& b) {
     return (a.translation() - b.translation()).norm();
 }

@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <optional>
+#include <vector>
 
 namespace rgbd {
 
@@ -20,6 +22,12 @@ Pose pose_from_3x4(const std::array<double, 12>& rows);
 Pose pose_from_4x4(const std::array<double, 16>& rows);
 /// The 12 numbers of the 3x4 row-major form.
 std::array<double, 12> pose_to_3x4(const Pose& pose);
+/// The world's "up" as a set of sensors sees it: the normalised mean of their image-up axes
+/// (minus each camera's y axis: image rows grow downwards). nullopt when there are no sensors
+/// or their up axes disagree, i.e. the mean is shorter than `min_agreement` (1 = all equal;
+/// a level ring of sensors gives about cos(tilt)).
+std::optional<Eigen::Vector3d> sensors_up(const std::vector<Pose>& world_from_sensor,
+                                          double min_agreement = 1e-6);
 /// Re-orthonormalises the rotation part (nearest rotation, by SVD).
 Pose orthonormalized(const Pose& pose);
 

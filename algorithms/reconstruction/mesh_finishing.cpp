@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <limits>
 #include <vector>
 
 #include "toolkit/report.hpp"
@@ -78,46 +79,157 @@ void fan_fill(Mesh& mesh, Halfedge h) {
     PMP::fair(mesh, new_vertices);
 }
 
-/// A loop that is planar and meets the surface around it at a crease (the faces along it are
-/// steep to its plane, as at the cut base of a bust) is a cut: it gets a flat patch. Other
-/// loops (a crown, a chin seen from nowhere) continue the surface smoothly: a faired patch.
-bool is_planar_cut(const Mesh& mesh, Halfedge h) {
+/// Best-fit plane of a boundary loop's vertices (PCA).
+struct LoopPlane {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double rms = 0;     ///< RMS distance of the loop's vertices to the plane
+    double radius = 0;  ///< farthest loop vertex from the centre
+    std::size_t size = 0;
+    /// The same plane refitted without the vertices far off it (a gap in the seen rim that
+    /// climbs up the side, noise at a grazing edge): 3 rounds keeping residuals within 2.5
+    /// robust sigmas (1.4826 median absolute deviation) of the median.
+    Eigen::Vector3d robust_centre = Eigen::Vector3d::Zero();
+    Eigen::Vector3d robust_normal = Eigen::Vector3d::UnitZ();
+};
+
+void fit_pca_plane(const std::vector<Eigen::Vector3d>& points, const std::vector<char>& keep,
+                   Eigen::Vector3d& centre, Eigen::Vector3d& normal) {
+    centre.setZero();
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < points.size(); ++i)
+        if (keep[i]) centre += points[i], ++n;
+    centre /= static_cast<double>(n);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (std::size_t i = 0; i < points.size(); ++i)
+        if (keep[i]) cov += (points[i] - centre) * (points[i] - centre).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(cov);
+    normal = eig.eigenvectors().col(0);
+}
+
+double median_of(std::vector<double> values) {
+    auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(values.begin(), mid, values.end());
+    return *mid;
+}
+
+LoopPlane fit_loop_plane(const Mesh& mesh, Halfedge h) {
     std::vector<Eigen::Vector3d> loop;
     for (Halfedge x : CGAL::halfedges_around_face(h, mesh))
         loop.push_back(to_eigen(mesh.point(mesh.target(x))));
-    if (loop.size() < 8) return false;
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& p : loop) c += p;
-    c /= static_cast<double>(loop.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    double radius = 0;
+    LoopPlane plane;
+    plane.size = loop.size();
+    std::vector<char> keep(loop.size(), 1);
+    fit_pca_plane(loop, keep, plane.centre, plane.normal);
     for (const auto& p : loop) {
-        cov += (p - c) * (p - c).transpose();
-        radius = std::max(radius, (p - c).norm());
+        plane.radius = std::max(plane.radius, (p - plane.centre).norm());
+        plane.rms += std::pow((p - plane.centre).dot(plane.normal), 2);
     }
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(cov);
-    const Eigen::Vector3d n = eig.eigenvectors().col(0);
-    double rms = 0;
-    for (const auto& p : loop) rms += std::pow((p - c).dot(n), 2);
-    rms = std::sqrt(rms / static_cast<double>(loop.size()));
-    if (rms > 0.05 * radius) return false;
+    plane.rms = std::sqrt(plane.rms / static_cast<double>(loop.size()));
+    plane.robust_centre = plane.centre;
+    plane.robust_normal = plane.normal;
+    std::vector<double> residual(loop.size()), spread(loop.size());
+    for (int round = 0; round < 3 && loop.size() >= 8; ++round) {
+        for (std::size_t i = 0; i < loop.size(); ++i)
+            residual[i] = (loop[i] - plane.robust_centre).dot(plane.robust_normal);
+        const double med = median_of(residual);
+        for (std::size_t i = 0; i < loop.size(); ++i) spread[i] = std::abs(residual[i] - med);
+        const double sigma = std::max(1.4826 * median_of(spread), 1e-9);
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < loop.size(); ++i)
+            kept += keep[i] = std::abs(residual[i] - med) <= 2.5 * sigma;
+        if (kept < 8) break;
+        fit_pca_plane(loop, keep, plane.robust_centre, plane.robust_normal);
+    }
+    return plane;
+}
+
+/// Without an up direction: a loop that is planar and meets the surface around it at a crease
+/// (the faces along it are steep to its plane, as at the cut base of a bust) is a cut. The
+/// crease test also accepts a flat crown above vertical sides, hence the `up` variant below.
+bool is_crease_cut(const Mesh& mesh, Halfedge h, const LoopPlane& plane) {
+    if (plane.size < 8 || plane.rms > 0.05 * plane.radius) return false;
     double steep = 0;
     std::size_t count = 0;
     for (Halfedge x : CGAL::halfedges_around_face(h, mesh)) {
         const Mesh::Face_index f = mesh.face(mesh.opposite(x));
         if (f == Mesh::null_face()) continue;
         const Vector_3 fn = PMP::compute_face_normal(f, mesh);
-        steep += std::abs(to_eigen(fn).dot(n));
+        steep += std::abs(to_eigen(fn).dot(plane.normal));
         ++count;
     }
     return count > 0 && steep / static_cast<double>(count) < 0.5;
 }
 
+/// With up: the cut the object stood on (base of a bust, floor under the feet, turntable): a
+/// roughly planar loop, within 30 degrees of horizontal, at the bottom of the mesh.
+bool is_support_cut(const LoopPlane& plane, const Eigen::Vector3d& up, double low, double high) {
+    if (plane.size < 8 || plane.rms > 0.1 * plane.radius) return false;
+    if (std::abs(plane.normal.dot(up)) < std::cos(30.0 * M_PI / 180.0)) return false;
+    return plane.centre.dot(up) - low <= 0.15 * (high - low);
+}
+
+/// Extends the loop of border halfedge h straight down (along -up) to the cut: the loop's robust
+/// plane moved down to its deep quintile. Vertices already below it drop a twentieth of a mean
+/// edge, so no wall triangle is degenerate. Two triangles per loop edge. Returns a border
+/// halfedge of the new loop (planar but for those few vertices).
+Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const LoopPlane& plane,
+                            const Eigen::Vector3d& up) {
+    const Eigen::Vector3d down_normal =
+        plane.robust_normal.dot(up) > 0 ? -plane.robust_normal : plane.robust_normal;
+    const double drop_rate = std::max(-down_normal.dot(up), 1e-3);  // > cos 30 for a cut
+    std::vector<Mesh::Vertex_index> top;
+    std::vector<double> depth;
+    double edge = 0;
+    for (Halfedge x : CGAL::halfedges_around_face(h, mesh)) {
+        top.push_back(mesh.source(x));
+        const Eigen::Vector3d a = to_eigen(mesh.point(mesh.source(x)));
+        depth.push_back((a - plane.robust_centre).dot(down_normal));
+        edge += (to_eigen(mesh.point(mesh.target(x))) - a).norm();
+    }
+    const std::size_t n = top.size();
+    // The loop's lowest vertices are its noisiest (grazing views of the bottom edge) and its
+    // highest climb into gaps of the seen rim: the cut goes through the deep quintile, neither
+    // the deepest vertex nor the median. Measured on the validation busts (measure_mesh.py,
+    // F@2mm / invented with --watertight): quantile 0.75: 0.962 / 0.23% (Max Planck), 0.964 /
+    // 0.64% (wreath); 0.8: 0.963 / 0.23%, 0.962 / 0.68%; 0.9: 0.972 / 0.26%, 0.953 / 0.65%.
+    constexpr double kCutQuantile = 0.8;
+    auto deep =
+        depth.begin() + static_cast<std::ptrdiff_t>(kCutQuantile * static_cast<double>(n - 1));
+    std::nth_element(depth.begin(), deep, depth.end());
+    const double cut = *deep;
+    const double min_drop = 0.05 * edge / static_cast<double>(n);
+    std::vector<Mesh::Vertex_index> bottom(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d a = to_eigen(mesh.point(top[i]));
+        const double drop =
+            std::max(min_drop, (cut - (a - plane.robust_centre).dot(down_normal)) / drop_rate);
+        bottom[i] = mesh.add_vertex(to_point(a - drop * up));
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t j = (i + 1) % n;
+        mesh.add_face(top[i], top[j], bottom[j]);
+        mesh.add_face(top[i], bottom[j], bottom[i]);
+    }
+    const Halfedge base = mesh.halfedge(bottom[0], bottom[1]);
+    return mesh.is_border(base) ? base : mesh.opposite(base);
+}
+
 }  // namespace
 
-Report close_holes(Mesh& mesh, std::size_t fair_max_edges) {
+Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
+                   std::size_t fair_max_edges) {
     Stopwatch watch;
+    std::optional<Eigen::Vector3d> up;
+    if (up_in && up_in->allFinite() && up_in->norm() > 0) up = up_in->normalized();
+    double low = std::numeric_limits<double>::infinity(), high = -low;
+    if (up)
+        for (auto v : mesh.vertices()) {
+            const double height = to_eigen(mesh.point(v)).dot(*up);
+            low = std::min(low, height);
+            high = std::max(high, height);
+        }
     std::vector<Halfedge> borders;
     PMP::extract_boundary_cycles(mesh, std::back_inserter(borders));
     std::size_t faired = 0, refined = 0, flat = 0, fans = 0, largest = 0;
@@ -132,7 +244,12 @@ Report close_holes(Mesh& mesh, std::size_t fair_max_edges) {
                             .use_2d_constrained_delaunay_triangulation(true)
                             .do_not_use_cubic_algorithm(edges > 200);
         bool ok = false;
-        if (is_planar_cut(mesh, h)) {
+        const LoopPlane plane = fit_loop_plane(mesh, h);
+        const bool cut = up ? is_support_cut(plane, *up, low, high) : is_crease_cut(mesh, h, plane);
+        if (cut) {
+            // The object stood on its cut: the sides go down to it (the sensors rarely see
+            // their last millimetres), then the base is flat.
+            if (up) h = extrude_to_support(mesh, h, plane, *up);
             PMP::triangulate_and_refine_hole(mesh, h, std::back_inserter(faces),
                                              std::back_inserter(vertices), np);
             ok = !faces.empty();
@@ -161,6 +278,10 @@ Report close_holes(Mesh& mesh, std::size_t fair_max_edges) {
     r["flat_cuts"] = flat;
     r["fans"] = fans;
     r["largest_hole_edges"] = largest;
+    if (up)
+        r["up"] = {(*up)(0), (*up)(1), (*up)(2)};
+    else
+        r["up"] = nullptr;
     r["faces_added"] = mesh.number_of_faces() - faces_before;
     r["time_s"] = watch.seconds();
     return r;

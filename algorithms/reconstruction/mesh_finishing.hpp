@@ -6,7 +6,9 @@
 // heavy CGAL templates live in mesh_finishing.cpp only.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
+#include <optional>
 
 #include "toolkit/mesh.hpp"
 #include "toolkit/report.hpp"
@@ -17,13 +19,18 @@ namespace rgbd::reconstruction::internal {
 /// isolated vertices); returns the number of components removed.
 std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 
-/// Closes every boundary loop. A planar loop along a crease (the faces around it steep to its
-/// plane: a cut base) gets a flat refined patch; other loops are triangulated, refined and
-/// faired (up to `fair_max_edges` edges; larger ones only refined); when CGAL finds no
-/// triangulation, a fan around the loop's centroid, refined and faired. The result is closed
-/// (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans, faces_added,
-/// largest_hole_edges, time_s.
-Report close_holes(Mesh& mesh, std::size_t fair_max_edges = 300);
+/// Closes every boundary loop. A cut gets a flat refined patch; other loops are triangulated,
+/// refined and faired (up to `fair_max_edges` edges; larger ones only refined); when CGAL finds
+/// no triangulation, a fan around the loop's centroid, refined and faired. With `up` (world up),
+/// a cut is the loop the object stood on: its best-fit plane within 30 degrees of horizontal,
+/// its centroid in the lowest 15% of the mesh's height and the mesh above it; the sides are
+/// first extended straight down to the cut plane (fitted robustly to the loop, through its
+/// deep quintile: the sensors rarely see the last millimetres above a base). Without `up`, a
+/// cut is a planar loop meeting the surface at a crease (the faces along it steep to its plane).
+/// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
+/// faces_added, largest_hole_edges, up (null when unknown), time_s.
+Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::nullopt,
+                   std::size_t fair_max_edges = 300);
 
 /// Edge collapse (Garland-Heckbert plane quadrics, bounded normal change) until the mesh has
 /// at most `target_faces` faces (or no collapse is possible). Borders stay borders and a

@@ -61,6 +61,8 @@ void ReconstructionOptions::check() const {
     RGBD_CHECK(sm_radius > 0 && sm_radius < 1e4, "reconstruction: sm_radius must be in (0, 1e4)");
     RGBD_CHECK(sm_distance > 0 && sm_distance < 100,
                "reconstruction: sm_distance must be in (0, 100)");
+    RGBD_CHECK(!up || (up->allFinite() && up->norm() > 0),
+               "reconstruction: the up direction must be a finite non-zero vector");
     RGBD_CHECK(af_radius_ratio_bound > 0, "reconstruction: af_radius_ratio_bound must be > 0");
     RGBD_CHECK(af_beta > 0 && af_beta < M_PI, "reconstruction: af_beta must be in (0, pi)");
     RGBD_CHECK(color_k >= 1 && color_k <= 256, "reconstruction: color_k must be in [1, 256]");
@@ -357,7 +359,8 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         "reconstruction: " + view_name(cloud) + ": " + options.method + " produced no triangles");
     steps["components_dropped"] =
         internal::drop_small_components(mesh, options.min_component_fraction);
-    if (options.watertight && !CGAL::is_closed(mesh)) steps["holes"] = internal::close_holes(mesh);
+    if (options.watertight && !CGAL::is_closed(mesh))
+        steps["holes"] = internal::close_holes(mesh, options.up);
     if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
     if (options.target_faces > 0)
         steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);

@@ -17,7 +17,9 @@
 // reconstruction_surface_mesh.cpp.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
+#include <optional>
 #include <string>
 
 #include "toolkit/mesh.hpp"
@@ -34,6 +36,12 @@ struct ReconstructionOptions {
     /// Close every boundary loop of the result (hole filling), so the mesh is a closed
     /// 2-manifold.
     bool watertight = false;
+    /// World up (any length), e.g. sensors_up() of the views' poses. With it, `watertight` knows
+    /// the object's support: a flat loop at the bottom of the object, facing down, is the cut
+    /// where the object stood (base of a bust, floor under the feet) and gets a flat cap; every
+    /// other loop (crown, under the chin) continues the surface smoothly. Without it, a loop is
+    /// taken for a cut by its shape alone (planar, meeting the surface at a crease).
+    std::optional<Eigen::Vector3d> up;
     /// Simplify by edge collapse to at most this many faces; 0 = keep the reconstruction's.
     std::size_t target_faces = 0;
     /// Connected components with fewer faces than this share of the largest one's are dropped

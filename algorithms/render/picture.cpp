@@ -377,10 +377,8 @@ Orientation guess_orientation(const std::vector<Pose>& sensors, const Eigen::Vec
     if (up) {
         RGBD_CHECK(up->allFinite() && up->norm() > 0, "the up direction must be a non-zero vector");
         o.up = up->normalized();
-    } else if (!sensors.empty()) {
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (const auto& s : sensors) sum -= s.linear().col(1);  // image y points down
-        if (sum.norm() > 1e-6) o.up = sum.normalized();
+    } else if (const auto seen = sensors_up(sensors)) {
+        o.up = *seen;
     }
     auto horizontal = [&](const Eigen::Vector3d& d) -> Eigen::Vector3d {
         return d - d.dot(o.up) * o.up;

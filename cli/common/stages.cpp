@@ -164,6 +164,14 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
                 const reconstruction::ReconstructionOptions& options, Report& report,
                 const Progress& progress) {
     RGBD_CHECK(!views.empty(), "no views to mesh");
+    // The sensors' common up tells --watertight where the object stood (its flat base).
+    reconstruction::ReconstructionOptions with_up = options;
+    if (!with_up.up) {
+        std::vector<Pose> sensors;
+        for (const auto& view : views)
+            if (view.view.world_from_sensor) sensors.push_back(*view.view.world_from_sensor);
+        with_up.up = sensors_up(sensors, 0.7);
+    }
     ensure_view_normals(views);
     for (auto& view : views) to_world_frame(view);
     PointCloud merged =
@@ -175,7 +183,7 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
     }
     report["input_points"] = merged.size();
     Report reconstruction;
-    Mesh mesh = reconstruction::reconstruct_surface(merged, options, &reconstruction, progress);
+    Mesh mesh = reconstruction::reconstruct_surface(merged, with_up, &reconstruction, progress);
     report["reconstruction"] = reconstruction;
     return mesh;
 }

@@ -128,6 +128,45 @@ TEST(ReconstructSurface, FrontKeepsUnseenHolesOpenAndWatertightClosesThem) {
     EXPECT_TRUE(rgbd::vertex_colors(closed).has_value());
 }
 
+// An object standing on its cut: a sphere cut flat at z = -0.5 r (the base, never seen) and
+// without its crown (z > 0.8 r). With up known (+z, as the sensors' poses give it), the base
+// gets a flat cap in the cut plane and the crown a faired dome; without up the same loops
+// are told apart by shape only.
+TEST(ReconstructSurface, WatertightWithUpCapsTheBaseFlatAndFairsTheCrown) {
+    const PointCloud cloud = rgbd::test::noisy_sphere(8000, kRadius, 0.0002, 0.8, 1, -0.5);
+    ReconstructionOptions o;
+    o.watertight = true;
+    o.up = Eigen::Vector3d(0, 0, 2);  // any length
+    rgbd::Report report;
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    expect_manifold(mesh);
+    EXPECT_EQ(report["holes"]["flat_cuts"], 1) << report.dump();
+    EXPECT_NEAR(report["holes"]["up"][2].get<double>(), 1.0, 1e-12);
+    const double cut = -0.5 * kRadius;
+    std::size_t base = 0, crown = 0;
+    for (auto v : mesh.vertices()) {
+        const rgbd::Point_3& p = mesh.point(v);
+        EXPECT_GT(p.z(), cut - 0.003);  // nothing bulges below the cut
+        if (std::hypot(p.x(), p.y()) < 0.07 && p.z() < 0) {
+            ++base;  // inside the base disc (radius 0.087): on the cut plane
+            EXPECT_NEAR(p.z(), cut, 0.003);
+        }
+        if (p.z() > 0.081) {
+            ++crown;
+            const double d = std::sqrt(CGAL::squared_distance(p, rgbd::Point_3(0, 0, 0)));
+            EXPECT_NEAR(d, kRadius, 0.01);
+        }
+    }
+    EXPECT_GT(base, 20u);
+    EXPECT_GT(crown, 20u);
+    // A zero or non-finite up is refused.
+    o.up = Eigen::Vector3d::Zero();
+    EXPECT_THROW(o.check(), rgbd::InputError);
+    o.up = Eigen::Vector3d(0, std::nan(""), 1);
+    EXPECT_THROW(o.check(), rgbd::InputError);
+}
+
 // A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
 // must survive as separate sheets 3 mm apart, the rim must join them, and no vertex may fall
 // into the middle of the plate.

@@ -40,9 +40,9 @@ namespace rgbd::test {
 
 /// Fibonacci sphere samples (radius `radius`, outward normals, grey) with Gaussian noise of
 /// `sigma` metres along the normal (seeded), without the points above z = cap_z * radius
-/// (cap_z >= 1 keeps the whole sphere).
+/// (cap_z >= 1 keeps the whole sphere) nor those below z = base_z * radius.
 inline PointCloud noisy_sphere(int n, double radius, double sigma, double cap_z = 1.0,
-                               unsigned seed = 1) {
+                               unsigned seed = 1, double base_z = -1.0) {
     PointCloud cloud;
     cloud.view.id = 0;
     cloud.view.frame = ViewFrame::kWorld;
@@ -53,7 +53,7 @@ inline PointCloud noisy_sphere(int n, double radius, double sigma, double cap_z 
     const double golden = M_PI * (3.0 - std::sqrt(5.0));
     for (int i = 0; i < n; ++i) {
         const double z = 1.0 - 2.0 * (i + 0.5) / n;
-        if (z > cap_z) continue;
+        if (z > cap_z || z < base_z) continue;
         const double r = std::sqrt(1.0 - z * z);
         const Eigen::Vector3d u(r * std::cos(golden * i), r * std::sin(golden * i), z);
         auto it = cloud.points.insert(to_point((radius + noise(rng)) * u));

@@ -141,6 +141,24 @@ TEST(Picture, OrientationFollowsTheSensors) {
                  InputError);
 }
 
+// sensors_up (toolkit/pose.hpp), which the orientation and rgbd-mesh --watertight share: the
+// mean image-up of the sensors; nothing when there are none or they disagree.
+TEST(Picture, SensorsUpNeedsAgreement) {
+    EXPECT_FALSE(sensors_up({}).has_value());
+    Pose upright = Pose::Identity();  // camera y (down) = -z
+    upright.linear() << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+    Pose upside_down = Pose::Identity();
+    upside_down.linear() << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+    const auto up = sensors_up({upright, upright});
+    ASSERT_TRUE(up.has_value());
+    EXPECT_NEAR(up->z(), 1.0, 1e-12);
+    EXPECT_FALSE(sensors_up({upright, upside_down}).has_value());
+    Pose tilted = upright;  // 60 degrees of roll: agreement cos(30) with the upright one
+    tilted.linear() = Eigen::AngleAxisd(M_PI / 3, Eigen::Vector3d::UnitY()) * upright.linear();
+    EXPECT_TRUE(sensors_up({upright, tilted}, 0.7).has_value());
+    EXPECT_FALSE(sensors_up({upright, tilted}, 0.9).has_value());
+}
+
 TEST(Picture, GreyShadingAndVertexColours) {
     Geometry g = sphere_geometry();
     const Camera cam = fit_camera(g.vertices, Orientation{}, front_view());

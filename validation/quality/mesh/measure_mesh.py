@@ -6,8 +6,10 @@ For every bust: rgbd-synth renders an 8-Kinect-v2 ring capture (default noise, r
     rgbd-cloud | rgbd-clean --distance | rgbd-align | rgbd-clean --density
 (estimated poses, not the true ones: the meshers see the alignment error too). The aligned views
 carry normals oriented towards their sensors; their concatenation (world frame, with normals and
-colours) is written to one point file and the SAME oriented points go to
-- ours: rgbd-mesh --method M (each method given by --methods, plus --watertight variants);
+colours) is written to one point file for Open3D, and the SAME oriented points go to
+- ours: rgbd-mesh --method M on the aligned stream itself (the same points, plus the sensors'
+  poses, from which --watertight knows up; each method given by --methods, plus --watertight
+  variants);
 - Open3D 0.16 create_from_point_cloud_poisson at depth 8, 9, 10 (scale 1.1, width 0,
   linear_fit False; PEERS.md), untrimmed and trimmed at the 2% density quantile.
 Every mesh is scored by rgbd-eval against the capture's true mesh: F-score at 2 mm, Chamfer,
@@ -163,7 +165,7 @@ def main():
         xyz, nrm, rgb = merged_points(stream)
         points = cap + "_points.ply"
         write_points(points, xyz, nrm, rgb)
-        print(f"\n### {bust}: {len(xyz)} oriented points (ours and Open3D get the same file)")
+        print(f"\n### {bust}: {len(xyz)} oriented points (ours and Open3D get the same points)")
         print("| method | F@2mm | Chamfer mm | invented >5mm | wall s | cpu s | manifold | closed |")
         print("|---|---|---|---|---|---|---|---|")
         sp = {}
@@ -185,7 +187,7 @@ def main():
             opts = ("" if method == "default" else f"--method {method} ") + (
                 "--watertight " if watertight else "")
             c0 = children_cpu()
-            run(f"{b}/rgbd-mesh {points} {opts}-q --metrics {path}.json -o {path}")
+            run(f"{b}/rgbd-mesh {stream} {opts}-q --metrics {path}.json -o {path}")
             rec = json.load(open(path + ".json"))["mesh"]["reconstruction"]
             t = (rec["time_s"], children_cpu() - c0)
             r = evaluate(b, path, reference)
