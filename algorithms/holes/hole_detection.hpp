@@ -26,7 +26,8 @@ namespace rgbd::prop {
 inline constexpr const char* kBoundary = "boundary";  ///< uint8 flag, hole-rim point (§10)
 /// float, combined boundary probability P of §10 step 6
 inline constexpr const char* kBoundaryProbability = "boundary_probability";
-/// uint8, mechanism that added a point (1-3: M1-M3 of §11, 4: M4 interpolation)
+/// uint8, mechanism that added a point (1-3: M1-M3 of §11, 4: M4 interpolation, 5: large hole
+/// §12, 6: head top §13)
 inline constexpr const char* kFillMechanism = "fill_mechanism";
 }  // namespace rgbd::prop
 
