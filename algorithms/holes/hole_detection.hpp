@@ -31,6 +31,10 @@ inline constexpr const char* kBoundaryProbability = "boundary_probability";
 inline constexpr const char* kFillMechanism = "fill_mechanism";
 }  // namespace rgbd::prop
 
+namespace rgbd::internal {
+class KdTree;
+}
+
 namespace rgbd::holes {
 
 /// A merged surface sample set in one (world) frame: what §9-§11 work on.
@@ -187,5 +191,13 @@ PointCriteria point_criteria(const Eigen::Vector3d& p, const Eigen::Vector3d& e1
                              const Eigen::Vector3d& e2, const std::vector<Eigen::Vector3d>& all,
                              const std::uint32_t* neighbours, std::size_t count,
                              const BoundaryOptions& options);
+
+/// Does `sensor` have a clear, front-facing line of sight to the region (centre, normal, radius)?
+/// Front-facing: within max_angle_deg of the normal (either side); in the depth camera's
+/// frustum when its intrinsics are known; no point of `tree` within ray_clearance x spacing of
+/// the line of sight beyond the region's half radius. Used by §10 (loops) and §12/§13 (holes).
+bool sensor_sees_region(const SensorView& sensor, const Eigen::Vector3d& centre,
+                        const Eigen::Vector3d& normal, double radius_m, double spacing,
+                        const internal::KdTree& tree, double max_angle_deg, double ray_clearance);
 
 }  // namespace rgbd::holes

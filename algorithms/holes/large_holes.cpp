@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <Eigen/SparseLU>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -32,7 +34,16 @@ void InpaintOptions::check() const {
                "inpaint: minimum rim n.radial must be in [-1, 1]");
     RGBD_CHECK(std::isfinite(top_fraction) && top_fraction > 0 && top_fraction <= 0.5,
                "inpaint: top fraction must be in (0, 0.5]");
+    RGBD_CHECK(std::isfinite(top_component) && top_component >= 0 && top_component <= 1,
+               "inpaint: top component share must be in [0, 1]");
     RGBD_CHECK(blend_band >= 0 && blend_band <= 100, "inpaint: blend band must be in [0, 100]");
+    RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
+                   visible_max_angle_deg < 90,
+               "inpaint: visibility angle must be in (0, 90) degrees");
+    RGBD_CHECK(std::isfinite(ray_clearance) && ray_clearance > 0 && ray_clearance <= 20,
+               "inpaint: ray clearance must be in (0, 20] spacings");
+    RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,
+               "inpaint: the ellipsoid's residual limit must be positive");
 }
 
 namespace {
@@ -79,6 +90,48 @@ void telea(cv::Mat& image, const cv::Mat& unknown, double radius) {
     image = out;
 }
 
+/// Biharmonic fill [M] of the float image on the non-zero pixels of `mask`: solves
+/// Laplacian^2 u = 0 there (13-point stencil; the other pixels are fixed boundary values, image
+/// borders clamped) with a sparse LU. Unlike OpenCV's Telea, which averages its neighbours and
+/// so flattens a dome, it continues the rim's slope and curvature into the hole. Returns false
+/// (image unchanged) when the solve fails.
+bool biharmonic(cv::Mat& img, const cv::Mat& mask) {
+    std::vector<cv::Point> pixels;
+    cv::findNonZero(mask, pixels);
+    if (pixels.empty()) return true;
+    const int rows = img.rows, cols = img.cols;
+    cv::Mat index(rows, cols, CV_32S, cv::Scalar(-1));
+    for (std::size_t i = 0; i < pixels.size(); ++i) index.at<int>(pixels[i]) = static_cast<int>(i);
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(pixels.size() * 13);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(pixels.size()));
+    static const int kStencil[13][3] = {
+        {0, 0, 20}, {-1, 0, -8}, {1, 0, -8}, {0, -1, -8}, {0, 1, -8}, {-1, -1, 2}, {-1, 1, 2},
+        {1, -1, 2}, {1, 1, 2},   {-2, 0, 1}, {2, 0, 1},   {0, -2, 1}, {0, 2, 1}};
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+        for (const auto& st : kStencil) {
+            const int r = std::clamp(pixels[i].y + st[0], 0, rows - 1);
+            const int c = std::clamp(pixels[i].x + st[1], 0, cols - 1);
+            const int j = index.at<int>(r, c);
+            if (j >= 0)
+                triplets.emplace_back(static_cast<int>(i), j, st[2]);
+            else
+                rhs[static_cast<Eigen::Index>(i)] -= st[2] * double(img.at<float>(r, c));
+        }
+    }
+    Eigen::SparseMatrix<double> a(static_cast<Eigen::Index>(pixels.size()),
+                                  static_cast<Eigen::Index>(pixels.size()));
+    a.setFromTriplets(triplets.begin(), triplets.end());
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+    lu.compute(a);
+    if (lu.info() != Eigen::Success) return false;
+    const Eigen::VectorXd u = lu.solve(rhs);
+    if (lu.info() != Eigen::Success || !u.allFinite()) return false;
+    for (std::size_t i = 0; i < pixels.size(); ++i)
+        img.at<float>(pixels[i]) = static_cast<float>(u[static_cast<Eigen::Index>(i)]);
+    return true;
+}
+
 Rgb pixel_rgb(const cv::Mat& color, int row, int col) {
     const cv::Vec3b c = color.at<cv::Vec3b>(row, col);
     return {c[0], c[1], c[2]};
@@ -91,16 +144,15 @@ void add_clear(FillResult& result, const internal::KdTree& tree, double clearanc
                const std::vector<std::uint32_t>& loop, FillMechanism mechanism) {
     std::vector<std::uint8_t> keep(position.size(), 0);
     const double c2 = clearance * clearance;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, position.size(), 256),
-                      [&](const auto& range) {
-                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                              if (!position[i].allFinite() || !normal[i].allFinite()) continue;
-                              std::uint32_t nearest;
-                              double d2;
-                              keep[i] = !(c2 > 0 && tree.nearest_within(position[i], c2, nearest,
-                                                                        d2));
-                          }
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, position.size(), 256), [&](const auto& range) {
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                if (!position[i].allFinite() || !normal[i].allFinite()) continue;
+                std::uint32_t nearest;
+                double d2;
+                keep[i] = !(c2 > 0 && tree.nearest_within(position[i], c2, nearest, d2));
+            }
+        });
     for (std::size_t i = 0; i < position.size(); ++i) {
         if (!keep[i]) continue;
         result.position.push_back(position[i]);
@@ -109,6 +161,54 @@ void add_clear(FillResult& result, const internal::KdTree& tree, double clearanc
         result.mechanism.push_back(mechanism);
         result.loop.push_back(loop[i]);
     }
+}
+
+/// Drops the candidates of hole components that a sensor saw through (§10's visibility test on
+/// the component's centre, mean normal and radius). Returns the number of components dropped.
+int drop_openings(std::vector<Eigen::Vector3d>& position, std::vector<Eigen::Vector3d>& normal,
+                  std::vector<Rgb>& color, std::vector<std::uint32_t>& loop,
+                  const std::vector<SensorView>& sensors, const internal::KdTree& tree,
+                  double spacing_m, const InpaintOptions& options) {
+    if (sensors.empty() || options.fill_openings || position.empty()) return 0;
+    const std::uint32_t n = *std::max_element(loop.begin(), loop.end()) + 1;
+    std::vector<Eigen::Vector3d> centre(n, Eigen::Vector3d::Zero()),
+        mean_n(n, Eigen::Vector3d::Zero());
+    std::vector<std::size_t> count(n, 0);
+    for (std::size_t i = 0; i < position.size(); ++i) {
+        centre[loop[i]] += position[i];
+        mean_n[loop[i]] += normal[i];
+        ++count[loop[i]];
+    }
+    std::vector<double> radius(n, 0.0);
+    for (std::uint32_t l = 0; l < n; ++l)
+        if (count[l]) centre[l] /= double(count[l]);
+    for (std::size_t i = 0; i < position.size(); ++i)
+        radius[loop[i]] = std::max(radius[loop[i]], (position[i] - centre[loop[i]]).norm());
+    std::vector<std::uint8_t> open(n, 0);
+    int dropped = 0;
+    tbb::parallel_for(std::uint32_t(0), n, [&](std::uint32_t l) {
+        if (!count[l] || mean_n[l].norm() == 0) return;
+        for (const auto& s : sensors)
+            if (sensor_sees_region(s, centre[l], mean_n[l].normalized(), radius[l], spacing_m, tree,
+                                   options.visible_max_angle_deg, options.ray_clearance)) {
+                open[l] = 1;
+                return;
+            }
+    });
+    for (auto o : open) dropped += o;
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < position.size(); ++i) {
+        if (open[loop[i]]) continue;
+        position[k] = position[i];
+        normal[k] = normal[i];
+        color[k] = color[i];
+        loop[k++] = loop[i];
+    }
+    position.resize(k);
+    normal.resize(k);
+    color.resize(k);
+    loop.resize(k);
+    return dropped;
 }
 
 double bilinear(const cv::Mat& img, double row, double col, bool wrap_cols) {
@@ -196,7 +296,8 @@ double head_top_start(const SurfacePoints& points, const BodyAxis& axis,
 }
 
 FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::Vector3d>& normals,
-                         const BodyAxis& axis, double spacing_m, const InpaintOptions& options,
+                         const BodyAxis& axis, double spacing_m,
+                         const std::vector<SensorView>& sensors, const InpaintOptions& options,
                          Report* report, const Progress& progress) {
     options.check();
     check_input(points, normals, spacing_m);
@@ -264,6 +365,29 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     cv::Mat eroded;
     cv::erode(inside, eroded, cv::Mat::ones(3, 3, CV_8U));
     cv::bitwise_and(hole, eroded, hole);
+    // Scattered empty pixels among known ones (sampling gaps on steep or rough tops) are not
+    // the crown: components smaller than min_component or than top_component x the largest
+    // one are left to §11.
+    cv::Mat labels;
+    {
+        cv::Mat stats, centroids;
+        const int n = cv::connectedComponentsWithStats(hole, labels, stats, centroids, 8, CV_32S);
+        int largest = 0;
+        for (int l = 1; l < n; ++l) largest = std::max(largest, stats.at<int>(l, cv::CC_STAT_AREA));
+        const double keep =
+            std::max<double>(options.min_component, options.top_component * largest);
+        int dropped = 0;
+        for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < cols; ++c) {
+                const int l = labels.at<int>(r, c);
+                if (l > 0 && stats.at<int>(l, cv::CC_STAT_AREA) < keep) {
+                    hole.at<std::uint8_t>(r, c) = 0;
+                    ++dropped;
+                }
+            }
+        info["components"] = n - 1;
+        info["skipped_small_pixels"] = dropped;
+    }
     const int hole_pixels = cv::countNonZero(hole);
     info["hole_pixels"] = hole_pixels;
     if (hole_pixels == 0) return finish();
@@ -271,6 +395,7 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     height.setTo(0.0f, unknown);
     telea(height, unknown, options.telea_radius);
     telea(color, unknown, options.telea_radius);
+    if (options.biharmonic) info["biharmonic"] = biharmonic(height, hole);
     if (!report_progress(progress, 0.4)) throw AlgorithmError("cancelled");
     if (options.ellipsoid) {
         // Axis-aligned ellipsoid A u^2 + B v^2 + C h^2 + D u + E v + F h = 1 (least squares,
@@ -290,7 +415,22 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
             atb += row;
         }
         const Eigen::Matrix<double, 6, 1> k = ata.ldlt().solve(atb);
-        const bool valid = k.allFinite() && k[0] > 0 && k[1] > 0 && k[2] > 0;
+        bool valid = k.allFinite() && k[0] > 0 && k[1] > 0 && k[2] > 0;
+        // Fit residual, geometric to first order (|f| / |grad f|), in spacings: a top that is
+        // not an ellipsoid (a wreath, a hat) keeps Telea's heights.
+        double sq = 0;
+        for (const auto& t : top) {
+            const Eigen::Vector3d q = (t - mean) / scale;
+            const double f = k[0] * q.x() * q.x() + k[1] * q.y() * q.y() + k[2] * q.z() * q.z() +
+                             k[3] * q.x() + k[4] * q.y() + k[5] * q.z() - 1;
+            const Eigen::Vector3d g(2 * k[0] * q.x() + k[3], 2 * k[1] * q.y() + k[4],
+                                    2 * k[2] * q.z() + k[5]);
+            const double d = scale * std::abs(f) / std::max(g.norm(), 1e-12);
+            sq += d * d;
+        }
+        const double rms = std::sqrt(sq / double(top.size())) / spacing_m;
+        info["ellipsoid_rms_spacings"] = rms;
+        valid = valid && rms <= options.max_ellipsoid_rms;
         info["ellipsoid"] = valid;
         if (valid) {
             // Centre and semi-axes (normalised units), for the report.
@@ -329,15 +469,16 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     const int n_sub = std::max(1, static_cast<int>(std::lround(options.pixel / options.step)));
     std::vector<Eigen::Vector3d> cand, cand_n;
     std::vector<Rgb> cand_c;
+    std::vector<std::uint32_t> cand_l;
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) {
             if (!hole.at<std::uint8_t>(r, c)) continue;
             const int cl = std::max(c - 1, 0), cr = std::min(c + 1, cols - 1);
             const int rl = std::max(r - 1, 0), rr = std::min(r + 1, rows - 1);
-            const double hu = (height.at<float>(r, cr) - height.at<float>(r, cl)) /
-                              (std::max(cr - cl, 1) * px);
-            const double hv = (height.at<float>(rr, c) - height.at<float>(rl, c)) /
-                              (std::max(rr - rl, 1) * px);
+            const double hu =
+                (height.at<float>(r, cr) - height.at<float>(r, cl)) / (std::max(cr - cl, 1) * px);
+            const double hv =
+                (height.at<float>(rr, c) - height.at<float>(rl, c)) / (std::max(rr - rl, 1) * px);
             const Eigen::Vector3d n = (up - hu * e1 - hv * e2).normalized();
             for (int a = 0; a < n_sub; ++a)
                 for (int b = 0; b < n_sub; ++b) {
@@ -348,19 +489,23 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
                     cand.push_back(axis.origin + u * e1 + v * e2 + h * up);
                     cand_n.push_back(n);
                     cand_c.push_back(pixel_rgb(color, r, c));
+                    cand_l.push_back(static_cast<std::uint32_t>(labels.at<int>(r, c)));
                 }
         }
     internal::KdTree tree(points.position);
-    add_clear(result, tree, options.clearance * spacing_m, cand, cand_n, cand_c,
-              std::vector<std::uint32_t>(cand.size(), 0), FillMechanism::kHeadTop);
+    info["skipped_seen_through"] =
+        drop_openings(cand, cand_n, cand_c, cand_l, sensors, tree, spacing_m, options);
+    add_clear(result, tree, options.clearance * spacing_m, cand, cand_n, cand_c, cand_l,
+              FillMechanism::kHeadTop);
     if (!report_progress(progress, 1.0)) throw AlgorithmError("cancelled");
     return finish();
 }
 
 FillResult fill_large_holes(const SurfacePoints& points,
                             const std::vector<Eigen::Vector3d>& normals, const BodyAxis& axis,
-                            double spacing_m, const InpaintOptions& options, double top_limit,
-                            Report* report, const Progress& progress) {
+                            double spacing_m, const std::vector<SensorView>& sensors,
+                            const InpaintOptions& options, double top_limit, Report* report,
+                            const Progress& progress) {
     options.check();
     check_input(points, normals, spacing_m);
     Stopwatch watch;
@@ -522,6 +667,10 @@ FillResult fill_large_holes(const SurfacePoints& points,
     telea(r_wide, u_wide, options.telea_radius);
     telea(c_wide, u_wide, options.telea_radius);
     const cv::Rect crop(std::min(pad, cols), 0, cols, rows);
+    if (options.biharmonic) {
+        cv::Mat t_wide = wrap_pad(target);
+        info["biharmonic"] = biharmonic(r_wide, t_wide);
+    }
     // §12.3: 3x3 median inside the filled region only.
     if (options.median) {
         cv::Mat med;
@@ -545,8 +694,8 @@ FillResult fill_large_holes(const SurfacePoints& points,
             const int cl = (c + cols - 1) % cols, cr = (c + 1) % cols;
             const int rl = std::max(r - 1, 0), rh = std::min(r + 1, rows - 1);
             const double r_t = (radius.at<float>(r, cr) - radius.at<float>(r, cl)) / (2 * dtheta);
-            const double r_h = (radius.at<float>(rh, c) - radius.at<float>(rl, c)) /
-                               (std::max(rh - rl, 1) * px);
+            const double r_h =
+                (radius.at<float>(rh, c) - radius.at<float>(rl, c)) / (std::max(rh - rl, 1) * px);
             for (int a = 0; a < n_t; ++a)
                 for (int b = 0; b < n_h; ++b) {
                     const double fc = c + (a + 0.5) / n_t - 0.5;
@@ -568,6 +717,8 @@ FillResult fill_large_holes(const SurfacePoints& points,
                 }
         }
     internal::KdTree tree(points.position);
+    info["skipped_seen_through"] =
+        drop_openings(cand, cand_n, cand_c, cand_l, sensors, tree, spacing_m, options);
     add_clear(result, tree, options.clearance * spacing_m, cand, cand_n, cand_c, cand_l,
               FillMechanism::kLargeHole);
     if (!report_progress(progress, 1.0)) throw AlgorithmError("cancelled");

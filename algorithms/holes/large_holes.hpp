@@ -53,12 +53,28 @@ struct InpaintOptions {
     /// densified).
     double clearance = 0.9;
     bool median = true;  ///< 3x3 median on the inpainted radius (§12.3)
+    /// Geometry [M]: solve the biharmonic equation for the radius / height inside the hole
+    /// (continues the rim's slope and curvature; OpenCV's Telea flattens), Telea's result
+    /// where the solve fails.
+    bool biharmonic = true;
     /// Star-shape test [M]: a hole is filled only when the mean of n . radial over its rim
     /// pixels is at least this (0.45: rim normals within ~63 degrees of horizontal-outward).
     double min_rim_radial = 0.45;
     double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
-    int blend_band = 3;          ///< §13 step 4: ellipsoid-to-Telea blending band, pixels
-    bool ellipsoid = true;       ///< §13 step 4: ellipsoid height (else Telea only)
+    /// §13 [M]: head-top hole components smaller than this share of the largest one are
+    /// sampling gaps among seen pixels, not the crown (left to §11).
+    double top_component = 0.1;
+    int blend_band = 3;     ///< §13 step 4: ellipsoid-to-Telea blending band, pixels
+    bool ellipsoid = true;  ///< §13 step 4: ellipsoid height (else inpainted only)
+    /// ... used only when the fit's RMS residual over the top points is at most this many
+    /// spacings (a wreath or a hat is no ellipsoid).
+    double max_ellipsoid_rms = 1e9;
+    /// Visibility (as §10): a hole some sensor faced within this angle with a clear line of
+    /// sight is a real opening (a sensor looked through it and measured nothing): left open
+    /// unless fill_openings. No sensors: every hole is filled.
+    double visible_max_angle_deg = 60.0;
+    double ray_clearance = 1.0;
+    bool fill_openings = false;
     void check() const;
 };
 
@@ -66,16 +82,19 @@ struct InpaintOptions {
 /// points carry mechanism kHeadTop and loop = 0. Report: top region points, hole pixels,
 /// ellipsoid semi-axes, points added, time_s.
 FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::Vector3d>& normals,
-                         const BodyAxis& axis, double spacing_m, const InpaintOptions& options,
+                         const BodyAxis& axis, double spacing_m,
+                         const std::vector<SensorView>& sensors, const InpaintOptions& options,
                          Report* report = nullptr, const Progress& progress = {});
 
 /// §12: fills large holes by cylindrical unwrapping. Pixels higher than `top_limit` (height
 /// along the axis from its origin) are left alone (the head top's business). The added points
 /// carry mechanism kLargeHole and loop = the hole component's index. Report: image size, hole
-/// components filled / skipped (small, not star-shaped), hole pixels, points added, time_s.
+/// components filled / skipped (small, not star-shaped, seen through), hole pixels, points added,
+/// time_s.
 FillResult fill_large_holes(const SurfacePoints& points,
                             const std::vector<Eigen::Vector3d>& normals, const BodyAxis& axis,
-                            double spacing_m, const InpaintOptions& options,
+                            double spacing_m, const std::vector<SensorView>& sensors,
+                            const InpaintOptions& options,
                             double top_limit = std::numeric_limits<double>::infinity(),
                             Report* report = nullptr, const Progress& progress = {});
 
