@@ -68,7 +68,7 @@ struct InpaintOptions {
     bool ellipsoid = true;  ///< §13 step 4: ellipsoid height (else inpainted only)
     /// ... used only when the fit's RMS residual over the top points is at most this many
     /// spacings (a wreath or a hat is no ellipsoid).
-    double max_ellipsoid_rms = 1e9;
+    double max_ellipsoid_rms = 3.0;
     /// Visibility (as §10): a hole some sensor faced within this angle with a clear line of
     /// sight is a real opening (a sensor looked through it and measured nothing): left open
     /// unless fill_openings. No sensors: every hole is filled.
