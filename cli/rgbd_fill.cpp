@@ -74,13 +74,16 @@ int main(int argc, char** argv) {
         "--top-fraction of the height along the body's vertical axis (the normal of the plane "
         "through the sensor centres, else the cloud's principal axis); its hole (unknown "
         "pixels inside the hull of the known ones) gets the height of an ellipsoid fitted to "
-        "the top points, blended into a Telea inpainting at the rim, and a Telea-inpainted "
-        "colour. Then large holes (§12, --no-large to skip): the surface unwrapped on a "
+        "the top points, blended into the inpainted height (Telea, then biharmonic) at the "
+        "rim, and a Telea-inpainted colour; a top the ellipsoid does not fit within "
+        "--max-ellipsoid-rms (a wreath, a hat) stays open unless --top-without-ellipsoid. "
+        "Then large holes (§12, --no-large to skip): the surface unwrapped on a "
         "cylinder around the axis (radius and colour over angle x height, pixels of "
         "--inpaint-pixel spacings), hole = unknown pixels between the lowest and highest known "
-        "pixel of their column (the bottom cut stays open), inpainted by Telea (OpenCV), 3x3 "
-        "median, back to 3D at the point spacing; a hole whose rim does not face away from the "
-        "axis (the surface is not star-shaped there: under the chin, arms) is left open. "
+        "pixel of their column (the bottom cut stays open), inpainted by Telea (OpenCV) and a "
+        "biharmonic solve, 3x3 median, back to 3D at the point spacing; a hole whose rim does "
+        "not face away from the axis (the surface is not star-shaped there: under the chin, "
+        "arms) or that a sensor looked through is left open. "
         "Added points keep --clearance spacings from every other point. fill_mechanism: 1-4 "
         "small holes, 5 large holes, 6 head top.";
     spec.example =
@@ -108,8 +111,10 @@ int main(int argc, char** argv) {
             "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
             "max-ellipsoid-rms", cli::po::value<double>()->default_value(3.0)->value_name("X"),
             "head top: use the ellipsoid only when it fits the top points within X spacings "
-            "RMS")("no-biharmonic",
-                   "geometry by Telea only (no biharmonic relaxation in the holes)")(
+            "RMS")("top-without-ellipsoid",
+                   "head top: fill with the inpainted heights when the ellipsoid does not fit "
+                   "(else the crown stays open)")(
+            "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
             "min-rim-radial", cli::po::value<double>()->default_value(0.45)->value_name("C"),
             "large holes: fill only when the rim normals' mean n.radial is at least C")(
             "clearance", cli::po::value<double>()->default_value(0.9)->value_name("X"),
@@ -187,6 +192,7 @@ int main(int argc, char** argv) {
             inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
             inpaint.biharmonic = vm.count("no-biharmonic") == 0;
+            inpaint.top_without_ellipsoid = vm.count("top-without-ellipsoid") > 0;
             inpaint.min_rim_radial = ctx.get<double>("min-rim-radial");
             inpaint.clearance = ctx.get<double>("clearance");
             inpaint.visible_max_angle_deg = detect.visible_max_angle_deg;

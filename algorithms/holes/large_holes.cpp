@@ -417,7 +417,8 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
         const Eigen::Matrix<double, 6, 1> k = ata.ldlt().solve(atb);
         bool valid = k.allFinite() && k[0] > 0 && k[1] > 0 && k[2] > 0;
         // Fit residual, geometric to first order (|f| / |grad f|), in spacings: a top that is
-        // not an ellipsoid (a wreath, a hat) keeps Telea's heights.
+        // not an ellipsoid (a wreath, a hat) is left open (or keeps the inpainted heights with
+        // top_without_ellipsoid).
         double sq = 0;
         for (const auto& t : top) {
             const Eigen::Vector3d q = (t - mean) / scale;
@@ -432,6 +433,12 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
         info["ellipsoid_rms_spacings"] = rms;
         valid = valid && rms <= options.max_ellipsoid_rms;
         info["ellipsoid"] = valid;
+        if (!valid && !options.top_without_ellipsoid) {
+            // Not an ellipsoid (a wreath, a hat): nothing trustworthy to continue; the crown
+            // stays open rather than invented.
+            info["hole_pixels_left_open"] = hole_pixels;
+            return finish();
+        }
         if (valid) {
             // Centre and semi-axes (normalised units), for the report.
             const Eigen::Vector3d c(-k[3] / (2 * k[0]), -k[4] / (2 * k[1]), -k[5] / (2 * k[2]));
