@@ -90,15 +90,20 @@ void telea(cv::Mat& image, const cv::Mat& unknown, double radius) {
     image = out;
 }
 
+constexpr std::size_t kBiharmonicMaxPixels = 250000;
+
 /// Biharmonic fill [M] of the float image on the non-zero pixels of `mask`: solves
 /// Laplacian^2 u = 0 there (13-point stencil; the other pixels are fixed boundary values, image
 /// borders clamped) with a sparse LU. Unlike OpenCV's Telea, which averages its neighbours and
 /// so flattens a dome, it continues the rim's slope and curvature into the hole. Returns false
-/// (image unchanged) when the solve fails.
+/// (image unchanged) when the solve fails or the hole has more than kBiharmonicMaxPixels.
 bool biharmonic(cv::Mat& img, const cv::Mat& mask) {
     std::vector<cv::Point> pixels;
     cv::findNonZero(mask, pixels);
     if (pixels.empty()) return true;
+    // The sparse LU's fill-in grows fast with the unknowns: a scene with holes of this size is
+    // no bust; Telea's result stays.
+    if (pixels.size() > kBiharmonicMaxPixels) return false;
     const int rows = img.rows, cols = img.cols;
     cv::Mat index(rows, cols, CV_32S, cv::Scalar(-1));
     for (std::size_t i = 0; i < pixels.size(); ++i) index.at<int>(pixels[i]) = static_cast<int>(i);
