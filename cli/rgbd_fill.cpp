@@ -1,10 +1,13 @@
-// rgbd-fill: hole detection and small-hole filling on aligned views (ALGORITHMS.md §9-§11).
+// rgbd-fill: hole detection, small-hole filling, large holes and the head top on aligned views
+// (ALGORITHMS.md §9-§13).
 #include <algorithm>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "algorithms/holes/hole_detection.hpp"
 #include "algorithms/holes/hole_filling.hpp"
+#include "algorithms/holes/large_holes.hpp"
 #include "cli/common/tool.hpp"
 #include "toolkit/error.hpp"
 
@@ -12,9 +15,14 @@ using namespace rgbd;
 
 namespace {
 
-/// Debug colours of added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow).
+/// Debug colours of added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow, large
+/// holes magenta, head top cyan).
 Rgb mechanism_color(holes::FillMechanism m) {
     switch (m) {
+        case holes::FillMechanism::kLargeHole:
+            return {220, 40, 220};
+        case holes::FillMechanism::kHeadTop:
+            return {40, 210, 230};
         case holes::FillMechanism::kOnePoint:
             return {230, 40, 40};
         case holes::FillMechanism::kFourPoints:
@@ -61,8 +69,23 @@ int main(int argc, char** argv) {
         "gets the properties boundary = 0/1 and boundary_probability), then one new world-frame "
         "document with the added "
         "points (sensor 'rgbd-fill', synthetic = 1, fill_mechanism = 1-4, normals, colours). "
-        "--detect-only writes no new document. Large holes (inpainting, §12) and the head top "
-        "(§13) are not filled yet; their loops are counted in --metrics.";
+        "--detect-only writes no new document. Then the head top (§13, --no-head-top to skip): "
+        "the crown that a level ring of sensors never sees, as a top-down height map of the top "
+        "--top-fraction of the height along the body's vertical axis (the normal of the plane "
+        "through the sensor centres, else the cloud's principal axis); its hole (unknown "
+        "pixels inside the hull of the known ones) gets the height of an ellipsoid fitted to "
+        "the top points, blended into the inpainted height (Telea, then biharmonic) at the "
+        "rim, and a Telea-inpainted colour; a top the ellipsoid does not fit within "
+        "--max-ellipsoid-rms (a wreath, a hat) stays open unless --top-without-ellipsoid. "
+        "Then large holes (§12, --no-large to skip): the surface unwrapped on a "
+        "cylinder around the axis (radius and colour over angle x height, pixels of "
+        "--inpaint-pixel spacings), hole = unknown pixels between the lowest and highest known "
+        "pixel of their column (the bottom cut stays open), inpainted by Telea (OpenCV) and a "
+        "biharmonic solve, 3x3 median, back to 3D at the point spacing; a hole whose rim does "
+        "not face away from the axis (the surface is not star-shaped there: under the chin, "
+        "arms) or that a sensor looked through is left open. "
+        "Added points keep --clearance spacings from every other point. fill_mechanism: 1-4 "
+        "small holes, 5 large holes, 6 head top.";
     spec.example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-clean --density | rgbd-fill | "
         "rgbd-mesh -o bust.ply";
@@ -76,7 +99,26 @@ int main(int argc, char** argv) {
             "add the properties boundary (0/1) and boundary_probability to every input point")(
             "debug-colors",
             "colour added points by mechanism (M1 red, M2 green, M3 blue, M4 "
-            "yellow) instead of the interpolated colour")(
+            "yellow, large holes magenta, head top cyan) instead of the interpolated colour")(
+            "no-large", "do not fill large holes (§12)")("no-head-top",
+                                                         "do not fill the head top (§13)")(
+            "inpaint-pixel", cli::po::value<double>()->default_value(1.5)->value_name("X"),
+            "pixel size of the inpainting images, in spacings")(
+            "telea-radius", cli::po::value<double>()->default_value(5.0)->value_name("PX"),
+            "neighbourhood radius of Telea's inpainting, pixels")(
+            "top-fraction", cli::po::value<double>()->default_value(0.12)->value_name("F"),
+            "head top: the top F of the height along the vertical axis")(
+            "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
+            "max-ellipsoid-rms", cli::po::value<double>()->default_value(3.0)->value_name("X"),
+            "head top: use the ellipsoid only when it fits the top points within X spacings "
+            "RMS")("top-without-ellipsoid",
+                   "head top: fill with the inpainted heights when the ellipsoid does not fit "
+                   "(else the crown stays open)")(
+            "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
+            "min-rim-radial", cli::po::value<double>()->default_value(0.45)->value_name("C"),
+            "large holes: fill only when the rim normals' mean n.radial is at least C")(
+            "clearance", cli::po::value<double>()->default_value(0.9)->value_name("X"),
+            "large holes and head top: no new point within X spacings of another")(
             "fill-openings", "also fill small holes that a sensor saw through")(
             "ignore-poses", "no visibility test: every small hole is filled")(
             "k", cli::po::value<int>()->default_value(10)->value_name("N"),
@@ -115,6 +157,7 @@ int main(int argc, char** argv) {
         const auto& vm = ctx.options();
         holes::BoundaryOptions detect;
         holes::FillOptions fill;
+        holes::InpaintOptions inpaint;
         try {
             detect.neighbourhood.k = ctx.get<int>("k");
             detect.neighbourhood.radius_factor = ctx.get<double>("radius-factor");
@@ -143,11 +186,25 @@ int main(int argc, char** argv) {
             fill.max_sweeps = ctx.get<int>("max-sweeps");
             fill.fill_openings = vm.count("fill-openings") > 0;
             fill.check();
+            inpaint.pixel = ctx.get<double>("inpaint-pixel");
+            inpaint.telea_radius = ctx.get<double>("telea-radius");
+            inpaint.top_fraction = ctx.get<double>("top-fraction");
+            inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
+            inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
+            inpaint.biharmonic = vm.count("no-biharmonic") == 0;
+            inpaint.top_without_ellipsoid = vm.count("top-without-ellipsoid") > 0;
+            inpaint.min_rim_radial = ctx.get<double>("min-rim-radial");
+            inpaint.clearance = ctx.get<double>("clearance");
+            inpaint.visible_max_angle_deg = detect.visible_max_angle_deg;
+            inpaint.fill_openings = fill.fill_openings;
+            inpaint.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
         const bool detect_only = vm.count("detect-only") > 0;
         const bool mark = vm.count("mark") > 0;
+        const bool large = !detect_only && vm.count("no-large") == 0;
+        const bool head_top = !detect_only && vm.count("no-head-top") == 0;
 
         std::vector<io::Document> documents = ctx.read_all_documents();
         std::vector<PointCloud*> views;
@@ -162,6 +219,8 @@ int main(int argc, char** argv) {
         }
         std::vector<holes::SensorView> sensors;
         holes::SurfacePoints points = holes::gather_views({views.begin(), views.end()}, &sensors);
+        // The vertical axis comes from the poses even when the visibility test ignores them.
+        const std::vector<holes::SensorView> ring = sensors;
         if (vm.count("ignore-poses")) sensors.clear();
         if (points.size() < 4) {
             ctx.warn("the stream has " + std::to_string(points.size()) +
@@ -174,7 +233,7 @@ int main(int argc, char** argv) {
         report["views"] = views.size();
         report["sensors"] = sensors.size();
         const holes::BoundaryResult detection = holes::detect_boundaries(
-            points, sensors, detect, &report, [&](double f) { return bar.update(0.5 * f); });
+            points, sensors, detect, &report, [&](double f) { return bar.update(0.4 * f); });
         Report loops = Report::array();
         for (const auto& loop : detection.loops)
             loops.push_back({{"points", loop.points.size()},
@@ -201,7 +260,46 @@ int main(int argc, char** argv) {
         holes::FillResult added;
         if (!detect_only) {
             added = holes::fill_small_holes(points, detection, fill, &report,
-                                            [&](double f) { return bar.update(0.5 + 0.5 * f); });
+                                            [&](double f) { return bar.update(0.4 + 0.2 * f); });
+        }
+        if (head_top || large) {
+            // Inpainting works on the measured points plus the small-hole fill.
+            holes::SurfacePoints all = points;
+            std::vector<Eigen::Vector3d> normals = detection.gradient.normal;
+            const auto append = [&](const holes::FillResult& more) {
+                for (std::size_t i = 0; i < more.position.size(); ++i) {
+                    all.position.push_back(more.position[i]);
+                    normals.push_back(more.normal[i]);
+                    if (!all.color.empty()) all.color.push_back(more.color[i]);
+                    added.position.push_back(more.position[i]);
+                    added.normal.push_back(more.normal[i]);
+                    added.color.push_back(more.color[i]);
+                    added.mechanism.push_back(more.mechanism[i]);
+                    added.loop.push_back(more.loop[i]);
+                }
+            };
+            all.normal.clear();
+            all.view.clear();
+            for (std::size_t i = 0; i < added.position.size(); ++i) {
+                all.position.push_back(added.position[i]);
+                normals.push_back(added.normal[i]);
+                if (!all.color.empty()) all.color.push_back(added.color[i]);
+            }
+            const holes::BodyAxis axis = holes::estimate_body_axis(points, ring);
+            report["axis"] = {{"up", {axis.up.x(), axis.up.y(), axis.up.z()}},
+                              {"from_sensors", axis.from_sensors}};
+            double top_limit = std::numeric_limits<double>::infinity();
+            if (head_top) {
+                top_limit = holes::head_top_start(all, axis, inpaint);
+                append(holes::fill_head_top(all, normals, axis, detection.spacing_m, sensors,
+                                            inpaint, &report,
+                                            [&](double f) { return bar.update(0.6 + 0.2 * f); }));
+            }
+            if (large)
+                append(holes::fill_large_holes(
+                    all, normals, axis, detection.spacing_m, sensors, inpaint, top_limit, &report,
+                    [&](double f) { return bar.update(0.8 + 0.2 * f); }));
+            report["points_added_total"] = added.position.size();
         }
         ctx.add_document_metrics(report);
         ctx.info("fill: " + report.dump());

@@ -373,20 +373,17 @@ PointCriteria point_criteria(const Eigen::Vector3d& p, const Eigen::Vector3d& e1
     return c;
 }
 
-namespace {
-
-/// Does a sensor have a clear, front-facing line of sight to the region of a loop?
-bool sees(const SensorView& sensor, const BoundaryLoop& loop, double radius_m, double spacing,
-          const internal::KdTree& tree, const BoundaryOptions& options) {
+bool sensor_sees_region(const SensorView& sensor, const Eigen::Vector3d& centre,
+                        const Eigen::Vector3d& normal, double radius_m, double spacing,
+                        const internal::KdTree& tree, double max_angle_deg, double ray_clearance) {
     const Eigen::Vector3d s = sensor.world_from_sensor.translation();
-    const Eigen::Vector3d to_sensor = s - loop.centre;
+    const Eigen::Vector3d to_sensor = s - centre;
     const double dist = to_sensor.norm();
     if (dist <= 0) return false;
     const Eigen::Vector3d dir = to_sensor / dist;
-    if (std::abs(dir.dot(loop.normal)) < std::cos(options.visible_max_angle_deg * M_PI / 180.0))
-        return false;
+    if (std::abs(dir.dot(normal)) < std::cos(max_angle_deg * M_PI / 180.0)) return false;
     if (sensor.intrinsics) {
-        const Eigen::Vector3d c = sensor.world_from_sensor.inverse() * loop.centre;
+        const Eigen::Vector3d c = sensor.world_from_sensor.inverse() * centre;
         if (c.z() <= 0) return false;
         const auto& k = *sensor.intrinsics;
         const double u = k.fx * c.x() / c.z() + k.cx, v = k.fy * c.y() / c.z() + k.cy;
@@ -394,18 +391,16 @@ bool sees(const SensorView& sensor, const BoundaryLoop& loop, double radius_m, d
     }
     // March from the region towards the sensor; the first stretch (inside the hole, where the
     // ray leaves the surface) is skipped up to where the ray has cleared the rim.
-    const double clearance = options.ray_clearance * spacing;
+    const double clearance = ray_clearance * spacing;
     const double start = std::max(0.5 * radius_m, 0.0) + 2.0 * clearance;
     std::uint32_t idx;
     double d2;
     for (double t = start; t < dist; t += clearance) {
-        const Eigen::Vector3d q = loop.centre + t * dir;
+        const Eigen::Vector3d q = centre + t * dir;
         if (tree.nearest_within(q, clearance * clearance, idx, d2)) return false;
     }
     return true;
 }
-
-}  // namespace
 
 BoundaryResult detect_boundaries(const SurfacePoints& points,
                                  const std::vector<SensorView>& sensors,
@@ -546,7 +541,11 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
                      static_cast<int>(loop.points.size()) <= options.small_max_points;
         if (!sensors.empty()) {
             for (const SensorView& s : sensors)
-                loop.seen_by += sees(s, loop, far, r.spacing_m, tree, options) ? 1 : 0;
+                loop.seen_by +=
+                    sensor_sees_region(s, loop.centre, loop.normal, far, r.spacing_m, tree,
+                                       options.visible_max_angle_deg, options.ray_clearance)
+                        ? 1
+                        : 0;
             loop.kind = loop.seen_by > 0 ? HoleKind::kOpening : HoleKind::kOcclusion;
         }
         for (auto i : loop.points) r.boundary[i] = 1;

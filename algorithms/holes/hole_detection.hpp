@@ -26,9 +26,14 @@ namespace rgbd::prop {
 inline constexpr const char* kBoundary = "boundary";  ///< uint8 flag, hole-rim point (§10)
 /// float, combined boundary probability P of §10 step 6
 inline constexpr const char* kBoundaryProbability = "boundary_probability";
-/// uint8, mechanism that added a point (1-3: M1-M3 of §11, 4: M4 interpolation)
+/// uint8, mechanism that added a point (1-3: M1-M3 of §11, 4: M4 interpolation, 5: large hole
+/// §12, 6: head top §13)
 inline constexpr const char* kFillMechanism = "fill_mechanism";
 }  // namespace rgbd::prop
+
+namespace rgbd::internal {
+class KdTree;
+}
 
 namespace rgbd::holes {
 
@@ -186,5 +191,13 @@ PointCriteria point_criteria(const Eigen::Vector3d& p, const Eigen::Vector3d& e1
                              const Eigen::Vector3d& e2, const std::vector<Eigen::Vector3d>& all,
                              const std::uint32_t* neighbours, std::size_t count,
                              const BoundaryOptions& options);
+
+/// Does `sensor` have a clear, front-facing line of sight to the region (centre, normal, radius)?
+/// Front-facing: within max_angle_deg of the normal (either side); in the depth camera's
+/// frustum when its intrinsics are known; no point of `tree` within ray_clearance x spacing of
+/// the line of sight beyond the region's half radius. Used by §10 (loops) and §12/§13 (holes).
+bool sensor_sees_region(const SensorView& sensor, const Eigen::Vector3d& centre,
+                        const Eigen::Vector3d& normal, double radius_m, double spacing,
+                        const internal::KdTree& tree, double max_angle_deg, double ray_clearance);
 
 }  // namespace rgbd::holes

@@ -21,6 +21,10 @@ const char* to_string(FillMechanism mechanism) {
             return "four";
         case FillMechanism::kThreePoints:
             return "three";
+        case FillMechanism::kLargeHole:
+            return "large-hole";
+        case FillMechanism::kHeadTop:
+            return "head-top";
         default:
             return "interpolation";
     }

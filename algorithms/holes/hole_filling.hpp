@@ -27,10 +27,12 @@ enum class FillMechanism : std::uint8_t {
     kFourPoints = 2,     ///< M2: one point at each of the four largest angles (> 60 degrees)
     kThreePoints = 3,    ///< M3: three points splitting the largest angle (> 120 degrees)
     kInterpolation = 4,  ///< M4: whole-hole quadric + hexagonal grid
+    kLargeHole = 5,      ///< §12: cylindrical unwrapping + Telea (large_holes.hpp)
+    kHeadTop = 6,        ///< §13: top-down height map + ellipsoid / Telea (large_holes.hpp)
 };
-/// "one", "four", "three", "interpolation".
+/// "one", "four", "three", "interpolation", "large-hole", "head-top".
 const char* to_string(FillMechanism mechanism);
-/// Parses the names above (also "m1".."m4"); throws InputError.
+/// Parses the small-hole names above (also "m1".."m4"); throws InputError.
 FillMechanism parse_fill_mechanism(const std::string& name);
 
 struct FillOptions {

@@ -152,14 +152,94 @@ TEST_F(RgbdFill, EveryMechanismRuns) {
 }
 
 TEST_F(RgbdFill, AbsurdParametersAreUsageErrors) {
-    for (const char* opt : {"--mechanism five", "--threshold 2", "--threshold nan", "--k 0",
-                            "--weights 1,2", "--weights 0,0,0", "--spacing-m -1", "--step 0",
-                            "--max-sweeps 0", "--visible-angle-deg 90", "--small-diameter -3"}) {
+    for (const char* opt :
+         {"--mechanism five", "--threshold 2", "--threshold nan", "--k 0", "--weights 1,2",
+          "--weights 0,0,0", "--spacing-m -1", "--step 0", "--max-sweeps 0",
+          "--visible-angle-deg 90", "--small-diameter -3", "--inpaint-pixel 0",
+          "--inpaint-pixel nan", "--telea-radius -1", "--top-fraction 2", "--min-rim-radial 5",
+          "--max-ellipsoid-rms 0", "--clearance -1"}) {
         SCOPED_TRACE(opt);
         Outcome r = run(std::string("$BIN/rgbd-fill ") + opt + " views.ply -o never.ply");
         EXPECT_EQ(r.code, 2) << r.err;
         EXPECT_EQ(r.err.rfind("rgbd-fill: error: ", 0), 0u) << r.err;
         EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+    }
+}
+
+// A head (ellipsoid, 7.5 x 8.5 x 11 cm, z up) seen by a level ring of 8 sensors at the top of
+// the head, each view holding the points that face it most: the crown (normals within 35
+// degrees of up) is missing by construction, the bottom is cut open at z = -6 cm. rgbd-fill
+// closes the crown with synthetic head-top points (fill_mechanism 6) on the ellipsoid, and
+// adds none below the top; --no-head-top --no-large adds no 5 / 6 point.
+TEST(RgbdFillRing, FillsTheCrownThatTheRingNeverSaw) {
+    const Eigen::Vector3d axes(0.075, 0.085, 0.11);
+    std::vector<rgbd::PointCloud> views(8);
+    for (int k = 0; k < 8; ++k) {
+        const double a = 2 * M_PI * k / 8;
+        const Eigen::Vector3d c(1.5 * std::cos(a), 1.5 * std::sin(a), 0.11);
+        rgbd::Pose pose = rgbd::Pose::Identity();
+        const Eigen::Vector3d zc = Eigen::Vector3d(-c.x(), -c.y(), 0).normalized();
+        const Eigen::Vector3d yc(0, 0, -1);
+        pose.linear().col(0) = yc.cross(zc);
+        pose.linear().col(1) = yc;
+        pose.linear().col(2) = zc;
+        pose.translation() = c;
+        views[k].view.id = k;
+        views[k].view.frame = rgbd::ViewFrame::kWorld;
+        views[k].view.world_from_sensor = pose;
+        views[k].add_colors();
+    }
+    const int n = 60000;
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    for (int i = 0; i < n; ++i) {
+        const double z = 1.0 - 2.0 * (i + 0.5) / n;
+        const double r = std::sqrt(1.0 - z * z);
+        const Eigen::Vector3d p =
+            Eigen::Vector3d(r * std::cos(golden * i), r * std::sin(golden * i), z)
+                .cwiseProduct(axes);
+        const Eigen::Vector3d nrm = p.cwiseQuotient(axes.cwiseProduct(axes)).normalized();
+        if (p.z() < -0.06 || nrm.z() > std::cos(35 * M_PI / 180)) continue;
+        double phi = std::atan2(nrm.y(), nrm.x());
+        if (phi < 0) phi += 2 * M_PI;
+        auto& v = views[static_cast<int>(std::lround(phi / (M_PI / 4))) % 8];
+        const auto idx = *v.points.insert(rgbd::to_point(p));
+        v.colors().set(idx, {90, 60, 40});
+    }
+    {
+        std::ofstream out(temp_root() / "ring.ply", std::ios::binary);
+        for (const auto& v : views) rgbd::io::write_points(out, v);
+    }
+    Outcome r = run("$BIN/rgbd-fill ring.ply --metrics ring.json -o ring_filled.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto d = nlohmann::json::parse(slurp(temp_root() / "ring.json"))["documents"][0];
+    EXPECT_EQ(d["axis"]["from_sensors"], true) << d.dump();
+    const auto docs = read(temp_root() / "ring_filled.ply");
+    ASSERT_EQ(docs.size(), 9u);
+    const rgbd::PointCloud& added = docs[8].cloud;
+    const auto mech = added.flag(rgbd::prop::kFillMechanism);
+    const auto synthetic = added.flag(rgbd::prop::kSynthetic);
+    ASSERT_TRUE(mech && synthetic);
+    std::size_t crown = 0;
+    double worst = 0;
+    for (auto idx : added.points) {
+        EXPECT_EQ((*synthetic)[idx], 1);
+        if ((*mech)[idx] != 6) continue;
+        ++crown;
+        const Eigen::Vector3d p = rgbd::to_eigen(added.points.point(idx));
+        const Eigen::Vector3d q = p.cwiseQuotient(axes);
+        const Eigen::Vector3d g = q.cwiseQuotient(axes) / q.norm();
+        worst = std::max(worst, std::abs(q.norm() - 1) / g.norm());
+        EXPECT_GT(p.z(), 0.05);
+    }
+    EXPECT_GT(crown, 1000u) << d.dump();  // the crown cap is about 80 cm^2: ~2000 points
+    EXPECT_LT(worst, 0.003);
+    EXPECT_EQ(crown, d["head_top"]["points_added"].get<std::size_t>());
+    r = run("$BIN/rgbd-fill ring.ply --no-head-top --no-large -o ring_small.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    for (const auto& doc : read(temp_root() / "ring_small.ply")) {
+        const auto m = doc.cloud.flag(rgbd::prop::kFillMechanism);
+        if (!m) continue;
+        for (auto idx : doc.cloud.points) EXPECT_LE((*m)[idx], 4);
     }
 }
 

@@ -1,0 +1,111 @@
+// Large holes and the head top (ALGORITHMS.md §12 and §13): 3D inpainting built on 2D
+// inpainting. The surface is turned into images where inpainting is meaningful, the images are
+// inpainted by Telea's fast-marching method (OpenCV cv::inpaint, INPAINT_TELEA, on a float
+// image for the geometry), and the inpainted pixels are turned back into points.
+// - §12, large holes: cylindrical unwrapping around the body's vertical axis (radius and colour
+//   images over angle x height), hole = unknown pixels between the lowest and the highest
+//   known pixel of their column (the bust's bottom cut and the open top stay outside), Telea
+//   then a biharmonic solve [M] on the radius, a 3x3 median, back-projection of the hole
+//   pixels only, at the point spacing. Holes a sensor looked through (§10's visibility test)
+//   stay open. Holes whose rim does not face away from the axis (chin overhang, arms: the
+//   surface is not star-shaped there) are left alone.
+// - §13, head top: the crown that a level ring of sensors never sees. Top-down height map of the
+//   top of the body; hole = unknown pixels inside the convex hull of the known ones; height from
+//   an ellipsoid fitted to the top points, blended into the inpainted height (Telea, then a
+//   biharmonic solve) over a band at the rim; a top that is no ellipsoid stays open by default;
+//   colour by Telea; normals from the height-map gradient.
+// The vertical axis comes from the sensor poses (normal of the plane through the sensor
+// centres: the ring is level), else from the cloud's principal axis.
+// Peers: Open3D Screened Poisson closes every hole; CGAL triangulate_refine_and_fair_hole on a
+// mesh of the cloud (rgbd-mesh --watertight); validation/quality/holes/measure_ring.py.
+// See also: algorithms/holes/hole_filling.hpp (§11, the small holes).
+#pragma once
+
+#include <Eigen/Core>
+#include <limits>
+#include <vector>
+
+#include "algorithms/holes/hole_detection.hpp"
+#include "algorithms/holes/hole_filling.hpp"
+#include "toolkit/progress.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::holes {
+
+/// The body's vertical axis: a point on it and the unit up direction.
+struct BodyAxis {
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    bool from_sensors = false;  ///< from the sensor ring, else from the principal axis
+};
+
+/// §12.1 step 1. With three or more sensor centres that span a plane: the plane's normal,
+/// pointing to where the cameras' "up" (-y of the image) points on average. Else the major
+/// principal axis of the points, pointing to the side whose end is narrower (a bust's head).
+/// The origin is the centroid of the points. InputError for an empty set.
+BodyAxis estimate_body_axis(const SurfacePoints& points, const std::vector<SensorView>& sensors);
+
+struct InpaintOptions {
+    double pixel = 1.5;         ///< image pixel size, in spacings (§12.1 step 3)
+    double telea_radius = 5.0;  ///< Telea's neighbourhood radius, pixels (§12.2)
+    double wrap = 0.1;          ///< cylinder padding each side, fraction of the width
+    int min_component = 4;      ///< smaller hole components are left to §11 (pixels)
+    double step = 1.0;          ///< spacing of the new points, in spacings
+    /// No new point within this many spacings of an existing one (the rim band is not
+    /// densified).
+    double clearance = 0.9;
+    bool median = true;  ///< 3x3 median on the inpainted radius (§12.3)
+    /// Geometry [M]: solve the biharmonic equation for the radius / height inside the hole
+    /// (continues the rim's slope and curvature; OpenCV's Telea flattens), Telea's result
+    /// where the solve fails.
+    bool biharmonic = true;
+    /// Star-shape test [M]: a hole is filled only when the mean of n . radial over its rim
+    /// pixels is at least this (0.45: rim normals within ~63 degrees of horizontal-outward).
+    double min_rim_radial = 0.45;
+    double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
+    /// §13 [M]: head-top hole components smaller than this share of the largest one are
+    /// sampling gaps among seen pixels, not the crown (left to §11).
+    double top_component = 0.1;
+    int blend_band = 3;     ///< §13 step 4: ellipsoid-to-Telea blending band, pixels
+    bool ellipsoid = true;  ///< §13 step 4: ellipsoid height (else inpainted only)
+    /// ... used only when the fit's RMS residual over the top points is at most this many
+    /// spacings (a wreath or a hat is no ellipsoid).
+    double max_ellipsoid_rms = 3.0;
+    /// When the ellipsoid does not fit: fill with the inpainted heights (true) or leave the
+    /// crown open (false, default: measured on the wreathed bust, the inpainted crown put 20 %
+    /// of its points farther than 5 mm from the truth; validation/quality/holes/measure_ring.py).
+    bool top_without_ellipsoid = false;
+    /// Visibility (as §10): a hole some sensor faced within this angle with a clear line of
+    /// sight is a real opening (a sensor looked through it and measured nothing): left open
+    /// unless fill_openings. No sensors: every hole is filled.
+    double visible_max_angle_deg = 60.0;
+    double ray_clearance = 1.0;
+    bool fill_openings = false;
+    void check() const;
+};
+
+/// §13: fills the top of the body. `normals` are the points' unit normals (outward). The added
+/// points carry mechanism kHeadTop and loop = 0. Report: top region points, hole pixels,
+/// ellipsoid semi-axes, points added, time_s.
+FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::Vector3d>& normals,
+                         const BodyAxis& axis, double spacing_m,
+                         const std::vector<SensorView>& sensors, const InpaintOptions& options,
+                         Report* report = nullptr, const Progress& progress = {});
+
+/// §12: fills large holes by cylindrical unwrapping. Pixels higher than `top_limit` (height
+/// along the axis from its origin) are left alone (the head top's business). The added points
+/// carry mechanism kLargeHole and loop = the hole component's index. Report: image size, hole
+/// components filled / skipped (small, not star-shaped, seen through), hole pixels, points added,
+/// time_s.
+FillResult fill_large_holes(const SurfacePoints& points,
+                            const std::vector<Eigen::Vector3d>& normals, const BodyAxis& axis,
+                            double spacing_m, const std::vector<SensorView>& sensors,
+                            const InpaintOptions& options,
+                            double top_limit = std::numeric_limits<double>::infinity(),
+                            Report* report = nullptr, const Progress& progress = {});
+
+/// Height (along `axis`) above which fill_head_top works for these points.
+double head_top_start(const SurfacePoints& points, const BodyAxis& axis,
+                      const InpaintOptions& options);
+
+}  // namespace rgbd::holes

@@ -1,0 +1,401 @@
+// Large holes (§12) and the head top (§13) on surfaces with a known answer: an ellipsoid head
+// seen by a level ring of sensors (the crown is missing by construction) and an egg-shaped body
+// with a 6 x 4 cm patch cut from its side and an open bottom cut; the body axis from a sensor
+// ring and from the points alone; bad input.
+#include "algorithms/holes/large_holes.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <random>
+
+#include "toolkit/error.hpp"
+
+namespace {
+
+using rgbd::holes::BodyAxis;
+using rgbd::holes::FillMechanism;
+using rgbd::holes::InpaintOptions;
+using rgbd::holes::SensorView;
+using rgbd::holes::SurfacePoints;
+
+constexpr double kSpacing = 0.002;
+
+/// Distance to the ellipsoid surface, first order (|f| / |grad f|, f = |p / a| - 1).
+double surface_distance(const Eigen::Vector3d& axes, const Eigen::Vector3d& p) {
+    const Eigen::Vector3d q = p.cwiseQuotient(axes);
+    const Eigen::Vector3d g = q.cwiseQuotient(axes) / q.norm();
+    return std::abs(q.norm() - 1.0) / g.norm();
+}
+
+Eigen::Vector3d outward(const Eigen::Vector3d& axes, const Eigen::Vector3d& p) {
+    return p.cwiseQuotient(axes.cwiseProduct(axes)).normalized();
+}
+
+/// Ellipsoid samples about `spacing` apart (Fibonacci sphere mapped to the ellipsoid, count
+/// from the area), with `keep` deciding per point (position, outward normal).
+template <class Keep>
+std::vector<Eigen::Vector3d> sample(const Eigen::Vector3d& axes, double spacing, Keep keep,
+                                    double noise_m = 0, unsigned seed = 3) {
+    const double p = 1.6;
+    const double area =
+        4 * M_PI *
+        std::pow((std::pow(axes.x() * axes.y(), p) + std::pow(axes.x() * axes.z(), p) +
+                  std::pow(axes.y() * axes.z(), p)) /
+                     3,
+                 1 / p);
+    // The mapping stretches the sphere unevenly: oversample by the largest axis ratio.
+    const int n =
+        static_cast<int>(area / (spacing * spacing) * 1.15 * (axes.maxCoeff() / axes.minCoeff()));
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> gauss(0.0, noise_m > 0 ? noise_m : 1.0);
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    std::vector<Eigen::Vector3d> out;
+    for (int i = 0; i < n; ++i) {
+        const double z = 1.0 - 2.0 * (i + 0.5) / n;
+        const double r = std::sqrt(1.0 - z * z);
+        Eigen::Vector3d q = Eigen::Vector3d(r * std::cos(golden * i), r * std::sin(golden * i), z)
+                                .cwiseProduct(axes);
+        const Eigen::Vector3d nrm = outward(axes, q);
+        if (!keep(q, nrm)) continue;
+        if (noise_m > 0) q += gauss(rng) * nrm;
+        out.push_back(q);
+    }
+    return out;
+}
+
+SurfacePoints with_normals(const std::vector<Eigen::Vector3d>& xyz, const Eigen::Vector3d& axes,
+                           std::vector<Eigen::Vector3d>& normals) {
+    SurfacePoints s;
+    s.position = xyz;
+    normals.clear();
+    for (const auto& p : xyz) {
+        normals.push_back(outward(axes, p));
+        s.color.push_back({static_cast<std::uint8_t>(100 + 80 * (p.z() > 0)), 120, 140});
+    }
+    return s;
+}
+
+/// Eight sensors on a level ring of radius 1.5 m at height `z`, looking at the z axis (camera:
+/// z forward, y down).
+std::vector<SensorView> ring(double z) {
+    std::vector<SensorView> out;
+    for (int k = 0; k < 8; ++k) {
+        const double a = 2 * M_PI * k / 8;
+        const Eigen::Vector3d c(1.5 * std::cos(a), 1.5 * std::sin(a), z);
+        const Eigen::Vector3d zc = Eigen::Vector3d(-c.x(), -c.y(), 0).normalized();
+        const Eigen::Vector3d yc(0, 0, -1);
+        const Eigen::Vector3d xc = yc.cross(zc);
+        SensorView v;
+        v.world_from_sensor.linear().col(0) = xc;
+        v.world_from_sensor.linear().col(1) = yc;
+        v.world_from_sensor.linear().col(2) = zc;
+        v.world_from_sensor.translation() = c;
+        out.push_back(v);
+    }
+    return out;
+}
+
+/// Mean nearest distance from each of `a` to `b` (brute force; small sets).
+double mean_nearest(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+    double sum = 0;
+    for (const auto& p : a) {
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& q : b) best = std::min(best, (p - q).squaredNorm());
+        sum += std::sqrt(best);
+    }
+    return sum / double(a.size());
+}
+
+TEST(BodyAxis, FromTheSensorRingPointsUp) {
+    const Eigen::Vector3d axes(0.07, 0.08, 0.11);
+    const auto xyz = sample(axes, 0.004, [](const auto&, const auto&) { return true; });
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.05));
+    EXPECT_TRUE(axis.from_sensors);
+    EXPECT_GT(axis.up.z(), std::cos(0.5 * M_PI / 180));
+}
+
+TEST(BodyAxis, WithoutSensorsTheNarrowEndIsUp) {
+    // An egg: wide bottom half (x, y radii 0.12) under a narrow top half (0.07), 0.25 tall.
+    std::vector<Eigen::Vector3d> xyz;
+    for (const auto& p : sample(Eigen::Vector3d(0.12, 0.12, 0.25), 0.005,
+                                [](const auto&q, const auto&) { return q.z() < 0; }))
+        xyz.push_back(p);
+    for (const auto& p : sample(Eigen::Vector3d(0.07, 0.07, 0.25), 0.005,
+                                [](const auto&q, const auto&) { return q.z() >= 0; }))
+        xyz.push_back(p);
+    SurfacePoints s;
+    s.position = xyz;
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, {});
+    EXPECT_FALSE(axis.from_sensors);
+    EXPECT_GT(axis.up.z(), 0.999);
+}
+
+// §13 test: ellipsoid head (semi-axes 7.5 x 8.5 cm, 11 cm tall), 0.3 mm noise, cut below the
+// jaw (open bottom); a level ring at the top of the head never sees normals steeper than 35
+// degrees from up: that crown is missing. Chamfer of the filled points to the true crown
+// < 3 mm at a 2 mm spacing (ALGORITHMS.md §13).
+TEST(HeadTop, FillsTheCrownARingNeverSees) {
+    const Eigen::Vector3d axes(0.075, 0.085, 0.11);
+    const double crown_cos = std::cos(35 * M_PI / 180);
+    const auto seen = [&](const Eigen::Vector3d& q, const Eigen::Vector3d& n) {
+        return q.z() > -0.06 && n.z() < crown_cos;
+    };
+    const auto xyz = sample(axes, kSpacing, seen, 0.0003);
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const auto crown =
+        sample(axes, kSpacing, [&](const auto&, const auto& n) { return n.z() >= crown_cos; });
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.11));
+    ASSERT_TRUE(axis.from_sensors);
+    rgbd::Report report;
+    const auto added = rgbd::holes::fill_head_top(s, normals, axis, kSpacing, ring(0.11),
+                                                  InpaintOptions{}, &report);
+    ASSERT_GT(added.position.size(), crown.size() / 2);
+    EXPECT_LT(report["head_top"]["ellipsoid_rms_spacings"].get<double>(), 0.5);
+    double worst = 0;
+    for (std::size_t i = 0; i < added.position.size(); ++i) {
+        EXPECT_EQ(added.mechanism[i], FillMechanism::kHeadTop);
+        worst = std::max(worst, surface_distance(axes, added.position[i]));
+        // Normals from the height map point out of the head.
+        EXPECT_GT(added.normal[i].dot(outward(axes, added.position[i])), 0.8);
+    }
+    const double to_truth = mean_nearest(added.position, crown);
+    const double from_truth = mean_nearest(crown, added.position);
+    const double chamfer = 0.5 * (to_truth + from_truth);
+    std::cout << "head top: " << added.position.size() << " points for a crown of " << crown.size()
+              << " samples; Chamfer " << chamfer * 1e3 << " mm (to truth " << to_truth * 1e3
+              << ", from truth " << from_truth * 1e3 << "), max surface "
+              << "distance " << worst * 1e3 << " mm; " << report.dump() << "\n";
+    EXPECT_LT(chamfer, 0.003);
+    EXPECT_LT(worst, 0.006);
+    // No point below the top region (the open bottom is not the head top's business).
+    for (const auto& p : added.position) EXPECT_GT(p.z(), 0.0);
+}
+
+// Without the ellipsoid the crown's height is inpainted: the biharmonic fill continues the rim's
+// slope, OpenCV's Telea averages it and flattens the dome (measured: max 7.7 vs 12.4 mm).
+TEST(HeadTop, WithoutTheEllipsoidBiharmonicBeatsTelea) {
+    const Eigen::Vector3d axes(0.075, 0.085, 0.11);
+    const double crown_cos = std::cos(35 * M_PI / 180);
+    const auto xyz = sample(axes, kSpacing, [&](const auto& q, const auto& n) {
+        return q.z() > -0.06 && n.z() < crown_cos;
+    });
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.11));
+    double worst[2] = {0, 0};
+    for (int biharmonic = 0; biharmonic < 2; ++biharmonic) {
+        InpaintOptions options;
+        options.ellipsoid = false;
+        options.biharmonic = biharmonic == 1;
+        const auto added = rgbd::holes::fill_head_top(s, normals, axis, kSpacing, {}, options);
+        ASSERT_FALSE(added.position.empty());
+        for (const auto& p : added.position)
+            worst[biharmonic] = std::max(worst[biharmonic], surface_distance(axes, p));
+    }
+    std::cout << "head top without ellipsoid: max surface distance Telea " << worst[0] * 1e3
+              << " mm, biharmonic " << worst[1] * 1e3 << " mm\n";
+    EXPECT_LT(worst[1], 0.7 * worst[0]);
+    EXPECT_LT(worst[1], 0.01);
+}
+
+// A flat-topped box (10 x 10 cm, 20 cm tall) whose top face is seen only in a 2 cm band round
+// its edge: an ellipsoid fits its top region badly (RMS 2.6 spacings, against 0.15 on the
+// ellipsoid head and 1.3 on the noisy Max Planck ring capture), so with the limit at 2
+// spacings the crown stays open; with top_without_ellipsoid the inpainted heights close it
+// flat, within 1 mm of the true face.
+TEST(HeadTop, ATopThatIsNoEllipsoidStaysOpenUnlessAsked) {
+    std::vector<Eigen::Vector3d> xyz, normals;
+    const double half = 0.05, top = 0.1, s = kSpacing;
+    const int n = static_cast<int>(std::round(2 * half / s));
+    for (int i = 0; i <= n; ++i)
+        for (int k = 0; k <= static_cast<int>(std::round(0.2 / s)); ++k) {
+            const double t = -half + i * s, z = -0.1 + k * s;
+            for (int side = 0; side < 4; ++side) {
+                const Eigen::Vector3d nrm = side == 0   ? Eigen::Vector3d(1, 0, 0)
+                                            : side == 1 ? Eigen::Vector3d(-1, 0, 0)
+                                            : side == 2 ? Eigen::Vector3d(0, 1, 0)
+                                                        : Eigen::Vector3d(0, -1, 0);
+                const Eigen::Vector3d along(-nrm.y(), nrm.x(), 0);
+                xyz.push_back(half * nrm + t * along + Eigen::Vector3d(0, 0, z));
+                normals.push_back(nrm);
+            }
+        }
+    for (int i = 1; i < n; ++i)
+        for (int j = 1; j < n; ++j) {
+            const double x = -half + i * s, y = -half + j * s;
+            if (std::max(std::abs(x), std::abs(y)) < half - 0.02) continue;
+            xyz.emplace_back(x, y, top);
+            normals.emplace_back(0, 0, 1);
+        }
+    SurfacePoints pts;
+    pts.position = xyz;
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(pts, ring(0.1));
+    rgbd::Report report;
+    InpaintOptions options;
+    options.max_ellipsoid_rms = 2.0;
+    const auto open =
+        rgbd::holes::fill_head_top(pts, normals, axis, kSpacing, ring(0.1), options, &report);
+    EXPECT_TRUE(open.position.empty()) << report.dump();
+    EXPECT_EQ(report["head_top"]["ellipsoid"], false) << report.dump();
+    EXPECT_GT(report["head_top"]["ellipsoid_rms_spacings"].get<double>(), 2.0);
+    options.top_without_ellipsoid = true;
+    const auto closed =
+        rgbd::holes::fill_head_top(pts, normals, axis, kSpacing, ring(0.1), options);
+    ASSERT_GT(closed.position.size(), 300u);  // the missing 6 x 6 cm: ~900 points
+    for (const auto& p : closed.position) {
+        EXPECT_NEAR(p.z(), top, 0.001);
+        EXPECT_LT(std::max(std::abs(p.x()), std::abs(p.y())), half - 0.02 + 2 * kSpacing);
+    }
+}
+
+// §12 test: egg-shaped body (12 x 10 cm, 25 cm tall), 0.3 mm noise, open bottom cut at
+// z = -0.15 m, a 6 x 4 cm patch removed on its side. The patch is filled (>= 95 % of its true
+// samples within 2 spacings of a new point), the new points lie on the surface (RMS < 1 mm,
+// measured 0.41; Telea alone 1.17),
+// stay in the patch and leave the bottom cut open.
+TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
+    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
+    const double theta0 = 0.6, z0 = 0.02;
+    const auto in_patch = [&](const Eigen::Vector3d& q) {
+        const double arc = std::remainder(std::atan2(q.y(), q.x()) - theta0, 2 * M_PI) * 0.11;
+        return std::abs(arc) < 0.03 && std::abs(q.z() - z0) < 0.02;
+    };
+    const auto xyz = sample(
+        axes, kSpacing, [&](const auto& q, const auto&) { return q.z() > -0.15 && !in_patch(q); },
+        0.0003);
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const auto patch =
+        sample(axes, kSpacing, [&](const auto& q, const auto&) { return in_patch(q); });
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.3));
+    double telea_rms = 0;
+    {
+        InpaintOptions telea;
+        telea.biharmonic = false;
+        const auto t = rgbd::holes::fill_large_holes(s, normals, axis, kSpacing, {}, telea);
+        for (const auto& p : t.position) telea_rms += std::pow(surface_distance(axes, p), 2);
+        telea_rms = std::sqrt(telea_rms / std::max<double>(1, t.position.size()));
+    }
+    rgbd::Report report;
+    const auto added =
+        rgbd::holes::fill_large_holes(s, normals, axis, kSpacing, {}, InpaintOptions{},
+                                      std::numeric_limits<double>::infinity(), &report);
+    ASSERT_FALSE(added.position.empty());
+    double sq = 0;
+    std::size_t outside = 0;
+    for (std::size_t i = 0; i < added.position.size(); ++i) {
+        const Eigen::Vector3d& p = added.position[i];
+        EXPECT_EQ(added.mechanism[i], FillMechanism::kLargeHole);
+        sq += std::pow(surface_distance(axes, p), 2);
+        // Within two spacings of the patch (the arc test at the true radius).
+        const double arc = std::remainder(std::atan2(p.y(), p.x()) - theta0, 2 * M_PI) * 0.11;
+        outside +=
+            !(std::abs(arc) < 0.03 + 2 * kSpacing && std::abs(p.z() - z0) < 0.02 + 2 * kSpacing);
+        EXPECT_GT(p.z(), -0.15);
+        EXPECT_GT(added.normal[i].dot(outward(axes, p)), 0.9);
+    }
+    const double rms = std::sqrt(sq / double(added.position.size()));
+    std::size_t covered = 0;
+    for (const auto& t : patch) {
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& p : added.position) best = std::min(best, (p - t).norm());
+        covered += best < 2 * kSpacing;
+    }
+    const double coverage = double(covered) / double(patch.size());
+    std::cout << "large hole: " << added.position.size() << " points, RMS " << rms * 1e3
+              << " mm (Telea only " << telea_rms * 1e3 << " mm), coverage " << coverage
+              << ", outside " << outside << "; " << report.dump() << "\n";
+    EXPECT_LT(rms, 0.001);
+    EXPECT_LT(rms, telea_rms);
+    EXPECT_GE(coverage, 0.95);
+    EXPECT_LE(outside, added.position.size() / 100);
+}
+
+// The same patch in front of a ring sensor (at 45 degrees, 15 degrees from the patch's centre):
+// the sensor looked at it and measured nothing, a real opening: left open unless fill_openings.
+TEST(LargeHoles, AHoleASensorSawThroughStaysOpen) {
+    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
+    const auto in_patch = [&](const Eigen::Vector3d& q) {
+        const double arc = std::remainder(std::atan2(q.y(), q.x()) - 0.6, 2 * M_PI) * 0.11;
+        return std::abs(arc) < 0.03 && std::abs(q.z() - 0.02) < 0.02;
+    };
+    const auto xyz = sample(
+        axes, kSpacing, [&](const auto& q, const auto&) { return q.z() > -0.15 && !in_patch(q); });
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const auto sensors = ring(0.02);
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, sensors);
+    rgbd::Report report;
+    const auto kept =
+        rgbd::holes::fill_large_holes(s, normals, axis, kSpacing, sensors, InpaintOptions{},
+                                      std::numeric_limits<double>::infinity(), &report);
+    EXPECT_TRUE(kept.position.empty()) << report.dump();
+    EXPECT_EQ(report["large_holes"]["skipped_seen_through"], 1) << report.dump();
+    InpaintOptions open;
+    open.fill_openings = true;
+    EXPECT_GT(
+        rgbd::holes::fill_large_holes(s, normals, axis, kSpacing, sensors, open).position.size(),
+        300u);
+}
+
+TEST(LargeHoles, AClosedSurfaceGetsNothing) {
+    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
+    const auto xyz =
+        sample(axes, kSpacing, [](const auto& q, const auto&) { return q.z() > -0.15; });
+    std::vector<Eigen::Vector3d> normals;
+    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const auto added = rgbd::holes::fill_large_holes(
+        s, normals, rgbd::holes::estimate_body_axis(s, ring(0.3)), kSpacing, {}, InpaintOptions{});
+    EXPECT_LT(added.position.size(), xyz.size() / 200);
+}
+
+TEST(LargeHoles, BadInputIsAnError) {
+    std::vector<Eigen::Vector3d> normals;
+    SurfacePoints empty;
+    EXPECT_THROW(rgbd::holes::estimate_body_axis(empty, {}), rgbd::InputError);
+    EXPECT_THROW(
+        rgbd::holes::fill_large_holes(empty, normals, BodyAxis{}, kSpacing, {}, InpaintOptions{}),
+        rgbd::InputError);
+    EXPECT_THROW(
+        rgbd::holes::fill_head_top(empty, normals, BodyAxis{}, kSpacing, {}, InpaintOptions{}),
+        rgbd::InputError);
+    const Eigen::Vector3d axes(0.1, 0.1, 0.1);
+    auto xyz = sample(axes, 0.005, [](const auto&, const auto&) { return true; });
+    SurfacePoints s = with_normals(xyz, axes, normals);
+    // NaN coordinates, missing normals, zero spacing.
+    SurfacePoints nan = s;
+    nan.position[7].x() = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW(rgbd::holes::fill_large_holes(nan, normals, BodyAxis{}, kSpacing, {}, {}),
+                 rgbd::InputError);
+    EXPECT_THROW(rgbd::holes::fill_head_top(nan, normals, BodyAxis{}, kSpacing, {}, {}),
+                 rgbd::InputError);
+    std::vector<Eigen::Vector3d> few(3, Eigen::Vector3d::UnitZ());
+    EXPECT_THROW(rgbd::holes::fill_large_holes(s, few, BodyAxis{}, kSpacing, {}, {}),
+                 rgbd::InputError);
+    EXPECT_THROW(rgbd::holes::fill_head_top(s, normals, BodyAxis{}, 0.0, {}, {}), rgbd::InputError);
+    // Absurd parameters.
+    for (auto set : std::vector<void (*)(InpaintOptions&)>{
+             [](InpaintOptions& o) { o.pixel = 0; },
+             [](InpaintOptions& o) { o.pixel = std::numeric_limits<double>::quiet_NaN(); },
+             [](InpaintOptions& o) { o.telea_radius = -1; },
+             [](InpaintOptions& o) { o.top_fraction = 0.9; }, [](InpaintOptions& o) { o.step = 0; },
+             [](InpaintOptions& o) { o.min_rim_radial = 2; },
+             [](InpaintOptions& o) { o.blend_band = -3; },
+             [](InpaintOptions& o) { o.visible_max_angle_deg = 90; },
+             [](InpaintOptions& o) { o.max_ellipsoid_rms = 0; },
+             [](InpaintOptions& o) { o.top_component = 2; }}) {
+        InpaintOptions o;
+        set(o);
+        EXPECT_THROW(o.check(), rgbd::InputError);
+        EXPECT_THROW(rgbd::holes::fill_large_holes(s, normals, BodyAxis{}, kSpacing, {}, o),
+                     rgbd::InputError);
+    }
+}
+
+}  // namespace
