@@ -354,7 +354,6 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     stage("gather");
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
     const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
-    const double cos_min = std::cos(theta_max);
     const double tan_max = std::tan(theta_max);
 
     // Depth maps of the views (sensors reference only).
@@ -561,7 +560,9 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                         if (any && !seen && q.z() > nearest + tol) continue;
                         // Ray from camera v to the point, in the world frame.
                         const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
-                        const double cos_theta = std::max(cos_min, std::abs(nrm.dot(ray)));
+                        // Samples per unit area of a surface at incidence theta: cos(theta) /
+                        // s_d^2, unclamped (a view that grazes the surface adds almost nothing).
+                        const double cos_theta = std::abs(nrm.dot(ray));
                         const double s_d = q.z() / c.focal;
                         sum += cos_theta / (s_d * s_d);
                     }
