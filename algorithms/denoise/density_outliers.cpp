@@ -93,7 +93,7 @@ struct CellGrid {
                                       std::uint32_t(a)};
                               }
                           });
-        tbb::parallel_sort(keyed.begin(), keyed.end());
+        sort_keyed(hi - lo, cell);
         for (std::size_t a = 0; a < m; ++a)
             if (a == 0 || keyed[a].first != keyed[a - 1].first) {
                 keys.push_back(keyed[a].first);
@@ -115,6 +115,47 @@ struct CellGrid {
         return true;
     }
     std::size_t cells() const { return keys.size(); }
+
+    /// Sorts `keyed` by (key, point). When the grid has fewer than 2^32 cells, a stable LSD
+    /// radix sort of the linear cell index (x ny + y) nz + z, which orders cells as the keys
+    /// do (3 passes of 11 bits); else a comparison sort.
+    void sort_keyed(const Eigen::Vector3d& extent, double cell) {
+        const Eigen::Vector3d span = extent / cell;
+        const double lx = std::floor(span.x()) + 5, ly = std::floor(span.y()) + 5,
+                     lz = std::floor(span.z()) + 5;
+        if (lx * ly * lz >= 4294967295.0) {
+            tbb::parallel_sort(keyed.begin(), keyed.end());
+            return;
+        }
+        const std::uint64_t my = std::uint64_t(ly), mz = std::uint64_t(lz);
+        const std::size_t m = keyed.size();
+        std::vector<std::pair<std::uint32_t, std::uint32_t>> a(m), b(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::uint64_t k = keyed[i].first;
+            a[i] = {std::uint32_t(((k >> 42) * my + ((k >> 21) & kKeyMask)) * mz + (k & kKeyMask)),
+                    keyed[i].second};
+        }
+        constexpr int kBits = 11;
+        constexpr std::uint32_t kBuckets = 1u << kBits;
+        std::vector<std::uint32_t> count(kBuckets);
+        for (int shift = 0; shift < 32; shift += kBits) {
+            std::fill(count.begin(), count.end(), 0u);
+            for (const auto& e : a) ++count[(e.first >> shift) & (kBuckets - 1)];
+            std::uint32_t sum = 0;
+            for (auto& c : count) {
+                const std::uint32_t c0 = c;
+                c = sum;
+                sum += c0;
+            }
+            for (const auto& e : a) b[count[(e.first >> shift) & (kBuckets - 1)]++] = e;
+            a.swap(b);
+        }
+        // Points are in increasing order within a cell (stable passes over an input in
+        // point order), as the comparison sort of (key, point) leaves them.
+        std::vector<std::uint64_t> key_of_point(m);
+        for (const auto& e : keyed) key_of_point[e.second] = e.first;
+        for (std::size_t i = 0; i < m; ++i) keyed[i] = {key_of_point[a[i].second], a[i].second};
+    }
 
     /// The cells (x, y, z0 .. z1) (grid coordinates, offset included) as a range [first, last)
     /// of cell indices; empty outside the grid.
