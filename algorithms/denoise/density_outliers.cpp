@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -42,6 +43,9 @@ namespace {
 /// Depth map of one view in its own camera, for the visibility test.
 struct Camera {
     Pose sensor_from_world;
+    Eigen::Matrix3d rotation;  ///< sensor_from_world's, for the hot loop
+    Eigen::Vector3d translation;
+    bool undistorted = true;  ///< no lens distortion: project() is the plain pinhole
     PinholeIntrinsics intrinsics;
     double focal = 0.0;
     std::vector<float> depth;  ///< width * height, +inf = no return
@@ -89,16 +93,99 @@ struct CellGrid {
                                       std::uint32_t(a)};
                               }
                           });
-        std::sort(keyed.begin(), keyed.end());
+        sort_keyed(hi - lo, cell);
         for (std::size_t a = 0; a < m; ++a)
             if (a == 0 || keyed[a].first != keyed[a - 1].first) {
                 keys.push_back(keyed[a].first);
                 start.push_back(std::uint32_t(a));
             }
         start.push_back(std::uint32_t(m));
+        // Dense column index when it is small next to the points (it nearly always is for
+        // surfaces): column (x, y)'s cells are keys[column_start[x ny + y], ... + 1]).
+        const Eigen::Vector3d span = (hi - lo) / cell;
+        nx = std::size_t(span.x()) + 5;
+        ny = std::size_t(span.y()) + 5;
+        if (nx * ny <= 4 * m + 4096) {
+            column_start.assign(nx * ny + 1, 0);
+            for (const std::uint64_t key : keys)
+                ++column_start[std::size_t(key >> 42) * ny + std::size_t((key >> 21) & kKeyMask) +
+                               1];
+            for (std::size_t c = 0; c < nx * ny; ++c) column_start[c + 1] += column_start[c];
+        }
         return true;
     }
     std::size_t cells() const { return keys.size(); }
+
+    /// Sorts `keyed` by (key, point). When the grid has fewer than 2^32 cells, a stable LSD
+    /// radix sort of the linear cell index (x ny + y) nz + z, which orders cells as the keys
+    /// do (3 passes of 11 bits); else a comparison sort.
+    void sort_keyed(const Eigen::Vector3d& extent, double cell) {
+        const Eigen::Vector3d span = extent / cell;
+        const double lx = std::floor(span.x()) + 5, ly = std::floor(span.y()) + 5,
+                     lz = std::floor(span.z()) + 5;
+        if (lx * ly * lz >= 4294967295.0) {
+            tbb::parallel_sort(keyed.begin(), keyed.end());
+            return;
+        }
+        const std::uint64_t my = std::uint64_t(ly), mz = std::uint64_t(lz);
+        const std::size_t m = keyed.size();
+        std::vector<std::pair<std::uint32_t, std::uint32_t>> a(m), b(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::uint64_t k = keyed[i].first;
+            a[i] = {std::uint32_t(((k >> 42) * my + ((k >> 21) & kKeyMask)) * mz + (k & kKeyMask)),
+                    keyed[i].second};
+        }
+        constexpr int kBits = 11;
+        constexpr std::uint32_t kBuckets = 1u << kBits;
+        std::vector<std::uint32_t> count(kBuckets);
+        for (int shift = 0; shift < 32; shift += kBits) {
+            std::fill(count.begin(), count.end(), 0u);
+            for (const auto& e : a) ++count[(e.first >> shift) & (kBuckets - 1)];
+            std::uint32_t sum = 0;
+            for (auto& c : count) {
+                const std::uint32_t c0 = c;
+                c = sum;
+                sum += c0;
+            }
+            for (const auto& e : a) b[count[(e.first >> shift) & (kBuckets - 1)]++] = e;
+            a.swap(b);
+        }
+        // Points are in increasing order within a cell (stable passes over an input in
+        // point order), as the comparison sort of (key, point) leaves them.
+        std::vector<std::uint64_t> key_of_point(m);
+        for (const auto& e : keyed) key_of_point[e.second] = e.first;
+        for (std::size_t i = 0; i < m; ++i) keyed[i] = {key_of_point[a[i].second], a[i].second};
+    }
+
+    /// The cells (x, y, z0 .. z1) (grid coordinates, offset included) as a range [first, last)
+    /// of cell indices; empty outside the grid.
+    std::pair<std::size_t, std::size_t> column(std::int64_t x, std::int64_t y, std::int64_t z0,
+                                               std::int64_t z1) const {
+        constexpr std::int64_t kLimit = std::int64_t(1) << 21;
+        if (x < 0 || y < 0 || x >= kLimit || y >= kLimit) return {0, 0};
+        z0 = std::max<std::int64_t>(0, z0);
+        z1 = std::min<std::int64_t>(kLimit - 1, z1);
+        if (z0 > z1) return {0, 0};
+        const std::uint64_t first = key_of(std::uint64_t(x), std::uint64_t(y), std::uint64_t(z0));
+        const std::uint64_t last = key_of(std::uint64_t(x), std::uint64_t(y), std::uint64_t(z1));
+        std::size_t b = 0, e = keys.size();
+        if (!column_start.empty()) {
+            if (std::size_t(x) >= nx || std::size_t(y) >= ny) return {0, 0};
+            const std::size_t c = std::size_t(x) * ny + std::size_t(y);
+            b = column_start[c];
+            e = column_start[c + 1];
+            while (b < e && keys[b] < first) ++b;  // a surface crosses a column in few cells
+        } else {
+            b = std::size_t(std::lower_bound(keys.begin(), keys.end(), first) - keys.begin());
+        }
+        std::size_t l = b;
+        while (l < e && keys[l] <= last) ++l;
+        return {b, l};
+    }
+
+private:
+    std::size_t nx = 0, ny = 0;
+    std::vector<std::uint32_t> column_start;
 };
 
 bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
@@ -119,31 +206,133 @@ bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
                     return true;
         return false;
     };
-    for (std::size_t ca = 0; ca < cells; ++ca) {
-        const std::uint64_t x = keys[ca] >> 42, y = (keys[ca] >> 21) & kKeyMask,
-                            z = keys[ca] & kKeyMask;
-        // Cells after this one in key order: (dx, dy) > (0, 0), or dx = dy = 0 and dz > 0.
-        for (int dx = 0; dx <= 2; ++dx)
-            for (int dy = -2; dy <= 2; ++dy) {
-                if (dx == 0 && dy < 0) continue;
-                const int dz_min = dx == 0 && dy == 0 ? 1 : -2;
-                const std::uint64_t first = key_of(x + dx, y + dy, z + dz_min);
-                const std::uint64_t last = key_of(x + dx, y + dy, z + 2);
-                auto it =
-                    std::lower_bound(keys.begin() + std::ptrdiff_t(ca + 1), keys.end(), first);
-                for (; it != keys.end() && *it <= last; ++it) {
-                    const std::size_t cb = std::size_t(it - keys.begin());
-                    if (sets.find(std::uint32_t(ca)) == sets.find(std::uint32_t(cb))) continue;
-                    if (linked(ca, cb)) sets.unite(std::uint32_t(ca), std::uint32_t(cb));
+    // In parallel: the pairs of cells that can hold a linked pair. Neighbours at most one cell
+    // apart on every axis nearly always link, so they are tested here; the rest are only
+    // listed, and tested below unless union-find already joined them.
+    constexpr std::size_t kBlock = 512;
+    const std::size_t blocks = (cells + kBlock - 1) / kBlock;
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> near_links(blocks),
+        far_pairs(blocks);
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t blk) {
+        for (std::size_t ca = blk * kBlock; ca < std::min(cells, (blk + 1) * kBlock); ++ca) {
+            const std::uint64_t x = keys[ca] >> 42, y = (keys[ca] >> 21) & kKeyMask,
+                                z = keys[ca] & kKeyMask;
+            // Cells after this one in key order: (dx, dy) > (0, 0), or dx = dy = 0, dz > 0.
+            for (int dx = 0; dx <= 2; ++dx)
+                for (int dy = -2; dy <= 2; ++dy) {
+                    if (dx == 0 && dy < 0) continue;
+                    const int dz_min = dx == 0 && dy == 0 ? 1 : -2;
+                    const auto [c0, c1] =
+                        grid.column(std::int64_t(x) + dx, std::int64_t(y) + dy,
+                                    std::int64_t(z) + dz_min, std::int64_t(z) + 2);
+                    for (std::size_t cb = c0; cb < c1; ++cb) {
+                        const int dz = int(std::int64_t(keys[cb] & kKeyMask) - std::int64_t(z));
+                        const std::pair<std::uint32_t, std::uint32_t> pair{std::uint32_t(ca),
+                                                                           std::uint32_t(cb)};
+                        if (dx <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1) {
+                            if (linked(ca, cb)) near_links[blk].push_back(pair);
+                        } else {
+                            far_pairs[blk].push_back(pair);
+                        }
+                    }
                 }
-            }
-    }
+        }
+    });
+    for (const auto& block : near_links)
+        for (const auto& [ca, cb] : block) sets.unite(ca, cb);
+    for (const auto& block : far_pairs)
+        for (const auto& [ca, cb] : block)
+            if (sets.find(ca) != sets.find(cb) && linked(ca, cb)) sets.unite(ca, cb);
     label.assign(m, 0);
     for (std::size_t c = 0; c < cells; ++c) {
         const std::uint32_t root = sets.find(std::uint32_t(c));
         for (std::uint32_t i = start[c]; i < start[c + 1]; ++i) label[keyed[i].second] = root;
     }
     return true;
+}
+
+/// sampling::robust_spacing(pts, sample, seed), exactly (same query sample, nearest other
+/// point, same median), with the nearest neighbours found on a cell grid instead of a kd-tree:
+/// cells of side c ~ the spacing a surface over the bounding box's largest face would have;
+/// rings of cells around the query's are searched until the best distance is at most R c
+/// after ring R (any point outside ring R is farther than R c), or all rings are searched. Falls
+/// back to the kd-tree for extents the grid cannot hold.
+double grid_spacing(const std::vector<Eigen::Vector3d>& pts, std::size_t sample,
+                    std::uint64_t seed) {
+    const std::size_t n = pts.size();
+    Eigen::Vector3d lo = pts[0], hi = pts[0];
+    for (const auto& p : pts) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    Eigen::Vector3d ext = hi - lo;
+    std::sort(ext.data(), ext.data() + 3);
+    const double cell = std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(n));
+    CellGrid grid;
+    if (!(cell > 0.0) || !grid.build(pts, cell)) return sampling::robust_spacing(pts, sample, seed);
+    // Cell coordinates of a point exactly as CellGrid::build computed them (offset 2).
+    const auto cell_of = [&](const Eigen::Vector3d& p) {
+        const Eigen::Vector3d c = (p - lo) / cell;
+        return Eigen::Matrix<std::int64_t, 3, 1>(std::int64_t(c.x()) + 2, std::int64_t(c.y()) + 2,
+                                                 std::int64_t(c.z()) + 2);
+    };
+    // Rings beyond the grid's extent hold no cells: the search is complete there.
+    const Eigen::Vector3d span = (hi - lo) / cell;
+    const std::int64_t all_rings = std::int64_t(span.maxCoeff()) + 2;
+    // The median only needs the exact distances of the lower half: a query not settled
+    // within kCapRings rings (an isolated outlier) is farther than kCapRings c from every other
+    // point and gets that lower bound; the result is exact as long as fewer than half the
+    // queries are capped (checked below; otherwise every ring is searched).
+    constexpr std::int64_t kCapRings = 2;
+    std::int64_t max_ring = std::min(all_rings, kCapRings);
+    const std::vector<std::uint32_t> queries = internal::spacing_sample(n, sample, seed);
+    std::vector<double> dist(queries.size(), 0.0);
+    const auto search = [&] {
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, queries.size(), 256),
+            [&](const tbb::blocked_range<std::size_t>& r) {
+                for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                    const std::uint32_t qi = queries[i];
+                    const Eigen::Vector3d& p = pts[qi];
+                    const auto c = cell_of(p);
+                    double best = std::numeric_limits<double>::infinity();
+                    // Cells (x, y, z0 .. z1) of one column.
+                    const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0,
+                                           std::int64_t z1) {
+                        const auto [c0, c1] = grid.column(x, y, z0, z1);
+                        for (std::uint32_t a = grid.start[c0]; a < grid.start[c1]; ++a) {
+                            const std::uint32_t j = grid.keyed[a].second;
+                            if (j != qi) best = std::min(best, (pts[j] - p).squaredNorm());
+                        }
+                    };
+                    visit(c.x(), c.y(), c.z(), c.z());
+                    for (std::int64_t ring = 1; ring <= max_ring; ++ring) {
+                        // The shell at Chebyshev distance `ring`: full columns on its x / y
+                        // faces, the two z caps elsewhere.
+                        for (std::int64_t x = c.x() - ring; x <= c.x() + ring; ++x)
+                            for (std::int64_t y = c.y() - ring; y <= c.y() + ring; ++y) {
+                                if (std::abs(x - c.x()) == ring || std::abs(y - c.y()) == ring) {
+                                    visit(x, y, c.z() - ring, c.z() + ring);
+                                } else {
+                                    visit(x, y, c.z() - ring, c.z() - ring);
+                                    visit(x, y, c.z() + ring, c.z() + ring);
+                                }
+                            }
+                        if (best <= double(ring) * cell * double(ring) * cell) break;
+                    }
+                    dist[i] = std::min(std::sqrt(best), double(max_ring) * cell);
+                }
+            });
+    };
+    search();
+    const std::size_t m = dist.size();
+    const std::size_t capped =
+        std::size_t(std::count(dist.begin(), dist.end(), double(max_ring) * cell));
+    if (max_ring < all_rings && capped > 0 && capped + m / 2 + 1 > m) {
+        max_ring = all_rings;
+        search();
+    }
+    return internal::spacing_median(dist);
 }
 
 }  // namespace
@@ -196,9 +385,16 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         report["time_s"] = watch.seconds();
         return report;
     }
+    Report stages;
+    double lap = 0.0;
+    const auto stage = [&](const char* name) {
+        const double now = watch.seconds();
+        stages[name] = now - lap;
+        lap = now;
+    };
+    stage("gather");
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
     const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
-    const double cos_min = std::cos(theta_max);
     const double tan_max = std::tan(theta_max);
 
     // Depth maps of the views (sensors reference only).
@@ -210,6 +406,9 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             Camera& c = cameras[v];
             c.intrinsics = *views[v].view.intrinsics;
             c.sensor_from_world = views[v].view.world_from_sensor->inverse();
+            c.rotation = c.sensor_from_world.linear();
+            c.translation = c.sensor_from_world.translation();
+            c.undistorted = c.intrinsics.distortion.is_none();
             c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
             c.depth.assign(std::size_t(c.intrinsics.width) * c.intrinsics.height,
                            std::numeric_limits<float>::infinity());
@@ -231,22 +430,23 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         });
     }
 
+    stage("depth_maps");
     // One view's spacing ŝ (median over the views with >= 10 points): the merged cloud's
     // spacing shrinks with every interleaved view. It scales the neighbourhood of the measured
     // density and the link of the cluster pass.
+    // The views' own point sets (frame-independent spacing), in parallel.
+    std::vector<double> view_spacing(gathered.size(), -1.0);
+    tbb::parallel_for(std::size_t(0), gathered.size(), [&](std::size_t v) {
+        if (gathered[v].xyz.size() >= 10)
+            view_spacing[v] = grid_spacing(gathered[v].xyz, 2000, options.seed);
+    });
     std::vector<double> spacings;
-    for (std::size_t v = 0, first = 0; v < gathered.size(); ++v) {
-        const std::size_t count = gathered[v].xyz.size();
-        if (count >= 10)
-            spacings.push_back(sampling::robust_spacing(
-                std::vector<Eigen::Vector3d>(world.begin() + std::ptrdiff_t(first),
-                                             world.begin() + std::ptrdiff_t(first + count)),
-                2000, options.seed));
-        first += count;
-    }
+    for (const double s : view_spacing)
+        if (s >= 0.0) spacings.push_back(s);
     if (spacings.empty()) spacings.push_back(sampling::robust_spacing(world, 10000, options.seed));
     const double spacing = detail::median_of(spacings);
     report["spacing_m"] = spacing;
+    stage("spacing");
 
     std::vector<double> measured(n), expected(n, 0.0);
     if (reference == DensityReference::kSensors) {
@@ -262,7 +462,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         if (view_normals)
             for (std::size_t v = 0, i = 0; v < views.size(); ++v) {
                 const Eigen::Matrix3d rot = frame_rotation[v];
-                for (const PointSet::Index idx : gathered[v].ids)
+                for (PointSet::Index idx : gathered[v].ids)
                     normal[i++] = rot * to_eigen(views[v].points.normal(idx));
             }
         const double radius = std::sqrt(double(options.k) / std::numbers::pi) * spacing;
@@ -282,38 +482,56 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         };
         CellGrid grid;
         if (grid.build(world, radius)) {
-            std::vector<Eigen::Vector3d> sorted(n);
-            for (std::size_t a = 0; a < n; ++a) sorted[a] = world[grid.keyed[a].second];
+            // Coordinates in cell order, one array per axis: a cell column (cx, cy, z - 1 ..
+            // z + 1) is one contiguous run, so 9 runs cover the 27 cells around a point.
+            std::vector<double> xs(n), ys(n), zs(n);
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                              [&](const tbb::blocked_range<std::size_t>& r) {
+                                  for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                                      const Eigen::Vector3d& p = world[grid.keyed[a].second];
+                                      xs[a] = p.x();
+                                      ys[a] = p.y();
+                                      zs[a] = p.z();
+                                  }
+                              });
             tbb::parallel_for(
                 tbb::blocked_range<std::size_t>(0, grid.cells(), 64),
                 [&](const tbb::blocked_range<std::size_t>& r) {
-                    std::pair<std::uint32_t, std::uint32_t> ranges[27];
+                    std::pair<std::uint32_t, std::uint32_t> runs[9];
                     for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
                         const std::uint64_t key = grid.keys[ca];
                         const std::uint64_t x = key >> 42, y = (key >> 21) & kKeyMask,
                                             z = key & kKeyMask;
                         int nr = 0;
-                        for (std::uint64_t cx = x - 1; cx <= x + 1; ++cx)
-                            for (std::uint64_t cy = y - 1; cy <= y + 1; ++cy) {
-                                const std::uint64_t lo = key_of(cx, cy, z - 1);
-                                const std::uint64_t hi = key_of(cx, cy, z + 1);
-                                auto it = std::lower_bound(grid.keys.begin(), grid.keys.end(), lo);
-                                for (; it != grid.keys.end() && *it <= hi; ++it) {
-                                    const std::size_t cb = std::size_t(it - grid.keys.begin());
-                                    ranges[nr++] = {grid.start[cb], grid.start[cb + 1]};
-                                }
+                        for (std::int64_t cx = std::int64_t(x) - 1; cx <= std::int64_t(x) + 1; ++cx)
+                            for (std::int64_t cy = std::int64_t(y) - 1; cy <= std::int64_t(y) + 1;
+                                 ++cy) {
+                                const auto [c0, c1] =
+                                    grid.column(cx, cy, std::int64_t(z) - 1, std::int64_t(z) + 1);
+                                if (c0 == c1) continue;
+                                runs[nr++] = {grid.start[c0], grid.start[c1]};
                             }
                         for (std::uint32_t a = grid.start[ca]; a < grid.start[ca + 1]; ++a) {
-                            const Eigen::Vector3d p = sorted[a];
+                            const double px = xs[a], py = ys[a], pz = zs[a];
                             std::size_t count = 0;
+                            if (view_normals) {  // count only: a branch-free, vectorisable loop
+                                for (int q = 0; q < nr; ++q)
+                                    for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
+                                        const double dx = xs[b] - px, dy = ys[b] - py,
+                                                     dz = zs[b] - pz;
+                                        count += dx * dx + dy * dy + dz * dz <= r2;
+                                    }
+                                finish(grid.keyed[a].second, count, Eigen::Vector3d::Zero(),
+                                       Eigen::Matrix3d::Zero());
+                                continue;
+                            }
                             Eigen::Vector3d sum = Eigen::Vector3d::Zero();
                             Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
                             for (int q = 0; q < nr; ++q)
-                                for (std::uint32_t b = ranges[q].first; b < ranges[q].second; ++b) {
-                                    const Eigen::Vector3d d = sorted[b] - p;
+                                for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
+                                    const Eigen::Vector3d d(xs[b] - px, ys[b] - py, zs[b] - pz);
                                     if (d.squaredNorm() > r2) continue;
                                     ++count;
-                                    if (view_normals) continue;
                                     sum += d;
                                     outer += d * d.transpose();
                                 }
@@ -339,6 +557,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                   }
                               });
         }
+        stage("measured");
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
         // Expected density: what the sensors that see p_i should have produced there.
         tbb::parallel_for(
@@ -349,34 +568,42 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                     double sum = 0.0;
                     for (const Camera& c : cameras) {
                         if (c.depth.empty()) continue;
-                        const Eigen::Vector3d q = c.sensor_from_world * world[i];
+                        const Eigen::Vector3d q = c.rotation * world[i] + c.translation;
                         if (q.z() <= 0.0) continue;
-                        const Eigen::Vector2d uv = c.intrinsics.project(q);
+                        const Eigen::Vector2d uv =
+                            c.undistorted ? Eigen::Vector2d(
+                                                c.intrinsics.fx * (q.x() / q.z()) + c.intrinsics.cx,
+                                                c.intrinsics.fy * (q.y() / q.z()) + c.intrinsics.cy)
+                                          : c.intrinsics.project(q);
                         if (!c.intrinsics.contains(uv)) continue;
-                        const int col = int(std::lround(uv.x())), row = int(std::lround(uv.y()));
+                        // lround() of coordinates > -0.5.
+                        const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
                         // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
                         const double tol = q.z() / c.focal * tan_max +
                                            3.0 * sigma_z_m(options.noise_model, q.z(), 0.0);
-                        bool any = false, seen = false;
+                        // Branch-free over the 3 x 3 window: a missing return is +inf (never
+                        // NaN), which changes neither the minimum nor the "seen" test.
+                        bool seen = false;
                         double nearest = std::numeric_limits<double>::infinity();
-                        for (int dr = -1; dr <= 1; ++dr)
-                            for (int dc = -1; dc <= 1; ++dc) {
-                                const int rr = row + dr, cc = col + dc;
-                                if (rr < 0 || cc < 0 || rr >= c.intrinsics.height ||
-                                    cc >= c.intrinsics.width)
-                                    continue;
-                                const double d = c.depth[std::size_t(rr) * c.intrinsics.width + cc];
-                                if (!std::isfinite(d)) continue;
-                                any = true;
+                        const int w = c.intrinsics.width, h = c.intrinsics.height;
+                        const int r0 = std::max(row - 1, 0), r1 = std::min(row + 1, h - 1);
+                        const int c0 = std::max(col - 1, 0), c1 = std::min(col + 1, w - 1);
+                        for (int rr = r0; rr <= r1; ++rr) {
+                            const float* line = c.depth.data() + std::size_t(rr) * w;
+                            for (int cc = c0; cc <= c1; ++cc) {
+                                const double d = line[cc];
                                 nearest = std::min(nearest, d);
-                                if (std::abs(d - q.z()) <= tol) seen = true;
+                                seen |= std::abs(d - q.z()) <= tol;
                             }
+                        }
+                        const bool any = nearest < std::numeric_limits<double>::infinity();
                         // Occluded: behind v's surface, so v could not have measured it.
                         if (any && !seen && q.z() > nearest + tol) continue;
                         // Ray from camera v to the point, in the world frame.
-                        const Eigen::Vector3d ray =
-                            c.sensor_from_world.linear().transpose() * q.normalized();
-                        const double cos_theta = std::max(cos_min, std::abs(nrm.dot(ray)));
+                        const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
+                        // Samples per unit area of a surface at incidence theta: cos(theta) /
+                        // s_d^2, unclamped (a view that grazes the surface adds almost nothing).
+                        const double cos_theta = std::abs(nrm.dot(ray));
                         const double s_d = q.z() / c.focal;
                         sum += cos_theta / (s_d * s_d);
                     }
@@ -415,6 +642,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                               }
                           });
     }
+    stage("expected");
     if (!report_progress(progress, 0.5)) return detail::cancelled(report, watch);
 
     const double beta = reference == DensityReference::kSensors ? options.beta : options.beta_local;
@@ -489,23 +717,28 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["cluster"] = cluster_removed;
     report["clusters"] = clusters;
 
-    // Apply per view.
-    std::size_t total = 0, offset = 0;
+    stage("cluster");
+    // Apply per view (the views are independent point sets: in parallel).
+    std::vector<std::size_t> first(views.size() + 1, 0), removed(views.size(), 0);
+    for (std::size_t v = 0; v < views.size(); ++v) first[v + 1] = first[v] + gathered[v].xyz.size();
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const std::vector<std::uint8_t> flags(outlier.begin() + std::ptrdiff_t(first[v]),
+                                              outlier.begin() + std::ptrdiff_t(first[v + 1]));
+        removed[v] = detail::apply(views[v], gathered[v], flags, options.mark);
+    });
+    std::size_t total = 0;
     Report per_view = Report::array();
     for (std::size_t v = 0; v < views.size(); ++v) {
-        const std::size_t count = gathered[v].xyz.size();
-        std::vector<std::uint8_t> flags(outlier.begin() + std::ptrdiff_t(offset),
-                                        outlier.begin() + std::ptrdiff_t(offset + count));
-        offset += count;
-        const std::size_t removed = detail::apply(views[v], gathered[v], flags, options.mark);
-        total += removed;
+        total += removed[v];
         per_view.push_back({{"view", views[v].view.id},
-                            {"input_points", count},
-                            {options.mark ? "marked" : "removed", removed}});
+                            {"input_points", first[v + 1] - first[v]},
+                            {options.mark ? "marked" : "removed", removed[v]}});
     }
     report["views"] = per_view;
     report[options.mark ? "marked" : "removed"] = total;
     if (options.mark) report["removed"] = 0;
+    stage("apply");
+    report["stages_s"] = stages;
     report_progress(progress, 1.0);
     report["time_s"] = watch.seconds();
     return report;

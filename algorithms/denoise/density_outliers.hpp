@@ -7,8 +7,11 @@
 // side r; the local reference uses rho_i = k / (pi d_k^2), d_k = distance to the k-th nearest.
 // Expected density [M] ("sensors" reference): every view v with intrinsics and a pose that
 // should see p_i contributes cos(theta_v) / s_d_v(z_v)^2, z_v = depth of p_i in camera v,
-// s_d = z / f, theta_v = angle between the ray and the PCA normal of the k neighbours (cos
-// clamped to >= cos(theta_max)). v should see p_i when p_i projects inside v's image and is not
+// s_d = z / f, theta_v = angle between the ray and the normal (the views' own, else the PCA
+// normal of the neighbourhood), not clamped: a view grazing the surface adds almost nothing
+// (clamping cos to >= cos(theta_max) flagged sparse grazing surface: on the rgbd-synth rings
+// geometric F1 0.929 -> 0.935 and 0.943 -> 0.945 without it, measure_denoise.py).
+// v should see p_i when p_i projects inside v's image and is not
 // occluded by v's own depth map (3 x 3 window, tolerance dz_max(z) of §4): on v's surface, in
 // front of it (free space: v would have measured it) or where v has no return at all.
 // Fallback [R] ("local" reference, §8 step 3): the median measured density of the k_ref
@@ -43,7 +46,7 @@ struct DensityOptions {
     DensityReference reference = DensityReference::kAuto;
     /// Sensor noise model for the occlusion tolerance dz_max(z) (§2.3, §4).
     NoiseModel noise_model = NoiseModel::kKinectV2;
-    /// Steepest incidence of a real surface, degrees (occlusion tolerance, cos clamp).
+    /// Steepest incidence of a real surface, degrees (occlusion tolerance dz_max).
     double theta_max_deg = 75.0;
     /// Neighbourhood of the measured density. Sensors reference: the disc of radius
     /// sqrt(k / pi) ŝ, which a frontal surface seen by one sensor fills with about k points

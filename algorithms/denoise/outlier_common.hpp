@@ -57,17 +57,14 @@ inline std::size_t apply(PointCloud& cloud, const Gathered& g,
         return count;
     }
     if (count == 0) return 0;
-    std::size_t slots = 0;
-    for (PointSet::Index idx : g.ids) slots = std::max<std::size_t>(slots, std::size_t(idx) + 1);
-    std::vector<std::uint8_t> drop(slots, 0);
-    for (std::size_t i = 0; i < g.ids.size(); ++i) drop[std::size_t(g.ids[i])] = outlier[i];
-    // Stable partition keeps the order of the survivors; removing a tail range is the
-    // Point_set_3 idiom (CGAL 5.5's remove of an inner range prints to stderr).
-    auto first_removed =
-        std::stable_partition(cloud.points.begin(), cloud.points.end(),
-                              [&](PointSet::Index idx) { return drop[std::size_t(idx)] == 0; });
-    cloud.points.remove(first_removed, cloud.points.end());
-    cloud.points.collect_garbage();
+    // Copy the survivors, in order, with all their properties into a fresh point set: O(n)
+    // per property, where Point_set_3's remove + collect_garbage sorts every property array.
+    PointSet kept;
+    kept.copy_properties(cloud.points);
+    kept.reserve(g.ids.size() - count);
+    for (std::size_t i = 0; i < g.ids.size(); ++i)
+        if (!outlier[i]) kept.insert(cloud.points, g.ids[i]);
+    cloud.points = std::move(kept);
     return count;
 }
 

@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 
+#include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
@@ -166,6 +167,46 @@ TEST(DensityOutliers, OneAndTwoThreadsAgree) {
         auto a = one[v].points.begin();
         for (auto b : two[v].points) EXPECT_EQ(one[v].points.point(*a++), two[v].points.point(b));
     }
+}
+
+/// spacing_m (found on a cell grid, with isolated queries capped) must be exactly the lower
+/// median over the views of sampling::robust_spacing(view, 2000, seed), the kd-tree estimate:
+/// on the plane scene (0.5 % isolated outliers), on views that are mostly isolated points
+/// (the cap cannot settle the median: full search), and on collinear points (flat box).
+TEST(DensityOutliers, SpacingIsTheViewsRobustSpacing) {
+    const auto expect_spacing = [](std::vector<PointCloud> views, const std::string& what) {
+        std::vector<double> s;
+        for (const auto& v : views) {
+            std::vector<Eigen::Vector3d> xyz;
+            for (auto idx : v.points) xyz.push_back(to_eigen(v.points.point(idx)));
+            s.push_back(sampling::robust_spacing(xyz, 2000, 42));
+        }
+        std::sort(s.begin(), s.end());
+        DensityOptions o;
+        o.mark = true;
+        const Report r = remove_density_outliers(views, o);
+        EXPECT_EQ(r["spacing_m"].get<double>(), s[(s.size() - 1) / 2]) << what;
+    };
+    expect_spacing(scene(), "plane scene");
+    std::vector<PointCloud> sparse = scene();
+    for (auto& v : sparse) {
+        std::mt19937_64 rng(7 + std::uint64_t(v.view.id));
+        std::uniform_real_distribution<double> u(-2.0, 2.0);
+        PointSet kept;
+        std::size_t i = 0;
+        for (auto idx : v.points)  // keep 1 in 40 plane points, then many scattered ones
+            if (i++ % 40 == 0) kept.insert(v.points.point(idx));
+        for (int j = 0; j < 3000; ++j) kept.insert(Point_3(u(rng), u(rng), 1.5 + u(rng)));
+        v.points = kept;
+    }
+    expect_spacing(sparse, "mostly isolated points");
+    std::vector<PointCloud> line = scene();
+    for (auto& v : line) {
+        PointSet pts;
+        for (int j = 0; j < 5000; ++j) pts.insert(Point_3(0.001 * j + 0.0003 * (j % 7), 0.0, 1.5));
+        v.points = pts;
+    }
+    expect_spacing(line, "collinear points");
 }
 
 }  // namespace
