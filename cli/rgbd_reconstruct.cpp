@@ -57,7 +57,8 @@ int main(int argc, char** argv) {
         "Runs the whole pipeline on a capture folder with the defaults of each stage: coloured "
         "clouds per view (rgbd-cloud), statistical outlier removal (rgbd-clean --statistical), "
         "multi-view ICP from the rig's poses (rgbd-align), merge and surface reconstruction "
-        "(rgbd-mesh). Writes the mesh and a report folder (metrics.json and index.html) with "
+        "(rgbd-mesh --watertight: a closed coloured mesh; --open keeps unseen holes). Writes the "
+        "mesh and a report folder (metrics.json and index.html) with "
         "per-stage counts and timings, per-view registration verdicts and, when the capture has "
         "ground truth (gt/ of rgbd-synth) or --reference is given, the metrics of rgbd-eval.";
     spec.example = "rgbd-reconstruct cap/ -o bust.ply --report report/";
@@ -74,8 +75,11 @@ int main(int argc, char** argv) {
             "reference surface for the evaluation (default: CAPTURE/gt/mesh.ply if present)")(
             "crop-radius-m", cli::po::value<double>()->default_value(0.6)->value_name("M"),
             "object extraction radius around the sensors' common centre (0 = no crop)")(
-            "method", cli::po::value<std::string>()->default_value("poisson")->value_name("NAME"),
-            "surface reconstruction method (poisson or advancing-front)")(
+            "method", cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
+            "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
+            "open",
+            "keep the holes no sensor saw open (default: closed, as rgbd-mesh "
+            "--watertight)")(
             "upsample", cli::po::value<int>()->default_value(0)->value_name("0|4|8"),
             "colour-guided super-resolution per view before alignment (rgbd-upsample): 0 = off, "
             "4 or 8 neighbours");
@@ -92,6 +96,7 @@ int main(int argc, char** argv) {
         reconstruction::ReconstructionOptions mesh_options;
         try {
             mesh_options.method = ctx.get<std::string>("method");
+            mesh_options.watertight = ctx.options().count("open") == 0;
             mesh_options.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());

@@ -182,6 +182,15 @@ TEST_F(Pipeline, ReconstructWritesMeshAndReport) {
     const auto m = nlohmann::json::parse(slurp(temp_root() / "rec_report" / "metrics.json"));
     EXPECT_GT(m["evaluation"]["surface"]["fscore_5mm"].get<double>(), 0.9);
     EXPECT_LT(m["evaluation"]["poses"]["max_rotation_deg"].get<double>(), 0.5);
+    // The default mesh is closed (rgbd-mesh --watertight); --open keeps the unseen holes.
+    const auto& rec = m["mesh"]["reconstruction"];
+    EXPECT_EQ(rec["method"], "front") << rec.dump();
+    EXPECT_EQ(rec["closed"], true) << rec.dump();
+    Outcome open = run("$BIN/rgbd-reconstruct cap -o open.ply --open --report open_report -q");
+    ASSERT_EQ(open.code, 0) << open.err;
+    const auto o = nlohmann::json::parse(slurp(temp_root() / "open_report" / "metrics.json"));
+    EXPECT_EQ(o["mesh"]["reconstruction"]["closed"], false);
+    EXPECT_GT(o["mesh"]["reconstruction"]["border_edges"].get<int>(), 0);
 }
 
 TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {

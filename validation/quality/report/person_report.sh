@@ -3,7 +3,7 @@
 # (shared/data/multiview/uva_cv2_person_kinect1, one Kinect v1 class sensor, 50 frames around
 # 360 degrees, per-frame pseudo ground-truth poses) and its report page, with the existing tools:
 #   rgbd-cloud SEQ | rgbd-clean --statistical | rgbd-align -o aligned.ply
-#   rgbd-mesh aligned.ply -o person.ply
+#   rgbd-mesh aligned.ply --watertight -o person.ply
 #   rgbd-eval person.ply --points aligned.ply --baseline screened-poisson --report report/
 # There is no true surface: the heat maps show each mesh's distance to the aligned input
 # points (where the surface strays from what was measured), for ours and for Open3D's Screened
@@ -41,7 +41,7 @@ start=$(date +%s.%N)
 "$BIN/rgbd-cloud" "$SEQ" --frames "$FRAMES" -q | "$BIN/rgbd-clean" --statistical -q |
   "$BIN/rgbd-align" -q --metrics align.json -o aligned.ply
 align_end=$(date +%s.%N)
-"$BIN/rgbd-mesh" aligned.ply -o person.ply -q --metrics mesh.json
+"$BIN/rgbd-mesh" aligned.ply --watertight -o person.ply -q --metrics mesh.json
 mesh_end=$(date +%s.%N)
 "$BIN/rgbd-eval" person.ply --points aligned.ply "${BASELINE[@]}" --report report \
   -o eval.json
