@@ -90,7 +90,8 @@ struct ReconstructionOptions {
 /// Throws InputError when the cloud has fewer than 100 points, has no normals ("estimate
 /// them first"), or has non-finite values; AlgorithmError when CGAL fails (e.g. Poisson solver)
 /// or `progress` cancels. Report (if given): method, points_in, points_used, voxel_m,
-/// average_spacing_m, smoothing / holes / simplification sub-reports, components_dropped,
+/// average_spacing_m, used_spacing_m (ŝ after the down-sampling, which scales the front),
+/// smoothing / holes / simplification sub-reports, components_dropped,
 /// vertices, faces, border_edges, closed, colored, mesh_time_s, color_time_s, time_s.
 Mesh reconstruct_surface(const PointCloud& cloud_with_oriented_normals,
                          const ReconstructionOptions& options, Report* report = nullptr,

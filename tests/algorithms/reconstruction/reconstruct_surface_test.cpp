@@ -167,6 +167,21 @@ TEST(ReconstructSurface, WatertightWithUpCapsTheBaseFlatAndFairsTheCrown) {
     EXPECT_THROW(o.check(), rgbd::InputError);
 }
 
+// A cloud much denser than max_points (a turn of many overlapping frames): the front scales
+// with the spacing of the down-sampled points, not of the input, and still closes the sphere.
+TEST(ReconstructSurface, FrontScalesWithTheDownSampledSpacing) {
+    const PointCloud cloud = rgbd::test::noisy_sphere(40000, kRadius, 0.0001);
+    ReconstructionOptions o;
+    o.max_points = 2000;
+    rgbd::Report report;
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
+    EXPECT_GT(report["used_spacing_m"].get<double>(), 3.0 * report["spacing_m"].get<double>())
+        << report.dump();
+    EXPECT_GT(mesh.number_of_faces(), 2000u) << report.dump();
+    EXPECT_LT(report["border_edges"].get<std::size_t>(), 40u) << report.dump();
+    expect_manifold(mesh);
+}
+
 // A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
 // must survive as separate sheets 3 mm apart, the rim must join them, and no vertex may fall
 // into the middle of the plate.
