@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
         "through the sensor centres, else the cloud's principal axis); its hole (unknown "
         "pixels inside the hull of the known ones) gets the height of an ellipsoid fitted to "
         "the top points, blended into the inpainted height (Telea, then biharmonic) at the "
-        "rim, and a Telea-inpainted colour; a top the ellipsoid does not fit within "
+        "rim; a top the ellipsoid does not fit within "
         "--max-ellipsoid-rms (a wreath, a hat) stays open unless --top-without-ellipsoid. "
         "Then large holes (§12, --no-large to skip): the surface unwrapped on a "
         "cylinder around the axis (radius and colour over angle x height, pixels of "
@@ -83,7 +83,11 @@ int main(int argc, char** argv) {
         "pixel of their column (the bottom cut stays open), inpainted by Telea (OpenCV) and a "
         "biharmonic solve, 3x3 median, back to 3D at the point spacing; a hole whose rim does "
         "not face away from the axis (the surface is not star-shaped there: under the chin, "
-        "arms) or that a sensor looked through is left open. "
+        "arms) or that a sensor looked through is left open. The colour of both (§12.2) is "
+        "inpainted by Criminisi's exemplar-based method (--colour-inpaint criminisi, default: "
+        "--patch x --patch patches copied in order of confidence x isophote strength, best "
+        "CIELab match within --search-window x the hole's box; texture stays texture) or "
+        "by Telea (--colour-inpaint telea: smooth, blurs texture). "
         "Added points keep --clearance spacings from every other point. fill_mechanism: 1-4 "
         "small holes, 5 large holes, 6 head top.";
     spec.example =
@@ -106,6 +110,13 @@ int main(int argc, char** argv) {
             "pixel size of the inpainting images, in spacings")(
             "telea-radius", cli::po::value<double>()->default_value(5.0)->value_name("PX"),
             "neighbourhood radius of Telea's inpainting, pixels")(
+            "colour-inpaint",
+            cli::po::value<std::string>()->default_value("criminisi")->value_name("NAME"),
+            "colour of large holes and the head top: criminisi (exemplar-based) or telea")(
+            "patch", cli::po::value<int>()->default_value(9)->value_name("PX"),
+            "Criminisi's patch side, pixels (odd)")(
+            "search-window", cli::po::value<double>()->default_value(4.0)->value_name("X"),
+            "Criminisi's search window, X times the hole's bounding box")(
             "top-fraction", cli::po::value<double>()->default_value(0.12)->value_name("F"),
             "head top: the top F of the height along the vertical axis")(
             "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
@@ -188,6 +199,16 @@ int main(int argc, char** argv) {
             fill.check();
             inpaint.pixel = ctx.get<double>("inpaint-pixel");
             inpaint.telea_radius = ctx.get<double>("telea-radius");
+            const std::string colour = ctx.get<std::string>("colour-inpaint");
+            if (colour == "criminisi")
+                inpaint.colour = holes::ColourInpaint::kCriminisi;
+            else if (colour == "telea")
+                inpaint.colour = holes::ColourInpaint::kTelea;
+            else
+                throw cli::UsageError("--colour-inpaint must be criminisi or telea, not '" +
+                                      colour + "'");
+            inpaint.patch = ctx.get<int>("patch");
+            inpaint.search_window = ctx.get<double>("search-window");
             inpaint.top_fraction = ctx.get<double>("top-fraction");
             inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
