@@ -89,6 +89,13 @@ ExemplarStats exemplar_inpaint(cv::Mat& rgb, const cv::Mat& target, const cv::Ma
     }
     stats.patch = side;
     const int half = side / 2;
+    // Candidates: every source pixel whose patch lies inside the image (complete patches and
+    // partial ones, which the search accepts when they hold every pixel to copy) [M]: in a
+    // sparsely known image (the cylinder of a bust) complete patches are rare and far away.
+    candidates.clear();
+    for (int r = half; r < rows - half; ++r)
+        for (int c = half; c < cols - half; ++c)
+            if (region[r * cols + c] == kSource) candidates.push_back(r * cols + c);
     // Hole components and their search windows.
     cv::Mat labels, boxes, centroids;
     cv::connectedComponentsWithStats(target != 0, labels, boxes, centroids, 8, CV_32S);
@@ -129,6 +136,7 @@ ExemplarStats exemplar_inpaint(cv::Mat& rgb, const cv::Mat& target, const cv::Ma
     };
 
     std::vector<std::pair<int, int>> offsets;  // (dr, dc) of the target patch's valid pixels
+    std::vector<std::pair<int, int>> missing;  // ... and of its hole pixels
     offsets.reserve(static_cast<std::size_t>(side) * side);
     int remaining = cv::countNonZero(target);
     while (remaining > 0) {
@@ -181,20 +189,46 @@ ExemplarStats exemplar_inpaint(cv::Mat& rgb, const cv::Mat& target, const cv::Ma
                 if (r2 < 0 || r2 >= rows || c2 < 0 || c2 >= cols) continue;
                 if (valid(r2 * cols + c2)) offsets.emplace_back(dr, dc);
             }
+        missing.clear();
+        for (int dr = -half; dr <= half; ++dr)
+            for (int dc = -half; dc <= half; ++dc) {
+                const int r2 = pr + dr, c2 = pc + dc;
+                if (r2 >= 0 && r2 < rows && c2 >= 0 && c2 < cols && region[r2 * cols + c2] == kHole)
+                    missing.emplace_back(dr, dc);
+            }
+        // Source patch: every pixel to copy a source pixel; compared over the target's known
+        // pixels that are source pixels there too (at least half of them), mean squared
+        // difference.
+        const double n_valid = double(offsets.size());
         auto search = [&](const cv::Rect& window) {
             auto body = [&](const tbb::blocked_range<std::size_t>& range, Best best) {
                 for (std::size_t k = range.begin(); k != range.end(); ++k) {
                     const int s = candidates[k];
                     const int sr = s / cols, sc = s % cols;
                     if (!window.contains(cv::Point(sc, sr))) continue;
+                    bool ok = true;
+                    for (const auto& [dr, dc] : missing)
+                        if (region[(sr + dr) * cols + sc + dc] != kSource) {
+                            ok = false;
+                            break;
+                        }
+                    if (!ok) continue;
                     double ssd = 0;
+                    int compared = 0;
                     for (const auto& [dr, dc] : offsets) {
-                        const cv::Vec3f d =
-                            px[(sr + dr) * cols + sc + dc] - px[(pr + dr) * cols + pc + dc];
+                        const int si = (sr + dr) * cols + sc + dc;
+                        if (region[si] != kSource) continue;
+                        const cv::Vec3f d = px[si] - px[(pr + dr) * cols + pc + dc];
                         ssd += double(d[0]) * d[0] + double(d[1]) * d[1] + double(d[2]) * d[2];
-                        if (ssd > best.ssd) break;
+                        ++compared;
+                        if (ssd > best.ssd * n_valid) {
+                            ok = false;
+                            break;
+                        }
                     }
-                    if (best.better(ssd, s)) best.ssd = ssd, best.index = s;
+                    if (!ok || compared == 0 || 2 * compared < n_valid) continue;
+                    const double score = ssd / compared;
+                    if (best.better(score, s)) best.ssd = score, best.index = s;
                 }
                 return best;
             };
