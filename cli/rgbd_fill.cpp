@@ -162,7 +162,10 @@ int main(int argc, char** argv) {
             "step", cli::po::value<double>()->default_value(1.0)->value_name("X"),
             "distance of new points, in spacings")(
             "max-sweeps", cli::po::value<int>()->default_value(20)->value_name("N"),
-            "sweeps over the rim at most (one, four, three)");
+            "sweeps over the rim at most (one, four, three)")(
+            "max-fit-rms", cli::po::value<double>()->default_value(2.0)->value_name("X"),
+            "interpolation: fill a hole only when the quadric fits the points around it within "
+            "X spacings RMS (else it is a crease, not a hole on a smooth sheet)");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         const auto& vm = ctx.options();
@@ -195,6 +198,7 @@ int main(int argc, char** argv) {
             fill.mechanism = holes::parse_fill_mechanism(ctx.get<std::string>("mechanism"));
             fill.step = ctx.get<double>("step");
             fill.max_sweeps = ctx.get<int>("max-sweeps");
+            fill.max_fit_rms = ctx.get<double>("max-fit-rms");
             fill.fill_openings = vm.count("fill-openings") > 0;
             fill.check();
             inpaint.pixel = ctx.get<double>("inpaint-pixel");

@@ -170,6 +170,7 @@ TEST_F(RgbdFill, AbsurdParametersAreUsageErrors) {
                             "--min-rim-radial 5",
                             "--max-ellipsoid-rms 0",
                             "--clearance -1",
+                            "--max-fit-rms 0",
                             "--colour-inpaint exemplar",
                             "--patch 8",
                             "--patch 1",
