@@ -63,7 +63,9 @@ int main(int argc, char** argv) {
         "mechanisms of §11: 'one' point at the largest angle of each rim point, 'four' points "
         "at its four largest angles, 'three' points splitting its largest angle (all swept "
         "until the hole closes), or 'interpolation' (default, the best measured: a quadric "
-        "fitted around the hole, lifted hexagonal grid at the point spacing). New points lie "
+        "fitted around the hole, lifted hexagonal grid at the point spacing; a hole whose "
+        "surroundings the quadric does not fit within --max-fit-rms spacings, a crease or two "
+        "layers, stays open). New points lie "
         "on a quadric fitted to the measured points, never outside the rim, and get an "
         "interpolated colour. Output: the input documents unchanged (with --mark, each point "
         "gets the properties boundary = 0/1 and boundary_probability), then one new world-frame "
@@ -75,7 +77,7 @@ int main(int argc, char** argv) {
         "through the sensor centres, else the cloud's principal axis); its hole (unknown "
         "pixels inside the hull of the known ones) gets the height of an ellipsoid fitted to "
         "the top points, blended into the inpainted height (Telea, then biharmonic) at the "
-        "rim, and a Telea-inpainted colour; a top the ellipsoid does not fit within "
+        "rim; a top the ellipsoid does not fit within "
         "--max-ellipsoid-rms (a wreath, a hat) stays open unless --top-without-ellipsoid. "
         "Then large holes (§12, --no-large to skip): the surface unwrapped on a "
         "cylinder around the axis (radius and colour over angle x height, pixels of "
@@ -83,7 +85,11 @@ int main(int argc, char** argv) {
         "pixel of their column (the bottom cut stays open), inpainted by Telea (OpenCV) and a "
         "biharmonic solve, 3x3 median, back to 3D at the point spacing; a hole whose rim does "
         "not face away from the axis (the surface is not star-shaped there: under the chin, "
-        "arms) or that a sensor looked through is left open. "
+        "arms) or that a sensor looked through is left open. The colour of both (§12.2) is "
+        "inpainted by Criminisi's exemplar-based method (--colour-inpaint criminisi, default: "
+        "--patch x --patch patches copied in order of confidence x isophote strength, best "
+        "CIELab match within --search-window x the hole's box; texture stays texture) or "
+        "by Telea (--colour-inpaint telea: smooth, blurs texture). "
         "Added points keep --clearance spacings from every other point. fill_mechanism: 1-4 "
         "small holes, 5 large holes, 6 head top.";
     spec.example =
@@ -106,6 +112,13 @@ int main(int argc, char** argv) {
             "pixel size of the inpainting images, in spacings")(
             "telea-radius", cli::po::value<double>()->default_value(5.0)->value_name("PX"),
             "neighbourhood radius of Telea's inpainting, pixels")(
+            "colour-inpaint",
+            cli::po::value<std::string>()->default_value("criminisi")->value_name("NAME"),
+            "colour of large holes and the head top: criminisi (exemplar-based) or telea")(
+            "patch", cli::po::value<int>()->default_value(9)->value_name("PX"),
+            "Criminisi's patch side, pixels (odd)")(
+            "search-window", cli::po::value<double>()->default_value(4.0)->value_name("X"),
+            "Criminisi's search window, X times the hole's bounding box")(
             "top-fraction", cli::po::value<double>()->default_value(0.12)->value_name("F"),
             "head top: the top F of the height along the vertical axis")(
             "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
@@ -151,7 +164,10 @@ int main(int argc, char** argv) {
             "step", cli::po::value<double>()->default_value(1.0)->value_name("X"),
             "distance of new points, in spacings")(
             "max-sweeps", cli::po::value<int>()->default_value(20)->value_name("N"),
-            "sweeps over the rim at most (one, four, three)");
+            "sweeps over the rim at most (one, four, three)")(
+            "max-fit-rms", cli::po::value<double>()->default_value(2.0)->value_name("X"),
+            "interpolation: fill a hole only when the quadric fits the points around it within "
+            "X spacings RMS (else it is a crease, not a hole on a smooth sheet)");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         const auto& vm = ctx.options();
@@ -184,10 +200,21 @@ int main(int argc, char** argv) {
             fill.mechanism = holes::parse_fill_mechanism(ctx.get<std::string>("mechanism"));
             fill.step = ctx.get<double>("step");
             fill.max_sweeps = ctx.get<int>("max-sweeps");
+            fill.max_fit_rms = ctx.get<double>("max-fit-rms");
             fill.fill_openings = vm.count("fill-openings") > 0;
             fill.check();
             inpaint.pixel = ctx.get<double>("inpaint-pixel");
             inpaint.telea_radius = ctx.get<double>("telea-radius");
+            const std::string colour = ctx.get<std::string>("colour-inpaint");
+            if (colour == "criminisi")
+                inpaint.colour = holes::ColourInpaint::kCriminisi;
+            else if (colour == "telea")
+                inpaint.colour = holes::ColourInpaint::kTelea;
+            else
+                throw cli::UsageError("--colour-inpaint must be criminisi or telea, not '" +
+                                      colour + "'");
+            inpaint.patch = ctx.get<int>("patch");
+            inpaint.search_window = ctx.get<double>("search-window");
             inpaint.top_fraction = ctx.get<double>("top-fraction");
             inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");

@@ -46,6 +46,8 @@ void FillOptions::check() const {
     RGBD_CHECK(std::isfinite(duplicate_distance) && duplicate_distance > 0 &&
                    duplicate_distance < step * 1.5,
                "fill: duplicate distance must be in (0, 1.5 x step)");
+    RGBD_CHECK(std::isfinite(max_fit_rms) && max_fit_rms > 0,
+               "fill: the quadric's residual limit must be positive");
     RGBD_CHECK(max_sweeps >= 1 && max_sweeps <= 1000, "fill: max_sweeps must be in [1, 1000]");
     RGBD_CHECK(std::isfinite(grid_clearance) && grid_clearance > 0 && grid_clearance <= 5,
                "fill: grid clearance must be in (0, 5] spacings");
@@ -101,6 +103,22 @@ struct Quadric {
         if (!s3.allFinite()) return false;
         k.tail<3>() = s3;
         return true;
+    }
+    /// Weighted RMS distance (the fit's weights) of the points to the fitted height field.
+    double rms(const std::vector<Eigen::Vector3d>& pts, const std::uint32_t* idx,
+               std::size_t m) const {
+        double mean = 0;
+        for (std::size_t j = 0; j < m; ++j) mean += (pts[idx[j]] - origin).norm();
+        mean = std::max(mean / double(std::max<std::size_t>(m, 1)), 1e-12);
+        double sum = 0, wsum = 0;
+        for (std::size_t j = 0; j < m; ++j) {
+            const Eigen::Vector3d d = pts[idx[j]] - origin;
+            const double w = std::exp(-d.squaredNorm() / (mean * mean));
+            const double r = d.dot(n) - height(d.dot(e1), d.dot(e2));
+            sum += w * r * r;
+            wsum += w;
+        }
+        return wsum > 0 ? std::sqrt(sum / wsum) : 0.0;
     }
     double height(double x, double y) const {
         return k[0] * x * x + k[1] * x * y + k[2] * y * y + k[3] * x + k[4] * y + k[5];
@@ -218,6 +236,8 @@ public:
             (*report)["loops_filled"] = result.loops_filled;
             (*report)["points_added"] = result.position.size();
             (*report)["sweeps"] = result.sweeps;
+            if (options_.mechanism == FillMechanism::kInterpolation)
+                (*report)["loops_skipped_poor_fit"] = poor_fit_;
             (*report)["fill_time_s"] = watch.seconds();
         }
         return result;
@@ -289,6 +309,13 @@ private:
             quad.e1 = region.e1;
             quad.e2 = region.e2;
             if (!quad.fit(points_.position, idx.data(), idx.size())) continue;
+            // A quadric that does not fit the surroundings (a crease behind an ear, two layers
+            // meeting) would bridge the hole above the true surface: the hole stays open.
+            const double fit_rms = quad.rms(points_.position, idx.data(), idx.size());
+            if (fit_rms > options_.max_fit_rms * spacing_) {
+                ++poor_fit_;
+                continue;
+            }
             // Hexagonal grid of spacing s over the rim's extent in the hole plane.
             const double h = options_.step * spacing_;
             const double extent = region.radius;
@@ -473,6 +500,7 @@ private:
     const FillOptions& options_;
     double spacing_;
     internal::KdTree originals_;
+    int poor_fit_ = 0;  ///< M4 loops left open: the quadric does not fit their surroundings
     std::vector<LoopRegion> regions_;
 };
 

@@ -49,6 +49,12 @@ struct FillOptions {
     /// Below ~0.9 the grid also densifies the rim band, whose sample gaps exceed 0.7 spacings
     /// (measure_fill.py: 86 points outside the cut balls at 0.7, see the commit).
     double grid_clearance = 0.9;
+    /// M4: the hole is filled only when the quadric fits the original points around it within
+    /// this many spacings (weighted RMS); a larger residual means the surroundings are no
+    /// smooth sheet (a crease behind an ear, two layers meeting) and the quadric would bridge
+    /// the hole above the true surface (measure_ring.py, Max Planck: such loops put 11-30 % of
+    /// their points farther than 5 mm from the truth).
+    double max_fit_rms = 2.0;
     bool fill_openings = false;  ///< also fill loops the sensors saw through
     /// Inside test: a candidate is inside the hole when the directions to the rim points leave
     /// no angular gap wider than this (degrees); outside a closed rim the gap exceeds 180.
@@ -70,7 +76,8 @@ struct FillResult {
 /// Fills the small loops of `detection` (kind occlusion or unknown; openings only with
 /// fill_openings) of `points` with `options.mechanism`. `detection` must come from
 /// detect_boundaries on the same points. TBB-parallel where it matters, deterministic.
-/// Report: mechanism, loops considered / filled, points added, sweeps, time_s.
+/// Report: mechanism, loops considered / filled, points added, sweeps, loops skipped for a
+/// poor quadric fit (M4), time_s.
 FillResult fill_small_holes(const SurfacePoints& points, const BoundaryResult& detection,
                             const FillOptions& options, Report* report = nullptr,
                             const Progress& progress = {});

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
+#include "algorithms/holes/exemplar_inpaint.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
 
@@ -22,6 +23,10 @@ void InpaintOptions::check() const {
                "inpaint: pixel size must be in [0.5, 10] spacings");
     RGBD_CHECK(std::isfinite(telea_radius) && telea_radius >= 1 && telea_radius <= 50,
                "inpaint: Telea radius must be in [1, 50] pixels");
+    RGBD_CHECK(patch >= 3 && patch <= 51 && patch % 2 == 1,
+               "inpaint: the exemplar patch side must be odd, in [3, 51] pixels");
+    RGBD_CHECK(std::isfinite(search_window) && search_window >= 1 && search_window <= 100,
+               "inpaint: the exemplar search window must be in [1, 100] hole boxes");
     RGBD_CHECK(std::isfinite(wrap) && wrap >= 0 && wrap <= 0.5,
                "inpaint: wrap padding must be in [0, 0.5] of the width");
     RGBD_CHECK(min_component >= 1 && min_component <= 1000000,
@@ -135,6 +140,31 @@ bool biharmonic(cv::Mat& img, const cv::Mat& mask) {
     for (std::size_t i = 0; i < pixels.size(); ++i)
         img.at<float>(pixels[i]) = static_cast<float>(u[static_cast<Eigen::Index>(i)]);
     return true;
+}
+
+/// §12.2 colour of the `target` pixels: Criminisi's exemplars from the `source` pixels over the
+/// Telea result already in `color` (kept where no exemplar fits). Report: method, patches,
+/// pixels filled by exemplars, pixels left to Telea, time_s.
+nlohmann::json inpaint_colour(cv::Mat& color, const cv::Mat& target, const cv::Mat& source,
+                              const InpaintOptions& options) {
+    nlohmann::json info;
+    if (options.colour == ColourInpaint::kTelea) {
+        info["method"] = "telea";
+        return info;
+    }
+    Stopwatch watch;
+    ExemplarOptions eo;
+    eo.patch = options.patch;
+    eo.search_window = options.search_window;
+    const ExemplarStats s = exemplar_inpaint(color, target, source, eo);
+    info["method"] = "criminisi";
+    info["patches"] = s.patches;
+    info["exemplar_pixels"] = s.filled;
+    info["telea_pixels"] = s.unfilled;
+    info["windows_widened"] = s.window_widened;
+    info["patch"] = s.patch;
+    info["time_s"] = watch.seconds();
+    return info;
 }
 
 Rgb pixel_rgb(const cv::Mat& color, int row, int col) {
@@ -400,6 +430,7 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     height.setTo(0.0f, unknown);
     telea(height, unknown, options.telea_radius);
     telea(color, unknown, options.telea_radius);
+    info["colour"] = inpaint_colour(color, hole, known, options);
     if (options.biharmonic) info["biharmonic"] = biharmonic(height, hole);
     if (!report_progress(progress, 0.4)) throw AlgorithmError("cancelled");
     if (options.ellipsoid) {
@@ -679,6 +710,13 @@ FillResult fill_large_holes(const SurfacePoints& points,
     telea(r_wide, u_wide, options.telea_radius);
     telea(c_wide, u_wide, options.telea_radius);
     const cv::Rect crop(std::min(pad, cols), 0, cols, rows);
+    {
+        // Exemplars for the target pixels of the centre copy only (the padding's copies of them
+        // are cropped away); source patches anywhere, across the seam too.
+        cv::Mat t_centre = cv::Mat::zeros(r_wide.size(), CV_8U);
+        target.copyTo(t_centre(crop));
+        info["colour"] = inpaint_colour(c_wide, t_centre, wrap_pad(known), options);
+    }
     if (options.biharmonic) {
         cv::Mat t_wide = wrap_pad(target);
         info["biharmonic"] = biharmonic(r_wide, t_wide);

@@ -12,8 +12,10 @@
 // - §13, head top: the crown that a level ring of sensors never sees. Top-down height map of the
 //   top of the body; hole = unknown pixels inside the convex hull of the known ones; height from
 //   an ellipsoid fitted to the top points, blended into the inpainted height (Telea, then a
-//   biharmonic solve) over a band at the rim; a top that is no ellipsoid stays open by default;
-//   colour by Telea; normals from the height-map gradient.
+//   biharmonic solve) over a band at the rim; a top that is no ellipsoid stays open by default.
+//   normals from the height-map gradient.
+// Colour (§12.2): Criminisi's exemplar-based inpainting (exemplar_inpaint.hpp) on the hole
+// pixels of both images, by default; Telea as an option (and where no exemplar fits).
 // The vertical axis comes from the sensor poses (normal of the plane through the sensor
 // centres: the ring is level), else from the cloud's principal axis.
 // Peers: Open3D Screened Poisson closes every hole; CGAL triangulate_refine_and_fair_hole on a
@@ -45,12 +47,21 @@ struct BodyAxis {
 /// The origin is the centroid of the points. InputError for an empty set.
 BodyAxis estimate_body_axis(const SurfacePoints& points, const std::vector<SensorView>& sensors);
 
+/// §12.2: how the colour of the hole pixels is inpainted.
+enum class ColourInpaint {
+    kCriminisi,  ///< exemplar-based (texture stays texture); Telea where no exemplar fits
+    kTelea,      ///< fast marching (smooth; blurs texture)
+};
+
 struct InpaintOptions {
     double pixel = 1.5;         ///< image pixel size, in spacings (§12.1 step 3)
     double telea_radius = 5.0;  ///< Telea's neighbourhood radius, pixels (§12.2)
-    double wrap = 0.1;          ///< cylinder padding each side, fraction of the width
-    int min_component = 4;      ///< smaller hole components are left to §11 (pixels)
-    double step = 1.0;          ///< spacing of the new points, in spacings
+    ColourInpaint colour = ColourInpaint::kCriminisi;  ///< §12.2
+    int patch = 9;                                     ///< Criminisi's patch side, pixels (odd)
+    double search_window = 4.0;  ///< Criminisi's search window, multiple of the hole's box
+    double wrap = 0.1;           ///< cylinder padding each side, fraction of the width
+    int min_component = 4;       ///< smaller hole components are left to §11 (pixels)
+    double step = 1.0;           ///< spacing of the new points, in spacings
     /// No new point within this many spacings of an existing one (the rim band is not
     /// densified).
     double clearance = 0.9;

@@ -152,12 +152,30 @@ TEST_F(RgbdFill, EveryMechanismRuns) {
 }
 
 TEST_F(RgbdFill, AbsurdParametersAreUsageErrors) {
-    for (const char* opt :
-         {"--mechanism five", "--threshold 2", "--threshold nan", "--k 0", "--weights 1,2",
-          "--weights 0,0,0", "--spacing-m -1", "--step 0", "--max-sweeps 0",
-          "--visible-angle-deg 90", "--small-diameter -3", "--inpaint-pixel 0",
-          "--inpaint-pixel nan", "--telea-radius -1", "--top-fraction 2", "--min-rim-radial 5",
-          "--max-ellipsoid-rms 0", "--clearance -1"}) {
+    for (const char* opt : {"--mechanism five",
+                            "--threshold 2",
+                            "--threshold nan",
+                            "--k 0",
+                            "--weights 1,2",
+                            "--weights 0,0,0",
+                            "--spacing-m -1",
+                            "--step 0",
+                            "--max-sweeps 0",
+                            "--visible-angle-deg 90",
+                            "--small-diameter -3",
+                            "--inpaint-pixel 0",
+                            "--inpaint-pixel nan",
+                            "--telea-radius -1",
+                            "--top-fraction 2",
+                            "--min-rim-radial 5",
+                            "--max-ellipsoid-rms 0",
+                            "--clearance -1",
+                            "--max-fit-rms 0",
+                            "--colour-inpaint exemplar",
+                            "--patch 8",
+                            "--patch 1",
+                            "--search-window 0.5",
+                            "--search-window nan"}) {
         SCOPED_TRACE(opt);
         Outcome r = run(std::string("$BIN/rgbd-fill ") + opt + " views.ply -o never.ply");
         EXPECT_EQ(r.code, 2) << r.err;
@@ -234,6 +252,7 @@ TEST(RgbdFillRing, FillsTheCrownThatTheRingNeverSaw) {
     EXPECT_GT(crown, 1000u) << d.dump();  // the crown cap is about 80 cm^2: ~2000 points
     EXPECT_LT(worst, 0.003);
     EXPECT_EQ(crown, d["head_top"]["points_added"].get<std::size_t>());
+    EXPECT_EQ(d["head_top"]["colour"]["method"], "criminisi") << d.dump();
     r = run("$BIN/rgbd-fill ring.ply --no-head-top --no-large -o ring_small.ply");
     ASSERT_EQ(r.code, 0) << r.err;
     for (const auto& doc : read(temp_root() / "ring_small.ply")) {

@@ -165,9 +165,50 @@ TEST(HoleFilling, OpeningsStayOpenUnlessAsked) {
     }
 }
 
+// A hole in a plane (2 mm grid, 2 cm across) under a second layer 12 mm above it that covers
+// half of its surroundings (an ear over the skull): the quadric fitted around the hole spans
+// both layers and does not fit them (residual > 2 spacings): the hole stays open. Forced
+// (max_fit_rms huge), the interpolation bridges the layers: points far from the plane.
+TEST(HoleFilling, AHoleUnderASecondLayerStaysOpen) {
+    SurfacePoints s;
+    for (int i = -30; i <= 30; ++i)
+        for (int j = -30; j <= 30; ++j) {
+            const double x = i * 0.002, y = j * 0.002;
+            if (std::hypot(x, y) >= 0.01) s.position.emplace_back(x, y, 0.0);
+            if (i >= 1) s.position.emplace_back(x, y, 0.012);
+        }
+    const auto detection = rgbd::holes::detect_boundaries(s, {}, BoundaryOptions{});
+    rgbd::Report report;
+    FillOptions options;
+    const auto kept = rgbd::holes::fill_small_holes(s, detection, options, &report);
+    std::cout << report.dump() << "\n";
+    EXPECT_GE(report["loops_skipped_poor_fit"].get<int>(), 1);
+    for (const auto& p : kept.position) EXPECT_GT(std::hypot(p.x(), p.y()), 0.012);
+    options.max_fit_rms = 100;
+    const auto forced = rgbd::holes::fill_small_holes(s, detection, options);
+    double worst = 0;
+    for (const auto& p : forced.position)
+        if (std::hypot(p.x(), p.y()) < 0.01) worst = std::max(worst, std::abs(p.z()));
+    std::cout << "forced: " << forced.position.size() << " points, farthest from the plane "
+              << worst * 1e3 << " mm\n";
+    EXPECT_GT(forced.position.size(), kept.position.size());
+    EXPECT_GT(worst, 0.003);
+    // Without the second layer the same hole is filled, on the plane.
+    SurfacePoints single;
+    for (const auto& p : s.position)
+        if (p.z() == 0.0) single.position.push_back(p);
+    const auto plain = rgbd::holes::fill_small_holes(
+        single, rgbd::holes::detect_boundaries(single, {}, BoundaryOptions{}), FillOptions{});
+    EXPECT_GT(plain.position.size(), 50u);
+    for (const auto& p : plain.position) EXPECT_NEAR(p.z(), 0.0, 1e-6);
+}
+
 TEST(HoleFilling, RejectsBadOptionsAndForeignDetections) {
     FillOptions o;
     o.step = 0;
+    EXPECT_THROW(o.check(), rgbd::InputError);
+    o = {};
+    o.max_fit_rms = 0;
     EXPECT_THROW(o.check(), rgbd::InputError);
     o = {};
     o.max_sweeps = 0;
