@@ -660,7 +660,9 @@ TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
     const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec_live");
     EXPECT_EQ(cap.frames.at(id(0)).size(), 45u) << "streaming does not cost the recording";
     const auto views = stream_documents(dir / "live.ply");
-    ASSERT_GE(live["sets_emitted"].get<int>(), 10) << live.dump();
+    // How many sets the stream thread gets out depends on the machine's load (a slow reader
+    // gets fewer, the rest are skipped and counted); three are enough for first, middle, last.
+    ASSERT_GE(live["sets_emitted"].get<int>(), 3) << live.dump();
     EXPECT_EQ(views.size(), 3 * live["sets_emitted"].get<std::size_t>());
     EXPECT_EQ(live["views"].get<std::size_t>(), views.size());
     std::int64_t complete = 0;
