@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "algorithms/denoise/density_outliers.hpp"
+#include "algorithms/denoise/depth_smoothing.hpp"
 #include "algorithms/denoise/distance_outliers.hpp"
 #include "algorithms/denoise/statistical_outliers.hpp"
 #include "cli/common/tool.hpp"
@@ -33,6 +34,9 @@ int main(int argc, char** argv) {
         "at --theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so "
         "is a pixel inside a dense window that continues no straight depth line (within "
         "--line-sigmas sigma) along any grid axis, and small grid components are speckles; "
+        "--smooth then moves every surviving point along its ray onto the plane (in inverse "
+        "depth) fitted to the same-surface pixels of its 5x5 window (edge-aware: neighbours "
+        "beyond 3 sigma of the sensor noise are another surface), deleting nothing; "
         "--knn-test adds a kNN distance test relative to the pixel footprint z/f. Every "
         "threshold scales with depth and the noise model. --density (after alignment: run on the "
         "aligned "
@@ -99,7 +103,10 @@ int main(int argc, char** argv) {
             "cluster pass)")(
             "min-cluster-fraction", cli::po::value<double>()->default_value(0.005)->value_name("X"),
             "--density: detached clusters smaller than this share of the points are removed")(
-            "mark", "flag noise points (noise = 1) instead of deleting them");
+            "mark", "flag noise points (noise = 1) instead of deleting them")(
+            "smooth",
+            "--distance: then smooth the surviving depths along the pixel rays (edge-aware "
+            "plane fit over the 5x5 window; points move, none is deleted)");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         const auto& vm = ctx.options();
@@ -114,10 +121,15 @@ int main(int argc, char** argv) {
         const Method method = chosen.empty() ? Method::kAuto : chosen.front();
 
         const bool mark = vm.count("mark") > 0;
+        const bool smooth = vm.count("smooth") > 0;
+        if (smooth && method != Method::kAuto && method != Method::kDistance)
+            throw cli::UsageError(
+                "--smooth works per organised view with --distance (before alignment)");
         denoise::StatisticalOptions statistical;
         denoise::RadiusOptions radius_options;
         denoise::DistanceOptions distance;
         denoise::DensityOptions density;
+        denoise::SmoothOptions smoothing;
         try {
             const bool has_k = vm.count("k") > 0;
             statistical.k = has_k ? ctx.get<int>("k") : 20;
@@ -139,7 +151,7 @@ int main(int argc, char** argv) {
             radius_options.convention = statistical.convention;
 
             const auto model = denoise::parse_noise_model(ctx.get<std::string>("noise-model"));
-            distance.noise_model = density.noise_model = model;
+            distance.noise_model = density.noise_model = smoothing.noise_model = model;
             if (vm.count("theta-max-deg"))
                 distance.theta_max_deg = density.theta_max_deg = ctx.get<double>("theta-max-deg");
             distance.k = has_k ? ctx.get<int>("k") : 16;
@@ -170,6 +182,7 @@ int main(int argc, char** argv) {
             statistical.check();
             radius_options.check();
             distance.check();
+            smoothing.check();
             if (method == Method::kDensity || has_k) density.check();
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
@@ -233,6 +246,8 @@ int main(int argc, char** argv) {
                         denoise::remove_statistical_outliers(cloud, statistical, bar.callback());
                     break;
             }
+            // Throws naming the view when it has no grid (--statistical fallback).
+            if (smooth) report["smooth"] = denoise::smooth_depth(cloud, smoothing);
             report["view"] = cloud.view.id;
             ctx.add_document_metrics(report);
             ctx.info("view " + std::to_string(cloud.view.id) + ": " + report.dump());

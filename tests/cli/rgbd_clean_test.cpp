@@ -112,12 +112,36 @@ TEST_F(RgbdClean, DensityOnAlignedViewsKeepsTheViews) {
     EXPECT_NE(r.out.find("\"history\""), std::string::npos);
 }
 
+// --smooth keeps what --distance keeps and moves the survivors along their rays; on a view
+// without a grid it is an error naming the view.
+TEST_F(RgbdClean, SmoothMovesTheSurvivorsAndDeletesNothingMore) {
+    Outcome r =
+        run("$BIN/rgbd-clean --distance views.ply --metrics m_rough.json > rough.ply && "
+            "$BIN/rgbd-clean --distance --smooth views.ply --metrics m_smooth.json > smooth.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto rough = metrics("m_rough.json"), smooth = metrics("m_smooth.json");
+    for (std::size_t v = 0; v < 4; ++v) {
+        EXPECT_EQ(smooth["documents"][v]["removed"], rough["documents"][v]["removed"]);
+        const auto& s = smooth["documents"][v]["smooth"];
+        EXPECT_GT(s["moved"].get<int>(), 0);
+        EXPECT_GT(s["mean_shift_mm"].get<double>(), 0.0);
+        EXPECT_EQ(s["input_points"].get<int>() + rough["documents"][v]["removed"].get<int>(),
+                  rough["documents"][v]["input_points"].get<int>());
+    }
+    Outcome merged =
+        run("$BIN/rgbd-align views.ply --merge -q > merged_s.ply && "
+            "$BIN/rgbd-clean --smooth merged_s.ply > y.ply");
+    EXPECT_EQ(merged.code, 1) << merged.err;
+    EXPECT_NE(merged.err.find("organised"), std::string::npos) << merged.err;
+}
+
 TEST_F(RgbdClean, AbsurdParametersAreUsageErrors) {
     for (const std::string args :
          {"--distance --c-min 25", "--distance --line-sigmas -1", "--distance --dense-min 30",
           "--distance --theta-max-deg 95", "--distance --alpha -2", "--density --beta -1",
           "--density --k 1", "--noise-model kinect3", "--distance --density",
-          "--reference global --density", "--n-speckle -5"}) {
+          "--reference global --density", "--n-speckle -5", "--density --smooth",
+          "--statistical --smooth"}) {
         SCOPED_TRACE(args);
         Outcome r = run("$BIN/rgbd-clean " + args + " < /dev/null");
         EXPECT_EQ(r.code, 2) << r.err;

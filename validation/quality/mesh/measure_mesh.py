@@ -143,6 +143,8 @@ def main():
     ap.add_argument("--watertight", default="default",
                     help="methods also run with --watertight (comma list, may be empty)")
     ap.add_argument("--depths", default="8,9,10")
+    ap.add_argument("--clean-args", default="",
+                    help="extra options of the per-view rgbd-clean --distance (e.g. --smooth)")
     a = ap.parse_args()
     if not os.path.isdir(DATA):
         sys.exit(f"measure_mesh: {DATA} not found (../shared/data beside the repository)")
@@ -158,9 +160,11 @@ def main():
             run(f"{b}/rgbd-synth {os.path.join(DATA, mesh)} -o {cap} -q --seed {a.seed} "
                 + " ".join(extra))
         reference = os.path.join(cap, "gt", "mesh.ply")
-        stream = cap + "_aligned.ply"
+        stream = cap + ("_aligned.ply" if not a.clean_args else
+                        "_aligned_" + "".join(ch for ch in a.clean_args if ch.isalnum()) + ".ply")
         if not os.path.exists(stream):
-            run(f"{b}/rgbd-cloud {cap} -q | {b}/rgbd-clean --distance -q | {b}/rgbd-align -q "
+            run(f"{b}/rgbd-cloud {cap} -q | {b}/rgbd-clean --distance {a.clean_args} -q | "
+                f"{b}/rgbd-align -q "
                 f"--seed {a.seed} | {b}/rgbd-clean --density -q > {stream}")
         xyz, nrm, rgb = merged_points(stream)
         points = cap + "_points.ply"
