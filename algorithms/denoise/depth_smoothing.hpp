@@ -19,7 +19,7 @@
 // 8.71 -> 8.16 mm with 99.99% of the points kept (Open3D SOR 8.46 mm after deleting 4.5%).
 // Opt-in, not in the default pipeline: downstream it is mixed (measure_mesh.py --clean-args
 // --smooth, --watertight, d8: Max Planck F@2mm 0.973 -> 0.976, Chamfer 0.55 -> 0.42 mm; wreath
-// F 0.962 -> 0.949, Chamfer 0.66 -> 0.69 mm: the plane flattens the leaves' fine relief).
+// F 0.962 -> 0.949, Chamfer 0.66 -> 0.69 mm; why the wreath loses is not analysed yet).
 // See also: distance_outliers.hpp (the removal that runs first), sensor_noise.hpp.
 #pragma once
 
