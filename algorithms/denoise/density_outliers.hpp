@@ -103,8 +103,9 @@ struct DensityOptions {
 /// @param views  world-frame views, or sensor-frame views with world_from_sensor (a single
 ///               view without a pose is used in its own frame). Every coordinate finite.
 /// @return report: method, reference, spacing_m, cluster_eps_m, input_points, density
-///         (removed by the density test), cluster (removed by the cluster pass), clusters,
-///         removed (or marked), per-view counts ("views"), time_s.
+///         (removed by the density test), consensus (by the consensus test) and
+///         consensus_candidates (points it examined), cluster (removed by the cluster pass),
+///         clusters, removed (or marked), per-view counts ("views"), time_s.
 /// @throws InputError naming the view for a non-finite coordinate, a missing pose among several
 ///         views, or missing cameras with DensityReference::kSensors.
 Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOptions& options,
