@@ -778,6 +778,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         report["consensus_candidates"] = candidates.size();
     }
     report["consensus"] = consensus_removed;
+    stage("consensus");
 
     // Cluster pass over the survivors.
     std::size_t cluster_removed = 0, clusters = 0;
