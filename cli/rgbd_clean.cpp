@@ -42,8 +42,11 @@ int main(int argc, char** argv) {
         "aligned "
         "views of rgbd-align without --merge; reads the whole stream) judges every point over "
         "all views together: its measured density against what the views that see it should "
-        "have produced (1/(z/f)^2 per view, occlusion-aware), then drops small detached "
-        "clusters; views without cameras (merged or unorganised clouds) are compared with the "
+        "have produced (1/(z/f)^2 per view, occlusion-aware); a point below --consensus-ratio "
+        "of it that its own view sees steeper than --theta-max-deg and that lies more than "
+        "--consensus-sigmas sigma off the other views' surface is a flying pixel too; then it "
+        "drops small detached clusters; views without cameras (merged or unorganised clouds) are "
+        "compared with the "
         "local median density instead. Views without a grid fall back to --statistical when no "
         "method is given. --statistical is statistical outlier removal with the exact semantics "
         "of Open3D's remove_statistical_outlier (or PCL's with --convention pcl); --radius "
@@ -98,6 +101,12 @@ int main(int argc, char** argv) {
             "reference", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
             "--density: expected density from the sensors (views' cameras), local (median of "
             "the neighbours) or auto")(
+            "consensus-ratio", cli::po::value<double>()->default_value(0.5)->value_name("X"),
+            "--density: consensus test on points below X times their expected density that "
+            "their own view sees steeper than --theta-max-deg (0 = no consensus test)")(
+            "consensus-sigmas", cli::po::value<double>()->default_value(4.5)->value_name("X"),
+            "--density: such a point is noise when farther than X sigma of the sensor noise from "
+            "the plane of the other views' points around it")(
             "cluster-spacing", cli::po::value<double>()->default_value(3.0)->value_name("X"),
             "--density: cluster link distance as a multiple of the robust spacing (0 = no "
             "cluster pass)")(
@@ -174,6 +183,8 @@ int main(int argc, char** argv) {
                 density.reference = denoise::DensityReference::kLocal;
             else
                 throw cli::UsageError("--reference must be auto, sensors or local");
+            density.consensus_ratio = ctx.get<double>("consensus-ratio");
+            density.consensus_sigmas = ctx.get<double>("consensus-sigmas");
             density.cluster_spacing = ctx.get<double>("cluster-spacing");
             density.min_cluster_fraction = ctx.get<double>("min-cluster-fraction");
             density.seed = ctx.seed();

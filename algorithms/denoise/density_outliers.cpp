@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <utility>
@@ -30,6 +31,13 @@ void DensityOptions::check() const {
                "density outliers: beta must be in [0, 100]");
     RGBD_CHECK(std::isfinite(beta_local) && beta_local >= 0.0 && beta_local <= 100.0,
                "density outliers: beta_local must be in [0, 100]");
+    RGBD_CHECK(std::isfinite(consensus_ratio) && consensus_ratio >= 0.0 && consensus_ratio <= 1.0,
+               "density outliers: consensus_ratio must be in [0, 1]");
+    RGBD_CHECK(
+        std::isfinite(consensus_sigmas) && consensus_sigmas > 0.0 && consensus_sigmas <= 1000.0,
+        "density outliers: consensus_sigmas must be in (0, 1000]");
+    RGBD_CHECK(std::isfinite(consensus_radius) && consensus_radius > 0.0 && consensus_radius <= 2.0,
+               "density outliers: consensus_radius must be in (0, 2]");
     RGBD_CHECK(
         std::isfinite(cluster_spacing) && cluster_spacing >= 0.0 && cluster_spacing <= 1000.0,
         "density outliers: cluster_spacing must be in [0, 1000]");
@@ -82,6 +90,8 @@ struct CellGrid {
         }
         constexpr double kMaxCells = double(1 << 21) - 8.0;
         if (((hi - lo) / cell).maxCoeff() >= kMaxCells) return false;
+        origin = lo;
+        side = cell;
         keyed.resize(m);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 4096),
                           [&](const tbb::blocked_range<std::size_t>& r) {
@@ -115,6 +125,11 @@ struct CellGrid {
         return true;
     }
     std::size_t cells() const { return keys.size(); }
+    /// Grid coordinates of the cell holding p (offset included), as build() assigns them.
+    Eigen::Matrix<std::int64_t, 3, 1> cell_of(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d c = (p - origin) / side;
+        return {std::int64_t(c.x()) + 2, std::int64_t(c.y()) + 2, std::int64_t(c.z()) + 2};
+    }
 
     /// Sorts `keyed` by (key, point). When the grid has fewer than 2^32 cells, a stable LSD
     /// radix sort of the linear cell index (x ny + y) nz + z, which orders cells as the keys
@@ -184,6 +199,8 @@ struct CellGrid {
     }
 
 private:
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    double side = 0.0;
     std::size_t nx = 0, ny = 0;
     std::vector<std::uint32_t> column_start;
 };
@@ -348,6 +365,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     // Gather all views in the world frame.
     std::vector<detail::Gathered> gathered(views.size());
     std::vector<Eigen::Vector3d> world;
+    std::vector<std::uint32_t> view_of;  ///< view index of every point of `world`
     std::vector<Eigen::Matrix3d> frame_rotation(views.size(), Eigen::Matrix3d::Identity());
     bool have_cameras = true;
     for (std::size_t v = 0; v < views.size(); ++v) {
@@ -366,6 +384,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         }
         frame_rotation[v] = world_from_frame.linear();
         for (const auto& p : gathered[v].xyz) world.push_back(world_from_frame * p);
+        view_of.resize(world.size(), std::uint32_t(v));
     }
     const std::size_t n = world.size();
     report["input_points"] = n;
@@ -449,6 +468,12 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     stage("spacing");
 
     std::vector<double> measured(n), expected(n, 0.0);
+    // Sensors reference: the normals, the counting radius and its grid (kept for the consensus
+    // test; `gridded` false when the extent needed the kd-tree instead).
+    std::vector<Eigen::Vector3d> normal;
+    double radius = 0.0;
+    CellGrid grid;
+    bool gridded = false;
     if (reference == DensityReference::kSensors) {
         // Measured density: the points within r of p_i, r chosen so that a frontal surface seen
         // by one sensor puts about k points there (pi r^2 = k ŝ^2): rho_i = (count - 1) /
@@ -458,14 +483,14 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         bool view_normals = true;
         for (std::size_t v = 0; v < views.size(); ++v)
             if (!gathered[v].xyz.empty() && !views[v].points.has_normal_map()) view_normals = false;
-        std::vector<Eigen::Vector3d> normal(n);
+        normal.resize(n);
         if (view_normals)
             for (std::size_t v = 0, i = 0; v < views.size(); ++v) {
                 const Eigen::Matrix3d rot = frame_rotation[v];
                 for (PointSet::Index idx : gathered[v].ids)
                     normal[i++] = rot * to_eigen(views[v].points.normal(idx));
             }
-        const double radius = std::sqrt(double(options.k) / std::numbers::pi) * spacing;
+        radius = std::sqrt(double(options.k) / std::numbers::pi) * spacing;
         const double r2 = radius * radius, area = std::numbers::pi * r2;
         report["radius_m"] = radius;
         // Density (and PCA normal) of point i from its neighbourhood's count and moments
@@ -480,8 +505,8 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             eig.computeDirect(cov);
             normal[i] = eig.eigenvectors().col(0);
         };
-        CellGrid grid;
-        if (grid.build(world, radius)) {
+        gridded = grid.build(world, radius);
+        if (gridded) {
             // Coordinates in cell order, one array per axis: a cell column (cx, cy, z - 1 ..
             // z + 1) is one contiguous run, so 9 runs cover the 27 cells around a point.
             std::vector<double> xs(n), ys(n), zs(n);
@@ -654,6 +679,106 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             ++density_removed;
         }
     report["density"] = density_removed;
+
+    // Consensus test (sensors reference): a flying pixel 7-10 mm off the surface still finds
+    // part of the surface inside its counting sphere (ratio ~ 1 - (d / r)^2 for a plane), so
+    // the density test alone misses it. Flag a point that (a) has less than consensus_ratio of
+    // its expected density, (b) is seen by its own view at an incidence steeper than theta_max
+    // (it sits on a depth discontinuity of that view: a real surface that steep is not
+    // measured) and (c) lies more than consensus_sigmas sigma_z (its own view's noise at its
+    // depth) off the plane of the OTHER views' points within consensus_radius r (PCA, trimmed
+    // twice to 3 sigma_z). Each cue alone flags hundreds of surface points (silhouettes,
+    // creases, misaligned patches); together they veto each other's false positives.
+    std::size_t consensus_removed = 0;
+    if (reference == DensityReference::kSensors && options.consensus_ratio > 0.0) {
+        const double cos_max = std::cos(theta_max);
+        std::vector<std::uint32_t> candidates;
+        for (std::size_t i = 0; i < n; ++i) {
+            if (outlier[i] || !(measured[i] < options.consensus_ratio * expected[i])) continue;
+            const Camera& c = cameras[view_of[i]];
+            const Eigen::Vector3d q = c.rotation * world[i] + c.translation;
+            const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
+            if (std::abs(normal[i].normalized().dot(ray)) < cos_max)
+                candidates.push_back(std::uint32_t(i));
+        }
+        const double reach = options.consensus_radius * radius, reach2 = reach * reach;
+        std::unique_ptr<internal::KdTree> tree;  // only when the grid could not hold the extent
+        if (!gridded && !candidates.empty()) tree = std::make_unique<internal::KdTree>(world);
+        std::vector<std::uint8_t> off(candidates.size(), 0);
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, candidates.size(), 16),
+            [&](const tbb::blocked_range<std::size_t>& r) {
+                // Offsets of the other views' neighbours and their inlier flags, reused.
+                std::vector<Eigen::Vector3d> near;
+                std::vector<std::uint8_t> inlier;
+                std::vector<std::pair<std::uint32_t, double>> found;
+                near.reserve(512);
+                inlier.reserve(512);
+                for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                    const std::uint32_t i = candidates[a];
+                    const Eigen::Vector3d& p = world[i];
+                    near.clear();
+                    const auto take = [&](std::uint32_t j) {
+                        if (view_of[j] == view_of[i]) return;
+                        const Eigen::Vector3d d = world[j] - p;
+                        if (d.squaredNorm() <= reach2) near.push_back(d);
+                    };
+                    if (gridded) {
+                        // reach <= 2 r: the cells at most 2 apart on every axis.
+                        const auto cell = grid.cell_of(p);
+                        for (std::int64_t cx = cell.x() - 2; cx <= cell.x() + 2; ++cx)
+                            for (std::int64_t cy = cell.y() - 2; cy <= cell.y() + 2; ++cy) {
+                                const auto [c0, c1] =
+                                    grid.column(cx, cy, cell.z() - 2, cell.z() + 2);
+                                for (std::uint32_t b = grid.start[c0]; b < grid.start[c1]; ++b)
+                                    take(grid.keyed[b].second);
+                            }
+                    } else {
+                        tree->radius(p, reach, found, /*sorted=*/false);
+                        for (const auto& f : found) take(f.first);
+                    }
+                    constexpr std::size_t kMinSupport = 6;
+                    if (near.size() < kMinSupport) continue;
+                    const Camera& c = cameras[view_of[i]];
+                    const double sigma =
+                        sigma_z_m(options.noise_model, (c.rotation * p + c.translation).z(), 0.0);
+                    inlier.assign(near.size(), 1);
+                    Eigen::Vector3d mean = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::UnitZ();
+                    for (int it = 0; it < 3; ++it) {
+                        std::size_t m = 0;
+                        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                        Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+                        for (std::size_t j = 0; j < near.size(); ++j)
+                            if (inlier[j]) {
+                                ++m;
+                                sum += near[j];
+                                outer += near[j] * near[j].transpose();
+                            }
+                        mean = sum / double(m);
+                        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+                        eig.computeDirect(outer / double(m) - mean * mean.transpose());
+                        nrm = eig.eigenvectors().col(0);
+                        // Trim to 3 sigma_z of the plane; stop when too few would remain.
+                        std::size_t kept = 0;
+                        for (const auto& d : near)
+                            kept += std::abs(nrm.dot(d - mean)) < 3.0 * sigma;
+                        if (kept < kMinSupport) break;
+                        for (std::size_t j = 0; j < near.size(); ++j)
+                            inlier[j] = std::abs(nrm.dot(near[j] - mean)) < 3.0 * sigma;
+                    }
+                    // p is the origin of the offsets: its distance to the plane is |n . mean|.
+                    off[a] = std::abs(nrm.dot(mean)) > options.consensus_sigmas * sigma;
+                }
+            });
+        for (std::size_t a = 0; a < candidates.size(); ++a)
+            if (off[a]) {
+                outlier[candidates[a]] = 1;
+                ++consensus_removed;
+            }
+        report["consensus_candidates"] = candidates.size();
+    }
+    report["consensus"] = consensus_removed;
+    stage("consensus");
 
     // Cluster pass over the survivors.
     std::size_t cluster_removed = 0, clusters = 0;

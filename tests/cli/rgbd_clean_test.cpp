@@ -141,7 +141,8 @@ TEST_F(RgbdClean, AbsurdParametersAreUsageErrors) {
           "--distance --theta-max-deg 95", "--distance --alpha -2", "--density --beta -1",
           "--density --k 1", "--noise-model kinect3", "--distance --density",
           "--reference global --density", "--n-speckle -5", "--density --smooth",
-          "--statistical --smooth"}) {
+          "--statistical --smooth", "--density --consensus-ratio 2",
+          "--density --consensus-sigmas 0", "--density --consensus-sigmas nan"}) {
         SCOPED_TRACE(args);
         Outcome r = run("$BIN/rgbd-clean " + args + " < /dev/null");
         EXPECT_EQ(r.code, 2) << r.err;

@@ -209,5 +209,124 @@ TEST(DensityOutliers, SpacingIsTheViewsRobustSpacing) {
     expect_spacing(line, "collinear points");
 }
 
+/// View of the plane z = 1.5 from a camera at (-1, 0, 1.32) aiming at (0.1, 0, 1.5): its rays
+/// meet the plane at 61-90 degrees of incidence (about 81 at the scene's centre), steeper than
+/// theta_max = 75 where they cross the middle of the plane. Normals (0, 0, -1).
+PointCloud grazing_view(int id, std::uint64_t seed) {
+    PointCloud view;
+    view.view.id = id;
+    view.view.sensor = "cam" + std::to_string(id);
+    view.view.frame = ViewFrame::kWorld;
+    view.view.intrinsics = intrinsics();
+    const Eigen::Vector3d centre(-1.0, 0.0, 1.32), target(0.1, 0.0, 1.5);
+    const Eigen::Vector3d z = (target - centre).normalized();
+    const Eigen::Vector3d x = Eigen::Vector3d::UnitY().cross(z).normalized();
+    Pose pose = Pose::Identity();
+    pose.linear().col(0) = x;
+    pose.linear().col(1) = z.cross(x);
+    pose.linear().col(2) = z;
+    pose.translation() = centre;
+    view.view.world_from_sensor = pose;
+    view.points.add_normal_map();
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> noise(0.0, 0.0014);
+    const auto k = intrinsics();
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const Eigen::Vector3d ray = pose.linear() * k.unproject(col, row, 1.0);
+            if (ray.z() <= 1e-6) continue;
+            const Eigen::Vector3d hit = centre + ray * ((1.5 - centre.z()) / ray.z());
+            if (std::abs(hit.x()) > 0.6 || std::abs(hit.y()) > 0.45) continue;
+            view.points.insert(to_point(hit + ray.normalized() * noise(rng)),
+                               Vector_3(0.0, 0.0, -1.0));
+        }
+    return view;
+}
+
+/// The consensus test on a known answer. The plane z = 1.5 seen frontally by two views (x = 0
+/// and 0.25) and at a grazing angle by a third, every point with the normal (0, 0, -1) (as
+/// rgbd-align's per-view normals). Off-surface points d = 0.85 r in front of the plane (r =
+/// the counting radius: measured / expected ~ 1 - 0.85^2 = 0.28, above beta = 0.1, so the
+/// density test keeps them; below consensus_ratio = 0.5; d ~ 13 sigma_z), 2.5 r apart:
+/// - 30 appended to the grazing view (its ray meets their normal at ~82 degrees, steeper than
+///   theta_max: a flying pixel at a depth discontinuity) must all be flagged;
+/// - 20 appended to a frontal view (seen at ~3 degrees: a real detail for all we know) must stay;
+/// - no surface point may go. Without the test (consensus_ratio 0), or with a distance
+///   threshold above d (consensus_sigmas 30), the flying points stay: all three cues count.
+TEST(DensityOutliers, ConsensusFlagsSteepOffSurfacePoints) {
+    auto with_normals = [](PointCloud v) {
+        v.points.add_normal_map();
+        for (auto idx : v.points) v.points.normal(idx) = Vector_3(0.0, 0.0, -1.0);
+        return v;
+    };
+    const std::vector<PointCloud> surface = {with_normals(plane_view(0, 0.0, 0, 0, 1)),
+                                             with_normals(plane_view(1, 0.25, 0, 0, 2)),
+                                             grazing_view(2, 3)};
+    DensityOptions o;
+    o.mark = true;
+    auto probe = surface;
+    const double r = remove_density_outliers(probe, o)["radius_m"].get<double>();
+    ASSERT_GT(r, 0.01);
+    ASSERT_LT(r, 0.04);
+    auto views = surface;
+    const double d = 0.85 * r;
+    std::vector<std::size_t> first = {views[2].size(), views[0].size()};
+    for (double x = -0.15; x <= 0.4; x += 2.5 * r) {
+        for (const double y : {-0.15, 0.0, 0.15})
+            views[2].points.insert(Point_3(x, y, 1.5 - d), Vector_3(0.0, 0.0, -1.0));
+        for (const double y : {-0.075, 0.075})
+            views[0].points.insert(Point_3(x, y, 1.5 - d), Vector_3(0.0, 0.0, -1.0));
+    }
+    const std::size_t steep = views[2].size() - first[0], frontal = views[0].size() - first[1];
+    ASSERT_GE(steep, 24u);
+    ASSERT_GE(frontal, 16u);
+    const auto run = [&](const DensityOptions& options, std::size_t& steep_marked,
+                         std::size_t& frontal_marked, std::size_t& surface_marked) {
+        auto v = views;
+        const Report report = remove_density_outliers(v, options);
+        steep_marked = frontal_marked = surface_marked = 0;
+        for (std::size_t s = 0; s < v.size(); ++s) {
+            const auto noise = *v[s].flag(prop::kNoise);
+            std::size_t i = 0;
+            for (auto idx : v[s].points) {
+                const bool added = (s == 2 && i >= first[0]) || (s == 0 && i >= first[1]);
+                ++i;
+                if (!noise[idx]) continue;
+                if (!added)
+                    ++surface_marked;
+                else
+                    ++(s == 2 ? steep_marked : frontal_marked);
+            }
+        }
+        return report;
+    };
+    std::size_t steep_marked = 0, frontal_marked = 0, surface_marked = 0;
+    Report report = run(o, steep_marked, frontal_marked, surface_marked);
+    EXPECT_EQ(steep_marked, steep) << report.dump();
+    EXPECT_EQ(frontal_marked, 0u) << report.dump();
+    EXPECT_EQ(surface_marked, 0u) << report.dump();
+    EXPECT_EQ(report["consensus"].get<std::size_t>(), steep) << report.dump();
+    EXPECT_EQ(report["density"].get<std::size_t>(), 0u) << report.dump();
+
+    DensityOptions off = o;
+    off.consensus_ratio = 0.0;
+    report = run(off, steep_marked, frontal_marked, surface_marked);
+    EXPECT_EQ(steep_marked, 0u) << report.dump();
+    DensityOptions far = o;
+    far.consensus_sigmas = 30.0;
+    report = run(far, steep_marked, frontal_marked, surface_marked);
+    EXPECT_EQ(steep_marked, 0u) << report.dump();
+
+    DensityOptions bad;
+    bad.consensus_ratio = 1.5;
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.consensus_radius = 2.5;
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.consensus_sigmas = 0.0;
+    EXPECT_THROW(bad.check(), InputError);
+}
+
 }  // namespace
 }  // namespace rgbd::denoise
