@@ -117,7 +117,8 @@ TEST_F(RgbdClean, AbsurdParametersAreUsageErrors) {
          {"--distance --c-min 25", "--distance --line-sigmas -1", "--distance --dense-min 30",
           "--distance --theta-max-deg 95", "--distance --alpha -2", "--density --beta -1",
           "--density --k 1", "--noise-model kinect3", "--distance --density",
-          "--reference global --density", "--n-speckle -5"}) {
+          "--reference global --density", "--n-speckle -5", "--distance --c-min-wide 49",
+          "--distance --keep-knn -1", "--distance --keep-k 0"}) {
         SCOPED_TRACE(args);
         Outcome r = run("$BIN/rgbd-clean " + args + " < /dev/null");
         EXPECT_EQ(r.code, 2) << r.err;

@@ -79,8 +79,8 @@ def main():
     methods = []  # (name, fn(view index, xyz) -> keep mask, time)
     ours_marked = {}
     for label, extra in (("rgbd-clean --distance", ""),
-                         ("rgbd-clean --distance --c-min 3 --dense-min 16 --line-sigmas 3",
-                          "--c-min 3 --dense-min 16 --line-sigmas 3")):
+                         ("rgbd-clean --distance --c-min 3 --c-min-wide 0 --keep-knn 0",
+                          "--c-min 3 --c-min-wide 0 --keep-knn 0")):
         out = os.path.join(work, f"distance_{len(ours_marked)}.ply")
         t = time.perf_counter()
         run(f"{b}/rgbd-clean --distance --noise-model kinect_v1 --mark -q {extra} {noisy} > {out}")
