@@ -249,7 +249,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                                 if (j < 0) continue;
                                 ++valid;
                                 // supports(i, j, dr, dc), written out: GCC does not inline
-                                // the lambda here since it has 4 callers (+20% time).
+                                // the lambda here since it has 4 callers (+20% instructions).
                                 const double limit =
                                     step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
                                 if ((cam[j] - cam[i]).squaredNorm() <= limit * limit) ++support;
@@ -319,7 +319,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                             sets.unite(std::uint32_t(i), std::uint32_t(j));
                         }
                 }
-            // Root of every surviving grid point (n = not one), and component sizes.
+            // Root of every surviving grid point (n for the others), and component sizes.
             std::vector<std::uint32_t> root(n, std::uint32_t(n)), size(n, 0);
             for (std::size_t i = 0; i < n; ++i)
                 if (on_grid[i] && reason[i] == kKeep) ++size[root[i] = sets.find(std::uint32_t(i))];
@@ -335,7 +335,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             // in its 7 x 7 window is surface cut off by flagged pixels or dropouts, not a
             // speckle (5 x 5 links alone: rgbd-synth's wreath bust lost 0.20% of its surface
             // instead of 0.12%, most of it as such fragments). Only the few pixels of small
-            // components look (7 x 7 links for every pixel cost ~1 ms per Kinect view).
+            // components look (7 x 7 links for every pixel made the whole filter ~30% slower).
             // Repeated while fragments attach to fragments attached in an earlier round.
             std::vector<std::uint8_t> attached(n, 0);
             for (bool changed = true; changed;) {

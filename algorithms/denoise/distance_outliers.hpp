@@ -16,14 +16,15 @@
 //     nearest points in its 7 x 7 window is <= keep_knn footprints s_d(z) (a flying pixel
 //     floats away from every surface; surface pixels that fail 1 or 2 - grazing noise,
 //     dropouts, creases - still have close neighbours);
-//  3. speckles: connected grid components (links: relation 1 in the 7 x 7 window) smaller than
-//     n_speckle pixels (the largest component is never removed).
+//  3. speckles: connected grid components (links: relation 1 in the 5 x 5 window) smaller than
+//     n_speckle pixels, unless relation 1 attaches them within 7 x 7 to a larger component
+//     (surface cut off by flagged pixels; the largest component is never removed).
 // Measured (validation/quality/denoise/measure_denoise.py, 8-Kinect rgbd-synth rings of the two
 // busts, per view, "geometric" metric): with 1 alone (c_min 2, 5 x 5), 2 at 4 sigma / 20
 // valid pixels, 5 x 5 speckle links, F1 was 0.929 / 0.915 (recall 0.93, surface removed 0.10%
 // / 0.20%); loosening 1-2 raised recall to 0.95 but removed 2.5x more surface (F1 0.90 / 0.87).
 // With the 7 x 7 second chance, 2 at 3 sigma / 16 valid pixels, 2b (3 footprints, k = 5) and
-// 7 x 7 speckle links: F1 0.941 / 0.934, recall 0.924 / 0.927, surface removed 0.06% / 0.12%
+// 7 x 7 speckle attachment: F1 0.941 / 0.934, recall 0.924 / 0.927, surface removed 0.06% / 0.12%
 // (Open3D's best of a 24-setting SOR/ROR grid: 0.921 / 0.930). 2b does most of it: without it
 // the same tests give 0.925 / 0.890. A robust inverse-depth plane fit on the 5 x 5 / 7 x 7
 // window (1/z affine in (u, v); trimmed, or the best of half-window sub-fits) was tried and
