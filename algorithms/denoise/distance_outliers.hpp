@@ -26,15 +26,16 @@
 // With the 7 x 7 second chance, 2 at 3 sigma / 16 valid pixels, 2b (3 footprints, k = 5) and
 // 7 x 7 speckle attachment: F1 0.941 / 0.934, recall 0.924 / 0.927, surface removed 0.06% / 0.12%
 // (Open3D's best of a 24-setting SOR/ROR grid: 0.921 / 0.930). 2b does most of it: without it
-// the same tests give 0.925 / 0.890. A robust inverse-depth plane fit on the 5 x 5 / 7 x 7
-// window (1/z affine in (u, v); trimmed, or the best of half-window sub-fits) was tried and
-// left out: at grazing silhouettes and the wreath's creases surface residuals reach 20-30
-// sigma_z, so at any threshold it added more surface loss than flying pixels (+1% recall at
-// -0.003 F1 on the wreath). Recall >= 0.95 together with F1 above Open3D's was not reached:
-// the misses are flying pixels 7-12 mm from the surface (tau ~ 7-8 mm) in inner edges whose
-// neighbours are near-surface flying pixels; even a logistic model fitted in-sample to all the
-// features above plus kNN statistics reached recall 0.95 on the wreath only at F1 0.92.
-// Pass B [R] (off by default: it adds a kd-tree and nothing measurable on rgbd-synth rings):
+// the same tests give 0.929 / 0.905. On the living-room noisy/clean depth pairs
+// (measure_livingroom.py) the filter keeps 99.99% before and after: neutral. A robust inverse-depth
+// plane fit on the 5 x 5 / 7 x 7 window (1/z affine in (u, v); trimmed, or the best of half-window
+// sub-fits) was tried and left out: at grazing silhouettes and the wreath's creases surface
+// residuals reach 20-30 sigma_z, so at any threshold it added more surface loss than flying pixels
+// (+1% recall at -0.003 F1 on the wreath). Recall >= 0.95 together with F1 above Open3D's was not
+// reached: the misses are flying pixels 7-12 mm from the surface (tau ~ 7-8 mm) in inner edges
+// whose neighbours are near-surface flying pixels; even a logistic model fitted in-sample to all
+// the features above plus kNN statistics reached recall 0.95 on the wreath only at F1 0.92. Pass B
+// [R] (off by default: it adds a kd-tree and nothing measurable on rgbd-synth rings):
 // depth-normalised kNN statistic r_i = dbar_i / s_d(z_i) over the survivors; remove
 // r_i > max(median + alpha sigma_rob, median / cos(theta_max)).
 // Peers: Open3D remove_statistical_outlier / remove_radius_outlier, PCL
