@@ -30,10 +30,12 @@ int main(int argc, char** argv) {
         ".pwn; a .ply file is a stream), each read as one unorganised view. --distance (the "
         "default for organised views, "
         "i.e. views with a pixel grid, straight from rgbd-cloud; before alignment) works per "
-        "view: a pixel with fewer than --c-min neighbours in its 5x5 window that a real surface "
+        "view: a pixel with fewer than --c-min neighbours in its 5x5 window (and fewer than "
+        "--c-min-wide in its 7x7 window) that a real surface "
         "at --theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so "
         "is a pixel inside a dense window that continues no straight depth line (within "
-        "--line-sigmas sigma) along any grid axis, and small grid components are speckles; "
+        "--line-sigmas sigma) along any grid axis, unless its nearest 3D points in the 7x7 "
+        "window lie within --keep-knn pixel footprints; small grid components are speckles; "
         "--smooth then moves every surviving point along its ray onto the plane (in inverse "
         "depth) fitted to the same-surface pixels of its 5x5 window (edge-aware: neighbours "
         "beyond 3 sigma of the sensor noise are another surface), deleting nothing; "
@@ -85,12 +87,21 @@ int main(int argc, char** argv) {
             "--distance, 75 for --density)")(
             "c-min", cli::po::value<int>()->default_value(2)->value_name("N"),
             "--distance: supporting neighbours a pixel needs in its 5x5 window")(
-            "line-sigmas", cli::po::value<double>()->default_value(4.0)->value_name("X"),
+            "c-min-wide", cli::po::value<int>()->default_value(3)->value_name("N"),
+            "--distance: a pixel short of --c-min keeps its support with N supporting "
+            "neighbours in its 7x7 window (0 = the 5x5 window only)")(
+            "line-sigmas", cli::po::value<double>()->default_value(3.0)->value_name("X"),
             "--distance: line-support tolerance in sigma of the sensor noise (0 = no line test)")(
-            "dense-min", cli::po::value<int>()->default_value(20)->value_name("N"),
+            "dense-min", cli::po::value<int>()->default_value(16)->value_name("N"),
             "--distance: the line test applies where at least N of the 24 window pixels are "
-            "valid")("n-speckle", cli::po::value<int>()->default_value(20)->value_name("N"),
-                     "--distance: grid components with fewer pixels are speckles (0 = off)")(
+            "valid")("keep-knn", cli::po::value<double>()->default_value(3.0)->value_name("X"),
+                     "--distance: keep a pixel the support or line test flags when its "
+                     "--keep-k nearest points in its 7x7 window lie within X pixel footprints "
+                     "z/f on average (0 = off)")(
+            "keep-k", cli::po::value<int>()->default_value(5)->value_name("N"),
+            "--distance: neighbours of the --keep-knn test")(
+            "n-speckle", cli::po::value<int>()->default_value(20)->value_name("N"),
+            "--distance: grid components with fewer pixels are speckles (0 = off)")(
             "alpha", cli::po::value<double>()->default_value(3.0)->value_name("X"),
             "--distance: robust standard deviations of the normalised kNN distance that are kept")(
             "no-pass-a", "--distance: skip the grid support and speckle tests")(
@@ -168,6 +179,9 @@ int main(int argc, char** argv) {
             distance.c_min = ctx.get<int>("c-min");
             distance.line_sigmas = ctx.get<double>("line-sigmas");
             distance.dense_min = ctx.get<int>("dense-min");
+            distance.c_min_wide = ctx.get<int>("c-min-wide");
+            distance.keep_knn = ctx.get<double>("keep-knn");
+            distance.keep_k = ctx.get<int>("keep-k");
             distance.n_speckle = ctx.get<int>("n-speckle");
             distance.alpha = ctx.get<double>("alpha");
             distance.pass_a = vm.count("no-pass-a") == 0;

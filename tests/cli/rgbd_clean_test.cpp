@@ -142,7 +142,8 @@ TEST_F(RgbdClean, AbsurdParametersAreUsageErrors) {
           "--density --k 1", "--noise-model kinect3", "--distance --density",
           "--reference global --density", "--n-speckle -5", "--density --smooth",
           "--statistical --smooth", "--density --consensus-ratio 2",
-          "--density --consensus-sigmas 0", "--density --consensus-sigmas nan"}) {
+          "--density --consensus-sigmas 0", "--density --consensus-sigmas nan",
+          "--distance --c-min-wide 49", "--distance --keep-knn -1", "--distance --keep-k 0"}) {
         SCOPED_TRACE(args);
         Outcome r = run("$BIN/rgbd-clean " + args + " < /dev/null");
         EXPECT_EQ(r.code, 2) << r.err;

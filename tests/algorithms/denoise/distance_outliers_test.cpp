@@ -6,11 +6,14 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <random>
 #include <set>
+#include <utility>
+#include <vector>
 
 #include "toolkit/error.hpp"
 
@@ -177,6 +180,138 @@ TEST(DistanceOutliers, LineTestRemovesSpikesInsideDenseSurface) {
     EXPECT_LT(s0.recall, 0.5);  // the window test alone keeps most of them
 }
 
+// A sphere (radius 0.15 m, centre 1.5 m) in front of a wall at 1.75 m, rendered the way
+// rgbd-synth does: axial noise sigma_z(z, theta) with the grazing term, dropouts ramping from
+// 70 to 85 degrees of incidence plus 0.5% random ones, and in the 2-pixel band around every
+// depth jump > 30 mm, half the pixels replaced by flying pixels fg + U (bg - fg) (fg, bg = the
+// nearest and farthest clean depth in the 3 x 3 neighbourhood). The true distance of every
+// point to the scene is known in closed form: flying pixels farther than 8 mm from both
+// surfaces must go, surface pixels must stay (flying pixels nearer than 8 mm count for
+// neither, as in measure_denoise.py's geometric metric).
+struct SphereScene {
+    Frame frame;
+    std::set<std::uint32_t> far_flying;  ///< flying pixels > 8 mm from the true surfaces
+    std::set<std::uint32_t> surface;     ///< sphere and wall pixels
+};
+
+SphereScene sphere_scene(std::uint64_t seed) {
+    SphereScene out;
+    out.frame = empty_frame();
+    const auto k = intrinsics();
+    const Eigen::Vector3d centre(0.0, 0.0, 1.5);
+    const double radius = 0.15, wall = 1.75;
+    std::vector<double> depth(std::size_t(kW) * kH), theta(std::size_t(kW) * kH);
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const Eigen::Vector3d d = k.unproject(col, row, 1.0);  // d.z() = 1
+            const double b = d.dot(centre), c = centre.squaredNorm() - radius * radius;
+            const double disc = b * b - d.squaredNorm() * c;
+            const std::size_t at = std::size_t(row) * kW + col;
+            if (disc >= 0.0) {
+                const double t = (b - std::sqrt(disc)) / d.squaredNorm();
+                const Eigen::Vector3d n = (t * d - centre) / radius;
+                depth[at] = t;
+                theta[at] = std::acos(std::min(1.0, std::abs(n.dot(d.normalized()))));
+            } else {
+                depth[at] = wall;
+                theta[at] = std::acos(1.0 / d.norm());
+            }
+        }
+    const auto true_distance = [&](const Eigen::Vector3d& p) {
+        return std::min(std::abs((p - centre).norm() - radius), std::abs(p.z() - wall));
+    };
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const double deg = std::numbers::pi / 180.0;
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const std::size_t at = std::size_t(row) * kW + col;
+            double fg = depth[at], bg = depth[at];
+            for (int dr = -1; dr <= 1; ++dr)
+                for (int dc = -1; dc <= 1; ++dc) {
+                    const int rr = std::clamp(row + dr, 0, kH - 1);
+                    const int cc = std::clamp(col + dc, 0, kW - 1);
+                    fg = std::min(fg, depth[std::size_t(rr) * kW + cc]);
+                    bg = std::max(bg, depth[std::size_t(rr) * kW + cc]);
+                }
+            const auto px = std::uint32_t(at);
+            if (bg - fg > 0.03 && uniform(rng) < 0.5) {
+                const double z = fg + uniform(rng) * (bg - fg);
+                const bool far = true_distance(k.unproject(col, row, z)) > 0.008;
+                add(out.frame, col, row, z, true);
+                if (far) out.far_flying.insert(px);
+                continue;
+            }
+            const double ramp = std::clamp((theta[at] / deg - 70.0) / 15.0, 0.0, 1.0);
+            if (uniform(rng) < ramp || uniform(rng) < 0.005) continue;  // dropout
+            const double sigma = sigma_z_m(NoiseModel::kKinectV2, depth[at], theta[at]);
+            add(out.frame, col, row, depth[at] + sigma * normal(rng), false);
+            out.surface.insert(px);
+        }
+    return out;
+}
+
+/// Recall over `noise` and loss over `surface` of the pixels missing from `after`.
+std::pair<double, double> recall_and_loss(const std::set<std::uint32_t>& noise,
+                                          const std::set<std::uint32_t>& surface,
+                                          const PointCloud& after) {
+    std::set<std::uint32_t> kept;
+    const auto pixel = *after.pixel_map();
+    for (auto idx : after.points) kept.insert(pixel[idx]);
+    std::size_t removed_noise = 0, removed_surface = 0;
+    for (auto px : noise) removed_noise += !kept.count(px);
+    for (auto px : surface) removed_surface += !kept.count(px);
+    return {double(removed_noise) / double(noise.size()),
+            double(removed_surface) / double(surface.size())};
+}
+
+TEST(DistanceOutliers, SphereBeforeAWallFarFlyingPixelsGoSurfaceStays) {
+    for (std::uint64_t seed : {1, 2, 3}) {
+        const SphereScene scene = sphere_scene(seed);
+        ASSERT_GT(scene.far_flying.size(), 100u);
+        ASSERT_GT(scene.surface.size(), 15000u);
+        PointCloud cloud = scene.frame.cloud;
+        const Report r = remove_distance_outliers(cloud, DistanceOptions{});
+        const auto [recall, loss] = recall_and_loss(scene.far_flying, scene.surface, cloud);
+        EXPECT_GE(recall, 0.9) << "seed " << seed << " " << r.dump();
+        EXPECT_LE(loss, 0.002) << "seed " << seed << " " << r.dump();
+    }
+}
+
+// A plane at 78 degrees of incidence, rgbd-synth style: axial noise with the grazing term
+// (~7 mm at 1.5 m) and dropouts (35%, as the 70-85 degree ramp gives there). Its pixels often
+// fail the support and line tests; their 5 nearest 3D points stay within 3 footprints, so the
+// kNN keep test keeps them.
+TEST(DistanceOutliers, KnnKeepTestKeepsNoisyGrazingSurface) {
+    Frame f = empty_frame();
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    const double tilt = 78.0 * std::numbers::pi / 180.0;
+    const Eigen::Vector3d normal(std::sin(tilt), 0.0, -std::cos(tilt));
+    const Eigen::Vector3d origin(0.0, 0.0, 1.5);
+    const auto k = intrinsics();
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const Eigen::Vector3d ray = k.unproject(col, row, 1.0);
+            const double z = normal.dot(origin) / normal.dot(ray);
+            if (z < 1.0 || z > 2.0 || uniform(rng) < 0.35) continue;
+            const double theta = std::acos(std::abs(normal.dot(ray.normalized())));
+            std::normal_distribution<double> noise(0.0, sigma_z_m(NoiseModel::kKinectV2, z, theta));
+            add(f, col, row, z + noise(rng), false);
+        }
+    ASSERT_GT(f.surface, 3000u);
+    PointCloud with_keep = f.cloud, without_keep = f.cloud;
+    const Report r = remove_distance_outliers(with_keep, DistanceOptions{});
+    DistanceOptions no_keep;
+    no_keep.keep_knn = 0.0;
+    const Report r0 = remove_distance_outliers(without_keep, no_keep);
+    const double loss = 1.0 - double(with_keep.size()) / double(f.surface);
+    const double loss0 = 1.0 - double(without_keep.size()) / double(f.surface);
+    EXPECT_LE(loss, 0.02) << r.dump();
+    EXPECT_GT(loss0, 2.0 * loss + 0.005) << r0.dump();
+}
+
 TEST(DistanceOutliers, InlierLossDoesNotDependOnDepth) {
     Frame near = object_scene(1.0, 7);
     Frame far = object_scene(3.0, 7);
@@ -250,6 +385,17 @@ TEST(DistanceOutliers, Errors) {
     EXPECT_THROW(bad.check(), InputError);
     bad = {};
     bad.alpha = -1;
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.c_min_wide = 49;
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.keep_knn = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW(bad.check(), InputError);
+    bad = {};
+    bad.keep_k = 0;
+    EXPECT_THROW(bad.check(), InputError);
+    bad.keep_k = 49;
     EXPECT_THROW(bad.check(), InputError);
 }
 

@@ -182,11 +182,12 @@ def main():
             run(f"{b}/rgbd-synth {mesh} -o {cap} {' '.join(args)} --seed {a.seed} -q")
         views = os.path.join(work, f"{name}_views.ply")
         run(f"{b}/rgbd-cloud {cap} -q > {views}")
-        # Before alignment: --distance per view (default and the high-recall setting).
+        # Before alignment: --distance per view (default, and the high-recall setting: the
+        # support and line tests without the 7x7 second chance and the kNN keep test).
         rows, times = [], []
         for label, extra in (("rgbd-clean --distance", ""),
-                             ("rgbd-clean --distance --c-min 3 --dense-min 16 --line-sigmas 3",
-                              "--c-min 3 --dense-min 16 --line-sigmas 3")):
+                             ("rgbd-clean --distance --c-min 3 --c-min-wide 0 --keep-knn 0",
+                              "--c-min 3 --c-min-wide 0 --keep-knn 0")):
             marked = os.path.join(work, f"{name}_distance.ply")
             times.append(timed(f"{b}/rgbd-clean --distance --mark -q {extra} {views} > {marked}"))
             score, docs, lab, geo, tau = ours(marked, cap)
