@@ -112,6 +112,25 @@ TEST_F(RgbdClean, DensityOnAlignedViewsKeepsTheViews) {
     EXPECT_NE(r.out.find("\"history\""), std::string::npos);
 }
 
+// --high-recall is the stricter operating point: it removes more; an explicit option still
+// wins over its preset value.
+TEST_F(RgbdClean, HighRecallRemovesMoreAndExplicitOptionsWin) {
+    Outcome r =
+        run("$BIN/rgbd-clean --distance views.ply --metrics m_f1.json > f1.ply && "
+            "$BIN/rgbd-clean --distance --high-recall views.ply --metrics m_hr.json > hr.ply && "
+            "$BIN/rgbd-clean --distance --high-recall --c-min 2 --c-min-wide 3 --keep-knn 3 "
+            "--line-sigmas 3 --dense-min 16 views.ply --metrics m_back.json > back.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto f1 = metrics("m_f1.json"), hr = metrics("m_hr.json"), back = metrics("m_back.json");
+    int removed_f1 = 0, removed_hr = 0;
+    for (std::size_t v = 0; v < 4; ++v) {
+        removed_f1 += f1["documents"][v]["removed"].get<int>();
+        removed_hr += hr["documents"][v]["removed"].get<int>();
+        EXPECT_EQ(back["documents"][v]["removed"], f1["documents"][v]["removed"]);
+    }
+    EXPECT_GT(removed_hr, removed_f1);
+}
+
 // --smooth keeps what --distance keeps and moves the survivors along their rays; on a view
 // without a grid it is an error naming the view.
 TEST_F(RgbdClean, SmoothMovesTheSurvivorsAndDeletesNothingMore) {

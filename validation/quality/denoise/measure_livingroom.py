@@ -84,8 +84,7 @@ def main():
     ours_marked = {}
     moved = {}  # name -> per-frame point positions of methods that move points (--smooth)
     for label, extra in (("rgbd-clean --distance", ""),
-                         ("rgbd-clean --distance --c-min 3 --c-min-wide 0 --keep-knn 0",
-                          "--c-min 3 --c-min-wide 0 --keep-knn 0"),
+                         ("rgbd-clean --distance --high-recall", "--high-recall"),
                          ("rgbd-clean --distance --smooth", "--smooth")):
         out = os.path.join(work, f"distance_{len(ours_marked)}.ply")
         t = time.perf_counter()
