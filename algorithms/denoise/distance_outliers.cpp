@@ -164,17 +164,24 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             const double limit = step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
             return (cam[j] - cam[i]).squaredNorm() <= limit * limit;
         };
-        // Step 1, second chance: supporters of i in its 7 x 7 window (the same relation).
-        const auto wide_support = [&](std::int32_t i, int row, int col) {
-            int count = 0;
+        // visit(j, dr, dc) for every valid pixel j of the 7 x 7 window around (row, col), the
+        // centre excluded (the rare paths after the hot loop).
+        const auto each_in_wide_window = [&](int row, int col, const auto& visit) {
             for (int dr = -ww; dr <= ww; ++dr)
                 for (int dc = -ww; dc <= ww; ++dc) {
                     if (dr == 0 && dc == 0) continue;
                     const int rr = row + dr, cc = col + dc;
                     if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
                     const std::int32_t j = grid[std::size_t(rr) * width + cc];
-                    if (j >= 0 && supports(i, j, dr, dc)) ++count;
+                    if (j >= 0) visit(j, dr, dc);
                 }
+        };
+        // Step 1, second chance: supporters of i in its 7 x 7 window (the same relation).
+        const auto wide_support = [&](std::int32_t i, int row, int col) {
+            int count = 0;
+            each_in_wide_window(row, col, [&](std::int32_t j, int dr, int dc) {
+                if (supports(i, j, dr, dc)) ++count;
+            });
             return count;
         };
         // Step 2b, kNN keep: mean 3D distance from i to its keep_k nearest points in its 7 x 7
@@ -184,22 +191,16 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             double best[DistanceOptions::kMaxKeepK];  // the keep_k smallest squared distances,
                                                       // ascending
             int found = 0;
-            for (int dr = -ww; dr <= ww; ++dr)
-                for (int dc = -ww; dc <= ww; ++dc) {
-                    if (dr == 0 && dc == 0) continue;
-                    const int rr = row + dr, cc = col + dc;
-                    if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
-                    const std::int32_t j = grid[std::size_t(rr) * width + cc];
-                    if (j < 0) continue;
-                    const double d = (cam[j] - cam[i]).squaredNorm();
-                    if (found == keep_k && d >= best[keep_k - 1]) continue;
-                    int at = found < keep_k ? found++ : keep_k - 1;
-                    while (at > 0 && best[at - 1] > d) {
-                        best[at] = best[at - 1];
-                        --at;
-                    }
-                    best[at] = d;
+            each_in_wide_window(row, col, [&](std::int32_t j, int, int) {
+                const double d = (cam[j] - cam[i]).squaredNorm();
+                if (found == keep_k && d >= best[keep_k - 1]) return;
+                int at = found < keep_k ? found++ : keep_k - 1;
+                while (at > 0 && best[at - 1] > d) {
+                    best[at] = best[at - 1];
+                    --at;
                 }
+                best[at] = d;
+            });
             if (found < keep_k) return std::numeric_limits<double>::infinity();
             double sum = 0.0;
             for (int a = 0; a < keep_k; ++a) sum += std::sqrt(best[a]);
