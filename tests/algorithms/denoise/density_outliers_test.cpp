@@ -10,6 +10,7 @@
 #include <random>
 
 #include "algorithms/sampling/robust_spacing.hpp"
+#include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
@@ -17,15 +18,7 @@ namespace {
 
 constexpr int kW = 128, kH = 96;
 
-PinholeIntrinsics intrinsics() {
-    PinholeIntrinsics k;
-    k.width = kW;
-    k.height = kH;
-    k.fx = k.fy = 180.0;
-    k.cx = kW / 2.0;
-    k.cy = kH / 2.0;
-    return k;
-}
+PinholeIntrinsics intrinsics() { return test::centred_pinhole(kW, kH, 180.0); }
 
 /// View of the plane z = 1.5 (world) from a camera at `x` looking along +z; noise points
 /// (flag noise = 1 in the returned `truth` property "synthetic") appended.

@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
@@ -19,15 +20,7 @@ namespace {
 constexpr int kW = 120, kH = 100;
 constexpr double kF = 365.5;
 
-PinholeIntrinsics intrinsics() {
-    PinholeIntrinsics k;
-    k.width = kW;
-    k.height = kH;
-    k.fx = k.fy = kF;
-    k.cx = kW / 2.0;
-    k.cy = kH / 2.0;
-    return k;
-}
+PinholeIntrinsics intrinsics() { return test::centred_pinhole(kW, kH, kF); }
 
 /// Organised view of a depth function (NaN = no return) with Gaussian noise of the Kinect v2
 /// model; `truth` gets the noise-free depth of every point in insertion order.

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
@@ -30,15 +31,7 @@ struct Frame {
     std::size_t surface = 0;
 };
 
-PinholeIntrinsics intrinsics() {
-    PinholeIntrinsics k;
-    k.width = kW;
-    k.height = kH;
-    k.fx = k.fy = kF;
-    k.cx = kW / 2.0;
-    k.cy = kH / 2.0;
-    return k;
-}
+PinholeIntrinsics intrinsics() { return test::centred_pinhole(kW, kH, kF); }
 
 /// Adds pixel (col, row) at depth z to the frame.
 void add(Frame& f, int col, int row, double z, bool noise) {
