@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <numbers>
@@ -362,30 +363,45 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["method"] = "density";
     report["mark"] = options.mark;
 
-    // Gather all views in the world frame.
+    // Gather all views in the world frame: each view's points in parallel (an error names the
+    // first offending view, as a sequential pass would), then placed at their offsets.
     std::vector<detail::Gathered> gathered(views.size());
-    std::vector<Eigen::Vector3d> world;
-    std::vector<std::uint32_t> view_of;  ///< view index of every point of `world`
+    std::vector<std::exception_ptr> failed(views.size());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        try {
+            gathered[v] = detail::gather(views[v]);
+        } catch (...) {
+            failed[v] = std::current_exception();
+        }
+    });
     std::vector<Eigen::Matrix3d> frame_rotation(views.size(), Eigen::Matrix3d::Identity());
+    std::vector<Pose> world_from_frame(views.size(), Pose::Identity());
+    std::vector<std::size_t> offset(views.size() + 1, 0);
     bool have_cameras = true;
     for (std::size_t v = 0; v < views.size(); ++v) {
-        PointCloud& view = views[v];
-        gathered[v] = detail::gather(view);
+        if (failed[v]) std::rethrow_exception(failed[v]);
+        offset[v + 1] = offset[v] + gathered[v].xyz.size();
         if (gathered[v].xyz.empty()) continue;
+        const PointCloud& view = views[v];
         const bool posed = view.view.world_from_sensor.has_value();
         if (!posed || !view.view.intrinsics) have_cameras = false;
-        Pose world_from_frame = Pose::Identity();
         if (view.view.frame == ViewFrame::kSensor) {
             RGBD_CHECK(posed || views.size() == 1,
                        detail::view_name(view) +
                            ": --density merges views in the world frame and needs "
                            "world_from_sensor (run rgbd-align first)");
-            if (posed) world_from_frame = *view.view.world_from_sensor;
+            if (posed) world_from_frame[v] = *view.view.world_from_sensor;
         }
-        frame_rotation[v] = world_from_frame.linear();
-        for (const auto& p : gathered[v].xyz) world.push_back(world_from_frame * p);
-        view_of.resize(world.size(), std::uint32_t(v));
+        frame_rotation[v] = world_from_frame[v].linear();
     }
+    std::vector<Eigen::Vector3d> world(offset.back());
+    std::vector<std::uint32_t> view_of(offset.back());  ///< view index of every point of `world`
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        for (std::size_t a = 0; a < gathered[v].xyz.size(); ++a) {
+            world[offset[v] + a] = world_from_frame[v] * gathered[v].xyz[a];
+            view_of[offset[v] + a] = std::uint32_t(v);
+        }
+    });
     const std::size_t n = world.size();
     report["input_points"] = n;
     DensityReference reference = options.reference;
