@@ -57,7 +57,12 @@ struct Camera {
     bool undistorted = true;  ///< no lens distortion: project() is the plain pinhole
     PinholeIntrinsics intrinsics;
     double focal = 0.0;
-    std::vector<float> depth;  ///< width * height, +inf = no return
+    bool active = false;  ///< the view has points (an empty view sees nothing)
+    /// Depth map over the bounding box [x0, x0 + bw) x [y0, y0 + bh) of the view's returns,
+    /// row-major; every pixel outside it, like a pixel without a return inside, is +inf. The
+    /// object fills a small part of the image: a few hundred kB instead of width * height.
+    int x0 = 0, y0 = 0, bw = 0, bh = 0;
+    std::vector<float> depth;
 };
 
 /// Components of the eps graph over `pts` (p ~ q iff |p - q| <= eps), exactly, without a
@@ -445,22 +450,43 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             c.translation = c.sensor_from_world.translation();
             c.undistorted = c.intrinsics.distortion.is_none();
             c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
-            c.depth.assign(std::size_t(c.intrinsics.width) * c.intrinsics.height,
-                           std::numeric_limits<float>::infinity());
+            c.active = true;
         }
         tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
             Camera& c = cameras[v];
-            if (c.depth.empty()) return;
+            if (!c.active) return;
             const Pose frame_to_sensor =
                 views[v].view.frame == ViewFrame::kWorld ? c.sensor_from_world : Pose::Identity();
+            struct Hit {
+                int col, row;
+                float z;
+            };
+            std::vector<Hit> hits;
+            hits.reserve(gathered[v].xyz.size());
+            int lo_x = std::numeric_limits<int>::max(), lo_y = lo_x, hi_x = -1, hi_y = -1;
             for (const auto& p : gathered[v].xyz) {
                 const Eigen::Vector3d q = frame_to_sensor * p;
                 if (q.z() <= 0.0) continue;
                 const Eigen::Vector2d uv = c.intrinsics.project(q);
                 if (!c.intrinsics.contains(uv)) continue;
-                const std::size_t px = std::size_t(std::lround(uv.y())) * c.intrinsics.width +
-                                       std::size_t(std::lround(uv.x()));
-                c.depth[px] = std::min(c.depth[px], float(q.z()));
+                const int col = int(std::lround(uv.x())), row = int(std::lround(uv.y()));
+                hits.push_back({col, row, float(q.z())});
+                lo_x = std::min(lo_x, col);
+                hi_x = std::max(hi_x, col);
+                lo_y = std::min(lo_y, row);
+                hi_y = std::max(hi_y, row);
+            }
+            if (hits.empty()) return;  // bw = bh = 0: no return anywhere
+            c.x0 = lo_x;
+            c.y0 = lo_y;
+            c.bw = hi_x - lo_x + 1;
+            c.bh = hi_y - lo_y + 1;
+            c.depth.assign(std::size_t(c.bw) * std::size_t(c.bh),
+                           std::numeric_limits<float>::infinity());
+            for (const Hit& hit : hits) {
+                float& d =
+                    c.depth[std::size_t(hit.row - c.y0) * c.bw + std::size_t(hit.col - c.x0)];
+                d = std::min(d, hit.z);
             }
         });
     }
@@ -608,7 +634,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                     const Eigen::Vector3d nrm = normal[i].normalized();
                     double sum = 0.0;
                     for (const Camera& c : cameras) {
-                        if (c.depth.empty()) continue;
+                        if (!c.active) continue;
                         const Eigen::Vector3d q = c.rotation * world[i] + c.translation;
                         if (q.z() <= 0.0) continue;
                         const Eigen::Vector2d uv =
@@ -623,16 +649,18 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                         const double tol = q.z() / c.focal * tan_max +
                                            3.0 * sigma_z_m(options.noise_model, q.z(), 0.0);
                         // Branch-free over the 3 x 3 window: a missing return is +inf (never
-                        // NaN), which changes neither the minimum nor the "seen" test.
+                        // NaN), which changes neither the minimum nor the "seen" test; pixels
+                        // outside the map's box have no return either, so are skipped.
                         bool seen = false;
                         double nearest = std::numeric_limits<double>::infinity();
-                        const int w = c.intrinsics.width, h = c.intrinsics.height;
-                        const int r0 = std::max(row - 1, 0), r1 = std::min(row + 1, h - 1);
-                        const int c0 = std::max(col - 1, 0), c1 = std::min(col + 1, w - 1);
+                        const int r0 = std::max(row - 1, c.y0),
+                                  r1 = std::min(row + 1, c.y0 + c.bh - 1);
+                        const int c0 = std::max(col - 1, c.x0),
+                                  c1 = std::min(col + 1, c.x0 + c.bw - 1);
                         for (int rr = r0; rr <= r1; ++rr) {
-                            const float* line = c.depth.data() + std::size_t(rr) * w;
+                            const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
                             for (int cc = c0; cc <= c1; ++cc) {
-                                const double d = line[cc];
+                                const double d = line[cc - c.x0];
                                 nearest = std::min(nearest, d);
                                 seen |= std::abs(d - q.z()) <= tol;
                             }
