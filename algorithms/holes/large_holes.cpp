@@ -172,11 +172,28 @@ Rgb pixel_rgb(const cv::Mat& color, int row, int col) {
     return {c[0], c[1], c[2]};
 }
 
+/// New points proposed by a fill, in parallel arrays: position, normal, colour and the hole
+/// component (`loop`) of each.
+struct Candidates {
+    std::vector<Eigen::Vector3d> position, normal;
+    std::vector<Rgb> color;
+    std::vector<std::uint32_t> loop;
+
+    void push(const Eigen::Vector3d& p, const Eigen::Vector3d& n, Rgb c, std::uint32_t l) {
+        position.push_back(p);
+        normal.push_back(n);
+        color.push_back(c);
+        loop.push_back(l);
+    }
+};
+
 /// Appends candidates that keep `clearance` from the existing points, in the order given.
 void add_clear(FillResult& result, const internal::KdTree& tree, double clearance,
-               const std::vector<Eigen::Vector3d>& position,
-               const std::vector<Eigen::Vector3d>& normal, const std::vector<Rgb>& color,
-               const std::vector<std::uint32_t>& loop, FillMechanism mechanism) {
+               const Candidates& candidates, FillMechanism mechanism) {
+    const auto& position = candidates.position;
+    const auto& normal = candidates.normal;
+    const auto& color = candidates.color;
+    const auto& loop = candidates.loop;
     std::vector<std::uint8_t> keep(position.size(), 0);
     const double c2 = clearance * clearance;
     tbb::parallel_for(
@@ -200,10 +217,12 @@ void add_clear(FillResult& result, const internal::KdTree& tree, double clearanc
 
 /// Drops the candidates of hole components that a sensor saw through (§10's visibility test on
 /// the component's centre, mean normal and radius). Returns the number of components dropped.
-int drop_openings(std::vector<Eigen::Vector3d>& position, std::vector<Eigen::Vector3d>& normal,
-                  std::vector<Rgb>& color, std::vector<std::uint32_t>& loop,
-                  const std::vector<SensorView>& sensors, const internal::KdTree& tree,
-                  double spacing_m, const InpaintOptions& options) {
+int drop_openings(Candidates& candidates, const std::vector<SensorView>& sensors,
+                  const internal::KdTree& tree, double spacing_m, const InpaintOptions& options) {
+    auto& position = candidates.position;
+    auto& normal = candidates.normal;
+    auto& color = candidates.color;
+    auto& loop = candidates.loop;
     if (sensors.empty() || options.fill_openings || position.empty()) return 0;
     const std::uint32_t n = *std::max_element(loop.begin(), loop.end()) + 1;
     std::vector<Eigen::Vector3d> centre(n, Eigen::Vector3d::Zero()),
@@ -244,6 +263,18 @@ int drop_openings(std::vector<Eigen::Vector3d>& position, std::vector<Eigen::Vec
     color.resize(k);
     loop.resize(k);
     return dropped;
+}
+
+/// The common end of both fills: the candidates of components a sensor saw through are
+/// dropped, the rest join `result` where they keep the clearance from `points`; the number of
+/// dropped components goes to info["skipped_seen_through"].
+void keep_candidates(Candidates& candidates, const SurfacePoints& points,
+                     const std::vector<SensorView>& sensors, double spacing_m,
+                     const InpaintOptions& options, FillMechanism mechanism, FillResult& result,
+                     Report& info) {
+    const internal::KdTree tree(points.position);
+    info["skipped_seen_through"] = drop_openings(candidates, sensors, tree, spacing_m, options);
+    add_clear(result, tree, options.clearance * spacing_m, candidates, mechanism);
 }
 
 double bilinear(const cv::Mat& img, double row, double col, bool wrap_cols) {
@@ -510,9 +541,7 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     if (!report_progress(progress, 0.7)) throw AlgorithmError("cancelled");
     // Step 5: back-projection of the hole pixels at the step, normals from the gradient.
     const int n_sub = std::max(1, static_cast<int>(std::lround(options.pixel / options.step)));
-    std::vector<Eigen::Vector3d> cand, cand_n;
-    std::vector<Rgb> cand_c;
-    std::vector<std::uint32_t> cand_l;
+    Candidates cand;
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) {
             if (!hole.at<std::uint8_t>(r, c)) continue;
@@ -529,17 +558,12 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
                     const double fr = r + (b + 0.5) / n_sub - 0.5;
                     const double h = bilinear(height, fr, fc, false);
                     const double u = ou + (fc + 0.5) * px, v = ov + (fr + 0.5) * px;
-                    cand.push_back(axis.origin + u * e1 + v * e2 + h * up);
-                    cand_n.push_back(n);
-                    cand_c.push_back(pixel_rgb(color, r, c));
-                    cand_l.push_back(static_cast<std::uint32_t>(labels.at<int>(r, c)));
+                    cand.push(axis.origin + u * e1 + v * e2 + h * up, n, pixel_rgb(color, r, c),
+                              static_cast<std::uint32_t>(labels.at<int>(r, c)));
                 }
         }
-    internal::KdTree tree(points.position);
-    info["skipped_seen_through"] =
-        drop_openings(cand, cand_n, cand_c, cand_l, sensors, tree, spacing_m, options);
-    add_clear(result, tree, options.clearance * spacing_m, cand, cand_n, cand_c, cand_l,
-              FillMechanism::kHeadTop);
+    keep_candidates(cand, points, sensors, spacing_m, options, FillMechanism::kHeadTop, result,
+                    info);
     if (!report_progress(progress, 1.0)) throw AlgorithmError("cancelled");
     return finish();
 }
@@ -731,9 +755,7 @@ FillResult fill_large_holes(const SurfacePoints& points,
     color = c_wide(crop).clone();
     if (!report_progress(progress, 0.6)) throw AlgorithmError("cancelled");
     // Back to 3D: hole pixels only, resampled at the step by bilinear interpolation.
-    std::vector<Eigen::Vector3d> cand, cand_n;
-    std::vector<Rgb> cand_c;
-    std::vector<std::uint32_t> cand_l;
+    Candidates cand;
     const double step = options.step * spacing_m;
     const int n_h = std::max(1, static_cast<int>(std::lround(px / step)));
     for (int r = 0; r < rows; ++r)
@@ -760,17 +782,12 @@ FillResult fill_large_holes(const SurfacePoints& points,
                     const Eigen::Vector3d dp_dh = r_h * out + up;
                     Eigen::Vector3d nn = dp_dt.cross(dp_dh).normalized();
                     if (nn.dot(out) < 0) nn = -nn;
-                    cand.push_back(axis.origin + rr * out + h * up);
-                    cand_n.push_back(nn);
-                    cand_c.push_back(pixel_rgb(color, r, c));
-                    cand_l.push_back(static_cast<std::uint32_t>(find(labels.at<int>(r, c))));
+                    cand.push(axis.origin + rr * out + h * up, nn, pixel_rgb(color, r, c),
+                              static_cast<std::uint32_t>(find(labels.at<int>(r, c))));
                 }
         }
-    internal::KdTree tree(points.position);
-    info["skipped_seen_through"] =
-        drop_openings(cand, cand_n, cand_c, cand_l, sensors, tree, spacing_m, options);
-    add_clear(result, tree, options.clearance * spacing_m, cand, cand_n, cand_c, cand_l,
-              FillMechanism::kLargeHole);
+    keep_candidates(cand, points, sensors, spacing_m, options, FillMechanism::kLargeHole, result,
+                    info);
     if (!report_progress(progress, 1.0)) throw AlgorithmError("cancelled");
     return finish();
 }
