@@ -31,10 +31,14 @@ inline int line_count(const std::string& s) {
     return n;
 }
 
-/// A scratch folder per test process: temp/<prefix>_<pid>.
+/// A fresh scratch folder per test process: temp/<prefix>_<pid>. A folder of that name can
+/// only be left over from an earlier, finished process that had the same pid (ctest runs
+/// every test in its own process; pids are reused), so it is emptied first: stale files made
+/// cli_test's fs::copy into "badrig" fail with "File exists". Call it once per process.
 inline std::filesystem::path scratch_dir(const std::string& prefix) {
     std::filesystem::path p =
         std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     return p;
 }
