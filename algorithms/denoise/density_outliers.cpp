@@ -293,12 +293,6 @@ double grid_spacing(const std::vector<Eigen::Vector3d>& pts, std::size_t sample,
     const double cell = std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(n));
     CellGrid grid;
     if (!(cell > 0.0) || !grid.build(pts, cell)) return sampling::robust_spacing(pts, sample, seed);
-    // Cell coordinates of a point exactly as CellGrid::build computed them (offset 2).
-    const auto cell_of = [&](const Eigen::Vector3d& p) {
-        const Eigen::Vector3d c = (p - lo) / cell;
-        return Eigen::Matrix<std::int64_t, 3, 1>(std::int64_t(c.x()) + 2, std::int64_t(c.y()) + 2,
-                                                 std::int64_t(c.z()) + 2);
-    };
     // Rings beyond the grid's extent hold no cells: the search is complete there.
     const Eigen::Vector3d span = (hi - lo) / cell;
     const std::int64_t all_rings = std::int64_t(span.maxCoeff()) + 2;
@@ -317,7 +311,7 @@ double grid_spacing(const std::vector<Eigen::Vector3d>& pts, std::size_t sample,
                 for (std::size_t i = r.begin(); i != r.end(); ++i) {
                     const std::uint32_t qi = queries[i];
                     const Eigen::Vector3d& p = pts[qi];
-                    const auto c = cell_of(p);
+                    const auto c = grid.cell_of(p);
                     double best = std::numeric_limits<double>::infinity();
                     // Cells (x, y, z0 .. z1) of one column.
                     const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0,
