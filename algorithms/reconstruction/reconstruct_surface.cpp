@@ -155,6 +155,11 @@ void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
         CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
                                                      std::back_inserter(triangles),
                                                      o.af_radius_ratio_bound, o.af_beta);
+    // CGAL hands the triangles out in an order that follows the addresses of its handles, which
+    // differ between processes (heap layout): sort them, so that the same points always give
+    // the same mesh, face order included, and everything downstream (hole closing) with it.
+    for (auto& t : triangles) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    std::sort(triangles.begin(), triangles.end());
     std::vector<std::vector<std::size_t>> polygons;
     polygons.reserve(triangles.size());
     // Orient every triangle along the mean input normal of its corners, then make the soup
