@@ -1,40 +1,15 @@
 // rgbd-fill: hole detection, small-hole filling, large holes and the head top on aligned views
 // (ALGORITHMS.md §9-§13).
 #include <algorithm>
-#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "algorithms/holes/hole_detection.hpp"
-#include "algorithms/holes/hole_filling.hpp"
-#include "algorithms/holes/large_holes.hpp"
+#include "cli/common/fill_stage.hpp"
 #include "cli/common/tool.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
-
-namespace {
-
-/// Debug colours of added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow, large
-/// holes magenta, head top cyan).
-Rgb mechanism_color(holes::FillMechanism m) {
-    switch (m) {
-        case holes::FillMechanism::kLargeHole:
-            return {220, 40, 220};
-        case holes::FillMechanism::kHeadTop:
-            return {40, 210, 230};
-        case holes::FillMechanism::kOnePoint:
-            return {230, 40, 40};
-        case holes::FillMechanism::kFourPoints:
-            return {40, 200, 40};
-        case holes::FillMechanism::kThreePoints:
-            return {40, 80, 230};
-        default:
-            return {240, 210, 20};
-    }
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
     cli::ToolSpec spec;
@@ -228,132 +203,49 @@ int main(int argc, char** argv) {
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
-        const bool detect_only = vm.count("detect-only") > 0;
-        const bool mark = vm.count("mark") > 0;
-        const bool large = !detect_only && vm.count("no-large") == 0;
-        const bool head_top = !detect_only && vm.count("no-head-top") == 0;
+        cli::FillStageOptions stage;
+        stage.detect = detect;
+        stage.fill = fill;
+        stage.inpaint = inpaint;
+        stage.detect_only = vm.count("detect-only") > 0;
+        stage.mark = vm.count("mark") > 0;
+        stage.large = vm.count("no-large") == 0;
+        stage.head_top = vm.count("no-head-top") == 0;
+        stage.ignore_poses = vm.count("ignore-poses") > 0;
+        stage.debug_colors = vm.count("debug-colors") > 0;
 
         std::vector<io::Document> documents = ctx.read_all_documents();
         std::vector<PointCloud*> views;
-        int max_id = -1;
         for (std::size_t d = 0; d < documents.size(); ++d) {
-            max_id = std::max(max_id, documents[d].cloud.view.id);
             if (documents[d].kind != io::DocumentKind::kPoints) {
                 ctx.warn("document " + std::to_string(d) + " is a mesh; passed through");
                 continue;
             }
             views.push_back(&documents[d].cloud);
         }
-        std::vector<holes::SensorView> sensors;
-        holes::SurfacePoints points = holes::gather_views({views.begin(), views.end()}, &sensors);
-        // The vertical axis comes from the poses even when the visibility test ignores them.
-        const std::vector<holes::SensorView> ring = sensors;
-        if (vm.count("ignore-poses")) sensors.clear();
-        if (points.size() < 4) {
-            ctx.warn("the stream has " + std::to_string(points.size()) +
-                     " points; nothing to fill");
-            for (auto& document : documents) ctx.write(document);
-            return;
-        }
-        auto bar = ctx.progress("fill");
         Report report;
-        report["views"] = views.size();
-        report["sensors"] = sensors.size();
-        const holes::BoundaryResult detection = holes::detect_boundaries(
-            points, sensors, detect, &report, [&](double f) { return bar.update(0.4 * f); });
-        Report loops = Report::array();
-        for (const auto& loop : detection.loops)
-            loops.push_back({{"points", loop.points.size()},
-                             {"diameter_m", loop.diameter_m},
-                             {"small", loop.small},
-                             {"kind", holes::to_string(loop.kind)},
-                             {"seen_by", loop.seen_by}});
-        report["loop_list"] = loops;
-        if (mark) {
-            std::size_t offset = 0;
-            for (PointCloud* view : views) {
-                if (view->empty()) continue;
-                PointCloud& cloud = *view;
-                auto flag = cloud.add_flag(prop::kBoundary);
-                auto probability = cloud.add_float(prop::kBoundaryProbability);
-                std::size_t j = 0;
-                for (auto idx : cloud.points) {
-                    flag[idx] = detection.boundary[offset + j];
-                    probability[idx] = detection.probability[offset + j++];
-                }
-                offset += cloud.size();
-            }
+        std::optional<PointCloud> added;
+        {
+            auto bar = ctx.progress("fill");
+            added = cli::fill_stage(views, stage, report, bar.callback());
         }
-        holes::FillResult added;
-        if (!detect_only) {
-            added = holes::fill_small_holes(points, detection, fill, &report,
-                                            [&](double f) { return bar.update(0.4 + 0.2 * f); });
+        if (report.contains("note")) ctx.warn(report["note"].get<std::string>());
+        if (report.contains("loop_list")) {
+            ctx.add_document_metrics(report);
+            ctx.info("fill: " + report.dump());
+            ctx.note(std::to_string(report["loop_list"].size()) + " hole loops (" +
+                     std::to_string(report.value("small_loops", std::size_t{0})) + " small), " +
+                     std::to_string(report["points_added_total"].get<std::size_t>()) +
+                     " points added");
         }
-        if (head_top || large) {
-            // Inpainting works on the measured points plus the small-hole fill.
-            holes::SurfacePoints all = points;
-            std::vector<Eigen::Vector3d> normals = detection.gradient.normal;
-            const auto append = [&](const holes::FillResult& more) {
-                for (std::size_t i = 0; i < more.position.size(); ++i) {
-                    all.position.push_back(more.position[i]);
-                    normals.push_back(more.normal[i]);
-                    if (!all.color.empty()) all.color.push_back(more.color[i]);
-                    added.position.push_back(more.position[i]);
-                    added.normal.push_back(more.normal[i]);
-                    added.color.push_back(more.color[i]);
-                    added.mechanism.push_back(more.mechanism[i]);
-                    added.loop.push_back(more.loop[i]);
-                }
-            };
-            all.normal.clear();
-            all.view.clear();
-            for (std::size_t i = 0; i < added.position.size(); ++i) {
-                all.position.push_back(added.position[i]);
-                normals.push_back(added.normal[i]);
-                if (!all.color.empty()) all.color.push_back(added.color[i]);
-            }
-            const holes::BodyAxis axis = holes::estimate_body_axis(points, ring);
-            report["axis"] = {{"up", {axis.up.x(), axis.up.y(), axis.up.z()}},
-                              {"from_sensors", axis.from_sensors}};
-            double top_limit = std::numeric_limits<double>::infinity();
-            if (head_top) {
-                top_limit = holes::head_top_start(all, axis, inpaint);
-                append(holes::fill_head_top(all, normals, axis, detection.spacing_m, sensors,
-                                            inpaint, &report,
-                                            [&](double f) { return bar.update(0.6 + 0.2 * f); }));
-            }
-            if (large)
-                append(holes::fill_large_holes(
-                    all, normals, axis, detection.spacing_m, sensors, inpaint, top_limit, &report,
-                    [&](double f) { return bar.update(0.8 + 0.2 * f); }));
-            report["points_added_total"] = added.position.size();
-        }
-        ctx.add_document_metrics(report);
-        ctx.info("fill: " + report.dump());
-        ctx.note(std::to_string(detection.loops.size()) + " hole loops (" +
-                 std::to_string(report["small_loops"].get<std::size_t>()) + " small), " +
-                 std::to_string(added.position.size()) + " points added");
         for (auto& document : documents) ctx.write(document);
-        if (detect_only || added.position.empty()) return;
+        if (!added) return;
         io::Document filled;
         filled.kind = io::DocumentKind::kPoints;
-        PointCloud& cloud = filled.cloud;
-        cloud.view.id = max_id + 1;
-        cloud.view.sensor = "rgbd-fill";
-        cloud.view.frame = ViewFrame::kWorld;
-        cloud.points.add_normal_map();
-        const auto colors = cloud.add_colors();
-        const auto synthetic = cloud.add_flag(prop::kSynthetic);
-        const auto mechanism = cloud.add_flag(prop::kFillMechanism);
-        const bool debug = vm.count("debug-colors") > 0;
-        for (std::size_t i = 0; i < added.position.size(); ++i) {
-            const auto idx = *cloud.points.insert(to_point(added.position[i]));
-            cloud.points.normal(idx) =
-                Vector_3(added.normal[i].x(), added.normal[i].y(), added.normal[i].z());
-            colors.set(idx, debug ? mechanism_color(added.mechanism[i]) : added.color[i]);
-            synthetic[idx] = 1;
-            mechanism[idx] = static_cast<std::uint8_t>(added.mechanism[i]);
-        }
+        filled.cloud = std::move(*added);
+        // The new view's id follows every document's, meshes included.
+        for (const auto& document : documents)
+            filled.cloud.view.id = std::max(filled.cloud.view.id, document.cloud.view.id + 1);
         ctx.write(filled);
     });
 }
