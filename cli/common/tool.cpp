@@ -21,16 +21,39 @@ namespace fs = std::filesystem;
 
 // ---------------------------------------------------------------- ProgressBar
 
-ProgressBar::ProgressBar(std::string label, bool enabled)
-    : label_(std::move(label)), enabled_(enabled) {}
+ProgressBar::ProgressBar(std::string label, Mode mode) : label_(std::move(label)), mode_(mode) {}
 
 ProgressBar::~ProgressBar() {
-    if (enabled_ && last_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
+    if (mode_ == Mode::kTerminal && last_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
+    if (mode_ == Mode::kLog && last_line_s_ >= 0) {
+        char line[64];
+        std::snprintf(line, sizeof line, ": done in %.1f s\n", elapsed_s());
+        std::cerr << label_ << line << std::flush;
+    }
+}
+
+double ProgressBar::elapsed_s() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
 bool ProgressBar::update(double fraction) {
-    if (!enabled_) return true;
-    const int percent = static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 100.0));
+    if (mode_ == Mode::kOff) return true;
+    // Never backwards: a stage whose parts report their own fractions may restart at 0.
+    const int percent = std::max(
+        last_percent_, static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 100.0)));
+    if (mode_ == Mode::kLog) {
+        last_percent_ = percent;
+        const double t = elapsed_s();
+        if (last_line_s_ < 0 ? t < 1.0 : t - last_line_s_ < 10.0) return true;
+        char line[96];
+        if (last_line_s_ < 0)
+            std::snprintf(line, sizeof line, ": started, %d%% after %.1f s\n", percent, t);
+        else
+            std::snprintf(line, sizeof line, ": %d%% after %.1f s\n", percent, t);
+        std::cerr << label_ << line << std::flush;
+        last_line_s_ = t;
+        return true;
+    }
     if (percent == last_percent_) return true;
     last_percent_ = percent;
     const int width = 30, filled = percent * width / 100;
@@ -85,7 +108,11 @@ void Context::note(const std::string& message) const {
 }
 
 ProgressBar Context::progress(const std::string& label) const {
-    return ProgressBar(spec_.name + ": " + label, verbosity_ >= 0 && isatty(STDERR_FILENO));
+    using Mode = ProgressBar::Mode;
+    const Mode mode = verbosity_ < 0               ? Mode::kOff
+                      : isatty(STDERR_FILENO) != 0 ? Mode::kTerminal
+                                                   : Mode::kLog;
+    return ProgressBar(spec_.name + ": " + label, mode);
 }
 
 namespace {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <boost/program_options.hpp>
+#include <chrono>
 #include <functional>
 #include <iosfwd>
 #include <memory>
@@ -51,20 +52,30 @@ using ToolMain = std::function<void(Context&)>;
 /// codes. Returns the exit code for main().
 int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body);
 
-/// A progress bar on stderr, drawn only when stderr is a terminal.
+/// Progress of one stage on stderr. On a terminal: a bar that never goes backwards. Elsewhere
+/// (a log file, a batch job): plain lines, for stages that run longer than a second: when the
+/// stage has run a second ("started"), at most every 10 s while it runs (percent and elapsed
+/// time) and when it ends ("done in N s"); quick stages and runs that fail early print none.
+/// Off with -q.
 class ProgressBar {
 public:
-    ProgressBar(std::string label, bool enabled);
+    enum class Mode { kOff, kTerminal, kLog };
+    ProgressBar(std::string label, Mode mode);
     ~ProgressBar();
-    /// Updates the bar; always returns true (no cancel from the terminal).
+    ProgressBar(const ProgressBar&) = delete;
+    ProgressBar& operator=(const ProgressBar&) = delete;
+    /// Updates the bar with the fraction done; always returns true (no cancel).
     bool update(double fraction);
     /// A Progress callback bound to this bar.
     Progress callback();
 
 private:
+    double elapsed_s() const;
     std::string label_;
-    bool enabled_;
+    Mode mode_;
     int last_percent_ = -1;
+    std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+    double last_line_s_ = -1;  ///< elapsed time of the last log line (-1: none yet)
 };
 
 /// State of one tool run, handed to the tool's body.
