@@ -1,0 +1,151 @@
+// rgbd-reconstruct runs the whole method (issue 17): the README's pipe of single tools and the
+// one command give the same mesh, every stage is listed in the report with its time and point
+// counts, and --skip leaves stages out (an unknown stage is a usage error naming the valid ones).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "io/ply_stream.hpp"
+#include "tests/support/ellipsoid_off.hpp"
+#include "tests/support/tool_runner.hpp"
+#include "toolkit/mesh.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using rgbd::test::Outcome;
+using rgbd::test::slurp;
+
+fs::path temp_root() {
+    static const fs::path root = rgbd::test::scratch_dir("rgbd_reconstruct_chain_test");
+    return root;
+}
+
+Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+
+/// A 6-sensor Kinect v2 ring of a bumpy ellipsoid (colour 1920x1080 over depth 512x424, so
+/// super-resolution runs), rendered once per test process.
+void render_capture() {
+    if (fs::exists(temp_root() / "cap")) return;
+    rgbd::test::write_ellipsoid_off(
+        temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25,
+        [](double th, double ph) { return 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th); });
+    const Outcome r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+}
+
+rgbd::Mesh read_mesh_document(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    rgbd::io::PlyStreamReader reader(in, path.string());
+    rgbd::io::Document document;
+    EXPECT_TRUE(reader.next(document)) << path;
+    EXPECT_EQ(document.kind, rgbd::io::DocumentKind::kMesh) << path;
+    return std::move(document.mesh);
+}
+
+/// A view stream without its "comment rgbd:history" lines (the tools' names and arguments).
+std::string without_history(const std::string& bytes) {
+    std::string out;
+    std::size_t at = 0;
+    while (at < bytes.size()) {
+        std::size_t end = bytes.find('\n', at);
+        end = end == std::string::npos ? bytes.size() : end + 1;
+        if (bytes.compare(at, 20, "comment rgbd:history") != 0) out.append(bytes, at, end - at);
+        at = end;
+    }
+    return out;
+}
+
+std::vector<std::string> stage_names(const nlohmann::json& metrics) {
+    std::vector<std::string> names;
+    for (const auto& s : metrics["stages"]) names.push_back(s["stage"].get<std::string>());
+    return names;
+}
+
+}  // namespace
+
+TEST(ReconstructChain, PipeAndOneCommandGiveTheSameMesh) {
+    render_capture();
+    const Outcome piped = run(
+        "$BIN/rgbd-cloud cap | $BIN/rgbd-clean --distance | $BIN/rgbd-upsample | $BIN/rgbd-align "
+        "| $BIN/rgbd-clean --density | $BIN/rgbd-fill | tee filled.ply | $BIN/rgbd-mesh "
+        "--watertight -o piped.ply -q");
+    ASSERT_EQ(piped.code, 0) << piped.err;
+    const Outcome one =
+        run("$BIN/rgbd-reconstruct cap -o one.ply --report one_report --stages-dir stages -q");
+    ASSERT_EQ(one.code, 0) << one.err;
+
+    // The points handed to the mesher are the same, byte for byte (but for the history lines).
+    const std::string filled = without_history(slurp(temp_root() / "filled.ply"));
+    ASSERT_GT(filled.size(), 1000000u);
+    EXPECT_TRUE(filled == without_history(slurp(temp_root() / "stages" / "04-fill.ply")));
+
+    // The same mesh, byte for byte after the header (whose history lines name the tools).
+    const rgbd::Mesh a = read_mesh_document(temp_root() / "piped.ply");
+    const rgbd::Mesh b = read_mesh_document(temp_root() / "one.ply");
+    ASSERT_GT(a.number_of_faces(), 1000u);
+    ASSERT_EQ(a.number_of_vertices(), b.number_of_vertices());
+    ASSERT_EQ(a.number_of_faces(), b.number_of_faces());
+    const auto body = [](const std::string& bytes) {
+        return bytes.substr(bytes.find("end_header\n"));
+    };
+    EXPECT_TRUE(body(slurp(temp_root() / "piped.ply")) == body(slurp(temp_root() / "one.ply")));
+
+    // Every stage of the method ran, in order, with its time and point counts.
+    const auto m = nlohmann::json::parse(slurp(temp_root() / "one_report" / "metrics.json"));
+    EXPECT_EQ(stage_names(m), (std::vector<std::string>{"clouds", "distance", "upsample", "align",
+                                                        "density", "fill", "mesh"}));
+    std::size_t previous_out = 0;
+    for (const auto& s : m["stages"]) {
+        SCOPED_TRACE(s.dump());
+        EXPECT_GE(s["time_s"].get<double>(), 0.0);
+        if (s["stage"] != "clouds") {
+            EXPECT_EQ(s["points_in"].get<std::size_t>(), previous_out);
+        }
+        previous_out = s["points_out"].get<std::size_t>();
+        if (s["stage"] == "mesh") continue;  // mesh: vertices out
+        EXPECT_GT(previous_out, 1000u);
+    }
+    const auto stage = [&](const char* name) {
+        for (const auto& s : m["stages"])
+            if (s["stage"] == name) return s;
+        return nlohmann::json();
+    };
+    // Cleaning removes, super-resolution adds several points per depth point, fill adds.
+    EXPECT_LT(stage("distance")["points_out"], stage("distance")["points_in"]);
+    EXPECT_GT(stage("upsample")["points_out"].get<double>(),
+              4.0 * stage("upsample")["points_in"].get<double>());
+    EXPECT_LE(stage("density")["points_out"], stage("density")["points_in"]);
+    EXPECT_GE(stage("fill")["points_out"], stage("fill")["points_in"]);
+    EXPECT_GT(m["evaluation"]["surface"]["fscore_5mm"].get<double>(), 0.9);
+    EXPECT_TRUE(m["evaluation"]["surface"].contains("fscore_1mm"));
+    // The report page lists the stages.
+    const std::string page = slurp(temp_root() / "one_report" / "index.html");
+    for (const char* name : {"distance", "upsample", "density", "fill"})
+        EXPECT_NE(page.find(std::string(">") + name + "<"), std::string::npos) << name;
+}
+
+TEST(ReconstructChain, SkipLeavesStagesOutAndNamesTheValidOnes) {
+    render_capture();
+    const Outcome bad = run("$BIN/rgbd-reconstruct cap -o bad.ply --skip fill,polish");
+    EXPECT_EQ(bad.code, 2) << bad.err;
+    EXPECT_NE(bad.err.find("polish"), std::string::npos) << bad.err;
+    for (const char* name : {"distance", "upsample", "density", "fill"})
+        EXPECT_NE(bad.err.find(name), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(temp_root() / "bad.ply"));
+
+    const Outcome skip =
+        run("$BIN/rgbd-reconstruct cap -o skip.ply --skip upsample,fill,distance --report "
+            "skip_report -q");
+    ASSERT_EQ(skip.code, 0) << skip.err;
+    const auto m = nlohmann::json::parse(slurp(temp_root() / "skip_report" / "metrics.json"));
+    EXPECT_EQ(stage_names(m), (std::vector<std::string>{"clouds", "align", "density", "mesh"}));
+    EXPECT_EQ(m["skipped_stages"], (nlohmann::json{"distance", "upsample", "fill"}));
+    EXPECT_GT(m["evaluation"]["surface"]["fscore_5mm"].get<double>(), 0.9);
+}
