@@ -99,7 +99,7 @@ void BoundaryOptions::check() const {
 }
 
 SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
-                           std::vector<SensorView>* sensors) {
+                           std::vector<SensorView>* sensors, bool measured_only) {
     SurfacePoints out;
     bool normals = true, colors = true;
     std::size_t total = 0, non_empty = 0;
@@ -131,7 +131,9 @@ SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
             sensors->push_back({*v->view.world_from_sensor, v->view.intrinsics});
         }
         const auto color_maps = colors ? std::optional(v->colors()) : std::nullopt;
+        const auto synthetic = measured_only ? v->flag(prop::kSynthetic) : std::nullopt;
         for (auto idx : v->points) {
+            if (synthetic && (*synthetic)[idx]) continue;
             out.position.push_back(world_from_view * to_eigen(v->points.point(idx)));
             if (normals)
                 out.normal.push_back(

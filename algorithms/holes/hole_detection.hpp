@@ -57,9 +57,11 @@ struct SensorView {
 /// pose; InputError without one, unless it is the only non-empty view: then it is taken as it
 /// is, a plain point file). Normals are kept when every non-empty view has them, colours
 /// when every non-empty view has them. `sensors` receives one entry per view that has a pose
-/// (world-frame views without a pose get none; their points have view = -1).
+/// (world-frame views without a pose get none; their points have view = -1). With
+/// `measured_only`, points flagged synthetic (super-resolution, an earlier fill) are left out:
+/// holes are where no sensor measured, and the robust spacing stays the sensors'.
 SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
-                           std::vector<SensorView>* sensors);
+                           std::vector<SensorView>* sensors, bool measured_only = false);
 
 /// Symmetric neighbourhood graph in compressed rows: neighbours of i are
 /// index[offset[i] .. offset[i+1]), the point itself excluded.

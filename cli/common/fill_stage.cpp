@@ -31,7 +31,10 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
     int max_id = -1;
     for (const PointCloud* view : views) max_id = std::max(max_id, view->view.id);
     std::vector<holes::SensorView> sensors;
-    const holes::SurfacePoints points = holes::gather_views({views.begin(), views.end()}, &sensors);
+    // Holes are where no sensor measured: super-resolved points (synthetic) take no part, and
+    // the detection works at the sensors' own spacing (about 1/3 of it after upsampling).
+    const holes::SurfacePoints points =
+        holes::gather_views({views.begin(), views.end()}, &sensors, /*measured_only=*/true);
     // The vertical axis comes from the poses even when the visibility test ignores them.
     const std::vector<holes::SensorView> ring = sensors;
     if (options.ignore_poses) sensors.clear();
@@ -58,14 +61,18 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
         for (PointCloud* view : views) {
             if (view->empty()) continue;
             PointCloud& cloud = *view;
+            const auto synthetic = cloud.flag(prop::kSynthetic);
             auto flag = cloud.add_flag(prop::kBoundary);
             auto probability = cloud.add_float(prop::kBoundaryProbability);
-            std::size_t j = 0;
             for (auto idx : cloud.points) {
-                flag[idx] = detection.boundary[offset + j];
-                probability[idx] = detection.probability[offset + j++];
+                if (synthetic && (*synthetic)[idx]) {
+                    flag[idx] = 0;
+                    probability[idx] = 0.0f;
+                    continue;
+                }
+                flag[idx] = detection.boundary[offset];
+                probability[idx] = detection.probability[offset++];
             }
-            offset += cloud.size();
         }
     }
     if (options.detect_only) return std::nullopt;

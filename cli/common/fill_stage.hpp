@@ -34,12 +34,13 @@ struct FillStageOptions {
 Rgb mechanism_color(holes::FillMechanism mechanism);
 
 /// Runs the fill stage on `views` (aligned; sensor-frame views are moved with their pose, all
-/// are taken together in the world frame). With `options.mark` the views get the boundary
-/// properties. Returns the added points as one new world-frame view (sensor "rgbd-fill", id
-/// one above the largest of `views`, normals, colours, synthetic = 1, fill_mechanism 1-6), or
-/// nullopt when nothing was added (detect-only, no hole filled, or fewer than 4 points: then
-/// report["note"] says why). The report gets the detection, filling and inpainting reports,
-/// loop_list, small_loops and points_added_total.
+/// are taken together in the world frame). Only measured points take part: points flagged
+/// synthetic (rgbd-upsample's, an earlier fill's) neither open nor close holes. With `options.mark`
+/// the views get the boundary properties. Returns the added points as one new world-frame view
+/// (sensor "rgbd-fill", id one above the largest of `views`, normals, colours, synthetic = 1,
+/// fill_mechanism 1-6), or nullopt when nothing was added (detect-only, no hole filled, or fewer
+/// than 4 points: then report["note"] says why). The report gets the detection, filling and
+/// inpainting reports, loop_list, small_loops and points_added_total.
 std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
                                      const FillStageOptions& options, Report& report,
                                      const Progress& progress = {});
