@@ -5,7 +5,9 @@
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/fair.h>
 #include <CGAL/Polygon_mesh_processing/refine.h>
+#include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/repair.h>
+#include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Bounded_normal_change_placement.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/GarlandHeckbert_plane_policies.h>
@@ -219,8 +221,13 @@ Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const LoopPlane& plane,
 }  // namespace
 
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
-                   std::size_t fair_max_edges) {
+                   std::size_t fair_max_edges, std::vector<Mesh::Face_index>* added) {
     Stopwatch watch;
+    // Faces present before the fill are marked; without garbage, new faces are never recycled
+    // ones and start unmarked.
+    mesh.collect_garbage();
+    auto old_face = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_old", 0).first;
+    for (auto f : mesh.faces()) old_face[f] = 1;
     std::optional<Eigen::Vector3d> up;
     if (up_in && up_in->allFinite() && up_in->norm() > 0) up = up_in->normalized();
     double low = std::numeric_limits<double>::infinity(), high = -low;
@@ -271,6 +278,10 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
             ++fans;
         }
     }
+    if (added)
+        for (auto f : mesh.faces())
+            if (!old_face[f]) added->push_back(f);
+    mesh.remove_property_map(old_face);
     Report r;
     r["holes"] = borders.size();
     r["faired"] = faired;
@@ -283,6 +294,134 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     else
         r["up"] = nullptr;
     r["faces_added"] = mesh.number_of_faces() - faces_before;
+    r["time_s"] = watch.seconds();
+    return r;
+}
+
+namespace {
+
+Eigen::Vector3d face_unit_normal(const Mesh& mesh, Mesh::Face_index f) {
+    const Halfedge h = mesh.halfedge(f);
+    const Eigen::Vector3d a = to_eigen(mesh.point(mesh.source(h)));
+    const Eigen::Vector3d b = to_eigen(mesh.point(mesh.target(h)));
+    const Eigen::Vector3d c = to_eigen(mesh.point(mesh.target(mesh.next(h))));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const double len = n.norm();
+    return len > 0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+}
+
+/// Smallest interior angle of face f, degrees.
+double min_angle_deg(const Mesh& mesh, Mesh::Face_index f) {
+    double smallest = 180.0;
+    for (Halfedge h : CGAL::halfedges_around_face(mesh.halfedge(f), mesh)) {
+        const Eigen::Vector3d p = to_eigen(mesh.point(mesh.target(h)));
+        const Eigen::Vector3d u = to_eigen(mesh.point(mesh.source(h))) - p;
+        const Eigen::Vector3d w = to_eigen(mesh.point(mesh.target(mesh.next(h)))) - p;
+        const double angle = std::atan2(u.cross(w).norm(), u.dot(w)) * 180.0 / M_PI;
+        smallest = std::min(smallest, angle);
+    }
+    return smallest;
+}
+
+}  // namespace
+
+Report remove_folds_and_spikes(Mesh& mesh, double max_fold_deg, double spike_angle_deg, int rounds,
+                               double min_component_fraction) {
+    const double cos_fold = std::cos(max_fold_deg * M_PI / 180.0);
+    std::size_t folds = 0, spikes = 0;
+    for (int round = 0; round < rounds; ++round) {
+        auto cut = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_cut", 0).first;
+        auto normal = mesh.add_property_map<Mesh::Face_index, Eigen::Vector3d>(
+                              "f:rgbd_n", Eigen::Vector3d::Zero())
+                          .first;
+        for (auto f : mesh.faces()) normal[f] = face_unit_normal(mesh, f);
+        std::vector<Mesh::Face_index> doomed;
+        auto doom = [&](Mesh::Face_index f) {
+            if (!cut[f]) cut[f] = 1, doomed.push_back(f);
+        };
+        std::size_t round_folds = 0;
+        for (auto e : mesh.edges()) {
+            const Halfedge h = mesh.halfedge(e);
+            const auto f = mesh.face(h), g = mesh.face(mesh.opposite(h));
+            if (f == Mesh::null_face() || g == Mesh::null_face()) continue;
+            if (normal[f].dot(normal[g]) < cos_fold) {
+                const std::size_t before = doomed.size();
+                doom(f);
+                doom(g);
+                round_folds += doomed.size() - before;
+            }
+        }
+        std::size_t round_spikes = 0;
+        for (auto f : mesh.faces()) {
+            if (cut[f]) continue;
+            int border = 0;
+            for (Halfedge h : CGAL::halfedges_around_face(mesh.halfedge(f), mesh))
+                border += mesh.is_border(mesh.opposite(h));
+            if (border >= 2 || (border == 1 && min_angle_deg(mesh, f) < spike_angle_deg)) {
+                doom(f);
+                ++round_spikes;
+            }
+        }
+        mesh.remove_property_map(normal);
+        mesh.remove_property_map(cut);
+        if (doomed.empty()) break;
+        for (auto f : doomed) CGAL::Euler::remove_face(mesh.halfedge(f), mesh);
+        folds += round_folds;
+        spikes += round_spikes;
+        PMP::duplicate_non_manifold_vertices(mesh);
+        mesh.collect_garbage();
+    }
+    Report r;
+    r["fold_faces"] = folds;
+    r["spike_faces"] = spikes;
+    r["components_dropped"] = drop_small_components(mesh, min_component_fraction);
+    return r;
+}
+
+Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch) {
+    Stopwatch watch;
+    auto in_patch = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_patch", 0).first;
+    for (auto f : patch) in_patch[f] = 1;
+    // Target: the median edge of the faces outside the patch (the reconstruction's own).
+    std::vector<double> lengths;
+    for (auto e : mesh.edges()) {
+        const Halfedge h = mesh.halfedge(e);
+        const auto f = mesh.face(h), g = mesh.face(mesh.opposite(h));
+        if ((f != Mesh::null_face() && !in_patch[f]) || (g != Mesh::null_face() && !in_patch[g]))
+            lengths.push_back(std::sqrt(
+                CGAL::squared_distance(mesh.point(mesh.source(h)), mesh.point(mesh.target(h)))));
+    }
+    if (lengths.empty())
+        for (auto e : mesh.edges())
+            lengths.push_back(
+                std::sqrt(CGAL::squared_distance(mesh.point(mesh.source(mesh.halfedge(e))),
+                                                 mesh.point(mesh.target(mesh.halfedge(e))))));
+    const double target = lengths.empty() ? 0.0 : median_of(lengths);
+    // The patch and its one-ring (the faces sharing a vertex with it).
+    std::vector<Mesh::Face_index> region(patch.begin(), patch.end());
+    for (auto f : patch)
+        for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh))
+            for (auto g : CGAL::faces_around_target(mesh.halfedge(v), mesh))
+                if (g != Mesh::null_face() && !in_patch[g]) in_patch[g] = 1, region.push_back(g);
+    mesh.remove_property_map(in_patch);
+    // No tangential relaxation: CGAL 5.5's dereferences a null halfedge on some patches
+    // (CGAL issue 7345, a segfault on the Max Planck ring); splits, collapses and flips alone
+    // already give well-shaped triangles.
+    if (!region.empty() && target > 0)
+        PMP::isotropic_remeshing(
+            region, target, mesh,
+            CGAL::parameters::number_of_iterations(3).number_of_relaxation_steps(0));
+    std::size_t faces_before = mesh.number_of_faces();
+    if (target > 0)
+        PMP::experimental::remove_almost_degenerate_faces(mesh, std::cos(160.0 * M_PI / 180.0), 4.0,
+                                                          target);
+    PMP::remove_isolated_vertices(mesh);
+    mesh.collect_garbage();
+    Report r;
+    r["remeshed_faces"] = region.size();
+    r["target_edge_m"] = target;
+    r["degenerate_removed"] =
+        faces_before - std::min<std::size_t>(faces_before, mesh.number_of_faces());
     r["time_s"] = watch.seconds();
     return r;
 }

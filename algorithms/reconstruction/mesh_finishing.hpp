@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <optional>
+#include <vector>
 
 #include "toolkit/mesh.hpp"
 #include "toolkit/report.hpp"
@@ -29,8 +30,32 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// cut is a planar loop meeting the surface at a crease (the faces along it steep to its plane).
 /// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
 /// faces_added, largest_hole_edges, up (null when unknown), time_s.
+/// `added` (optional) receives the faces created.
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::nullopt,
-                   std::size_t fair_max_edges = 300);
+                   std::size_t fair_max_edges = 300,
+                   std::vector<Mesh::Face_index>* added = nullptr);
+
+/// Removes the faces of folds and spikes, the defects an interpolating front leaves on noisy
+/// points: both faces of every edge across which the face normals differ by more than
+/// `max_fold_deg` degrees (a flap folded back onto its neighbour, a crumple), and border faces
+/// that stick out (two border edges, or one border edge and a smallest angle under
+/// `spike_angle_deg` degrees: the spikes along silhouettes and thin rims). `rounds` passes
+/// (each sees the border the previous one left). Afterwards non-manifold vertices are split,
+/// and components under `min_component_fraction` of the largest one's dropped. The holes left
+/// are closed by close_holes() when the mesh must be watertight. Report: fold_faces,
+/// spike_faces, components_dropped.
+Report remove_folds_and_spikes(Mesh& mesh, double max_fold_deg = 120.0,
+                               double spike_angle_deg = 10.0, int rounds = 3,
+                               double min_component_fraction = 0.01);
+
+/// Regularises the triangles: isotropic remeshing (CGAL PMP::isotropic_remeshing, Botsch and
+/// Kobbelt 2004: 3 iterations of splits, collapses and flips; no tangential relaxation) of the
+/// faces that `is_patch` marks plus their one-ring, to the median edge length of the other faces;
+/// then, over the whole mesh, needles (longest / shortest edge > 4, shortest edge under that
+/// median) are collapsed and caps (an angle over 160 degrees) flipped
+/// (PMP::experimental::remove_almost_degenerate_faces). Borders stay borders; a closed mesh
+/// stays closed. Report: remeshed_faces, target_edge_m, degenerate_removed, time_s.
+Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch);
 
 /// Edge collapse (Garland-Heckbert plane quadrics, bounded normal change) until the mesh has
 /// at most `target_faces` faces (or no collapse is possible). Borders stay borders and a

@@ -65,6 +65,10 @@ void ReconstructionOptions::check() const {
                "reconstruction: the up direction must be a finite non-zero vector");
     RGBD_CHECK(af_radius_ratio_bound > 0, "reconstruction: af_radius_ratio_bound must be > 0");
     RGBD_CHECK(af_beta > 0 && af_beta < M_PI, "reconstruction: af_beta must be in (0, pi)");
+    RGBD_CHECK(fold_angle_deg > 0 && fold_angle_deg <= 180,
+               "reconstruction: fold_angle_deg must be in (0, 180]");
+    RGBD_CHECK(spike_angle_deg >= 0 && spike_angle_deg < 60,
+               "reconstruction: spike_angle_deg must be in [0, 60)");
     RGBD_CHECK(color_k >= 1 && color_k <= 256, "reconstruction: color_k must be in [1, 256]");
     RGBD_CHECK(color_original_radius >= 0, "reconstruction: color_original_radius must be >= 0");
 }
@@ -72,6 +76,10 @@ void ReconstructionOptions::check() const {
 namespace {
 
 using Pwn = std::pair<Point_3, Vector_3>;
+
+/// Point flag of rgbd::frames::kUncoloured (depth_to_cloud.hpp): the colour camera did not see
+/// the point; its colour was copied from the nearest seen point of its view, or is grey.
+constexpr const char* kUncolouredFlag = "uncoloured";
 using PointOf = CGAL::First_of_pair_property_map<Pwn>;
 using NormalOf = CGAL::Second_of_pair_property_map<Pwn>;
 
@@ -237,25 +245,28 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["front_time_s"] = af_watch.seconds();
 }
 
-/// IDW colours from the k nearest coloured points; measured points win when one is near.
+/// IDW colours from the k nearest coloured points; observed points (measured, and coloured by
+/// the colour camera: neither `synthetic` nor `uncoloured`, whose colour is a copy from
+/// elsewhere or a grey fallback) win when one is near.
 bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& o, double spacing) {
     if (!cloud.has_colors()) return false;
     const auto colors = cloud.colors();
     const auto synthetic = cloud.flag(prop::kSynthetic);
+    const auto uncoloured = cloud.flag(kUncolouredFlag);
     std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
     std::vector<Rgb> all_rgb, orig_rgb;
     for (auto idx : cloud.points) {
         const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
         all_xyz.push_back(p);
         all_rgb.push_back(colors.get(idx));
-        if (!synthetic || (*synthetic)[idx] == 0) {
+        if ((!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0)) {
             orig_xyz.push_back(p);
             orig_rgb.push_back(colors.get(idx));
         }
     }
     const rgbd::internal::KdTree all_tree(all_xyz);
     const rgbd::internal::KdTree orig_tree(orig_xyz);
-    const bool separate = synthetic.has_value() && !orig_xyz.empty();
+    const bool separate = (synthetic.has_value() || uncoloured.has_value()) && !orig_xyz.empty();
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
 
@@ -368,8 +379,15 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         "reconstruction: " + view_name(cloud) + ": " + options.method + " produced no triangles");
     steps["components_dropped"] =
         internal::drop_small_components(mesh, options.min_component_fraction);
+    const bool clean = options.clean && options.method != "poisson";
+    if (clean)
+        steps["folds"] =
+            internal::remove_folds_and_spikes(mesh, options.fold_angle_deg, options.spike_angle_deg,
+                                              3, options.min_component_fraction);
+    std::vector<Mesh::Face_index> added;
     if (options.watertight && !CGAL::is_closed(mesh))
-        steps["holes"] = internal::close_holes(mesh, options.up);
+        steps["holes"] = internal::close_holes(mesh, options.up, 300, &added);
+    if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
     if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
     if (options.target_faces > 0)
         steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);

@@ -9,10 +9,12 @@
 // - "advancing-front": CGAL advancing front on the raw points (interpolates the noise).
 // - "poisson": CGAL Poisson (Kazhdan, Bolitho and Hoppe 2006, unscreened, solved on a refined
 //   Delaunay triangulation, CGAL poisson_surface_reconstruction_delaunay); closed.
-// Then: small components dropped, `watertight` closes every boundary loop (CGAL hole filling,
-// mesh_finishing.hpp), `target_faces` simplifies by edge collapse, and vertex colours come by
-// inverse-distance weighting of the nearest coloured input points, measured points preferred
-// over synthetic ones. See also: algorithms/normals/estimate_normals.hpp (orient normals first),
+// Then: small components dropped, (front, advancing-front) folds and spikes removed,
+// `watertight` closes every boundary loop (CGAL hole filling, mesh_finishing.hpp), the hole
+// patches are remeshed isotropically and needles / caps removed, `target_faces` simplifies by edge
+// collapse, and vertex colours come by inverse-distance weighting of the nearest coloured input
+// points, measured points preferred over synthetic ones. See also:
+// algorithms/normals/estimate_normals.hpp (orient normals first),
 // algorithms/sampling/voxel_downsample.hpp, CGAL examples poisson_reconstruction.cpp and
 // reconstruction_surface_mesh.cpp.
 #pragma once
@@ -61,6 +63,14 @@ struct ReconstructionOptions {
     /// front: triangles tilted more than this from their corners' mean normal are never taken
     /// (they would stand across the surface), degrees.
     double front_max_facet_angle_deg = 75.0;
+    /// front and advancing-front: remove folds and spikes before `watertight` closes the holes,
+    /// then regularise the triangles (mesh_finishing.hpp: remove_folds_and_spikes,
+    /// regularize_faces): no flaps, no spikes along silhouettes, no slivers.
+    bool clean = true;
+    /// clean: faces whose normals differ by more than this across an edge are a fold, degrees.
+    double fold_angle_deg = 120.0;
+    /// clean: a border face with a smaller angle than this is a spike, degrees.
+    double spike_angle_deg = 10.0;
     /// The input is voxel-downsampled (voxel grown from ŝ) until it has at most this many points,
     /// to bound time and memory; 0 = use every point.
     std::size_t max_points = 60000;
@@ -76,8 +86,9 @@ struct ReconstructionOptions {
     double af_beta = 0.52;
     /// Nearest coloured input points blended per vertex (IDW).
     int color_k = 8;
-    /// Only measured (non-`synthetic`) points colour a vertex when one lies within this
-    /// multiple of ŝ (ALGORITHMS.md §14: 2 ŝ).
+    /// Only observed points (neither `synthetic` nor `uncoloured`: measured, and seen by the
+    /// colour camera) colour a vertex when one lies within this multiple of ŝ (ALGORITHMS.md
+    /// §14: 2 ŝ).
     double color_original_radius = 2.0;
     /// Throws InputError on absurd values or an unknown method.
     void check() const;
