@@ -128,6 +128,9 @@ int main(int argc, char** argv) {
                    "head top: fill with the inpainted heights when the ellipsoid does not fit "
                    "(else the crown stays open)")(
             "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
+            "max-biharmonic-slope", cli::po::value<double>()->default_value(1.0)->value_name("S"),
+            "large holes: harmonic instead of biharmonic solve where the radius changes faster "
+            "than S times the height (the underside of an overhang)")(
             "min-rim-radial", cli::po::value<double>()->default_value(0.45)->value_name("C"),
             "large holes: fill only when the rim normals' mean n.radial is at least C")(
             "clearance", cli::po::value<double>()->default_value(0.9)->value_name("X"),
@@ -227,6 +230,7 @@ int main(int argc, char** argv) {
             inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
             inpaint.biharmonic = vm.count("no-biharmonic") == 0;
+            inpaint.max_biharmonic_slope = ctx.get<double>("max-biharmonic-slope");
             inpaint.top_without_ellipsoid = vm.count("top-without-ellipsoid") > 0;
             inpaint.min_rim_radial = ctx.get<double>("min-rim-radial");
             inpaint.clearance = ctx.get<double>("clearance");

@@ -48,6 +48,8 @@ void InpaintOptions::check() const {
                "inpaint: ray clearance must be in (0, 20] spacings");
     RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,
                "inpaint: the ellipsoid's residual limit must be positive");
+    RGBD_CHECK(std::isfinite(max_biharmonic_slope) && max_biharmonic_slope >= 0,
+               "inpaint: the biharmonic slope limit must not be negative");
     RGBD_CHECK(std::isfinite(max_open_rim) && max_open_rim >= 0 && max_open_rim <= 1,
                "inpaint: the open rim share must be in [0, 1]");
     RGBD_CHECK(std::isfinite(max_contradicted) && max_contradicted >= 0 && max_contradicted <= 1,

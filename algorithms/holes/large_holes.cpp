@@ -268,8 +268,39 @@ FillResult fill_large_holes(const SurfacePoints& points,
         info["colour"] = inpaint_colour(c_wide, t_centre, wrap_pad(known), options);
     }
     if (options.biharmonic) {
-        cv::Mat t_wide = wrap_pad(target);
-        info["biharmonic"] = biharmonic(r_wide, t_wide);
+        // [M] Steep holes: where Telea's radius changes faster than the height (mean |dr/dh|
+        // over the component above max_biharmonic_slope), the unseen surface is closer to
+        // horizontal than vertical, the underside of an overhang whose rims are creases (the
+        // edge of the chest above, the base below): continuing the rims' slopes (biharmonic)
+        // rounds the creases into bulges below the overhang; the harmonic fill continues the
+        // values only.
+        std::vector<double> slope(n_labels, 0.0);
+        std::vector<int> count(n_labels, 0);
+        for (int r = 1; r + 1 < rows; ++r)
+            for (int c = 0; c < cols; ++c) {
+                if (!target.at<std::uint8_t>(r, c)) continue;
+                const int l = find(labels.at<int>(r, c));
+                const cv::Mat centre = r_wide(crop);
+                slope[l] +=
+                    std::abs(centre.at<float>(r + 1, c) - centre.at<float>(r - 1, c)) / (2 * px);
+                ++count[l];
+            }
+        cv::Mat steep(rows, cols, CV_8U, cv::Scalar(0));
+        int n_steep = 0;
+        for (int l = 1; l < n_labels; ++l)
+            if (count[l] && slope[l] / count[l] > options.max_biharmonic_slope) ++n_steep;
+        for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < cols; ++c) {
+                const int l = labels.at<int>(r, c);
+                if (!target.at<std::uint8_t>(r, c) || l <= 0) continue;
+                const int root = find(l);
+                if (count[root] && slope[root] / count[root] > options.max_biharmonic_slope)
+                    steep.at<std::uint8_t>(r, c) = 255;
+            }
+        cv::Mat smooth = target - steep;
+        info["biharmonic"] = biharmonic(r_wide, wrap_pad(smooth));
+        info["harmonic_components"] = n_steep;
+        if (n_steep) info["harmonic"] = biharmonic(r_wide, wrap_pad(steep), true);
     }
     // §12.3: 3x3 median inside the filled region only.
     if (options.median) {

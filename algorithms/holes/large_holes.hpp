@@ -71,6 +71,11 @@ struct InpaintOptions {
     /// (continues the rim's slope and curvature; OpenCV's Telea flattens), Telea's result
     /// where the solve fails.
     bool biharmonic = true;
+    /// ... except in large holes whose radius changes faster than their height (mean |dr/dh|
+    /// of Telea's radius over the hole above this): the underside of an overhang, closer to
+    /// horizontal than vertical, whose rims are creases: there the harmonic solve (the rims'
+    /// values, not their slopes; §12.2 [M]).
+    double max_biharmonic_slope = 1.0;
     /// Star-shape test [M]: a hole is filled only when the mean of n . radial over its rim
     /// pixels is at least this (0.45: rim normals within ~63 degrees of horizontal-outward).
     double min_rim_radial = 0.45;
