@@ -128,6 +128,9 @@ int main(int argc, char** argv) {
                    "head top: fill with the inpainted heights when the ellipsoid does not fit "
                    "(else the crown stays open)")(
             "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
+            "max-open-rim", cli::po::value<double>()->default_value(1.0)->value_name("F"),
+            "large holes: fill only holes whose edge borders the outside of the surface (below "
+            "its lowest or above its highest point in a column) for at most the share F")(
             "max-biharmonic-slope", cli::po::value<double>()->default_value(1.0)->value_name("S"),
             "large holes: harmonic instead of biharmonic solve where the radius changes faster "
             "than S times the height (the underside of an overhang)")(
@@ -231,6 +234,7 @@ int main(int argc, char** argv) {
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
             inpaint.biharmonic = vm.count("no-biharmonic") == 0;
             inpaint.max_biharmonic_slope = ctx.get<double>("max-biharmonic-slope");
+            inpaint.max_open_rim = ctx.get<double>("max-open-rim");
             inpaint.top_without_ellipsoid = vm.count("top-without-ellipsoid") > 0;
             inpaint.min_rim_radial = ctx.get<double>("min-rim-radial");
             inpaint.clearance = ctx.get<double>("clearance");
