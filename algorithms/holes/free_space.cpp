@@ -88,7 +88,6 @@ int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) co
         const Eigen::Vector3d d = p - m.centre;
         const double z = d.dot(m.forward);
         if (!(z > 0)) continue;
-        if (n.dot(-d.normalized()) < cos_face) continue;  // grazing or facing away
         if (m.sensor.intrinsics) {
             const Eigen::Vector3d c = m.sensor.world_from_sensor.inverse() * p;
             if (c.z() <= 0) continue;
@@ -110,10 +109,14 @@ int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) co
             }
         if (near3 < kNone) {
             // Something measured in front of p (the view of it was blocked), or p on the
-            // measured surface: no evidence. Everything behind by the margin: seen through.
-            if (near3 > z + options_.margin * spacing_) return static_cast<int>(s);
+            // measured surface: no evidence. Everything behind by the margin: seen through,
+            // when the sensor would have measured p's surface (facing it, not grazing).
+            if (n.dot(-d.normalized()) >= cos_face && near3 > z + options_.margin * spacing_)
+                return static_cast<int>(s);
             continue;
         }
+        // Outside the silhouette of the measured object whatever p's normal: a point on the
+        // object projects inside it from every sensor.
         // No return anywhere near the ray, well inside the sensor's view of the object.
         const int border = kPad + options_.background_border;
         if (options_.background && near5 == kNone && c >= border && r >= border &&

@@ -46,10 +46,10 @@ public:
               double spacing_m, const FreeSpaceOptions& options);
 
     /// Index of the first sensor that saw the point `p` (unit normal `n`, outward) as empty
-    /// space: p in front of it (and in its image when its intrinsics are known), n within
-    /// max_angle_deg of the line of sight, and every measured point within the 3 x 3 pixels
-    /// around p's ray behind p by more than `margin` (or none within 5 x 5 pixels: background,
-    /// see `background`). -1 when
+    /// space: p in front of it (and in its image when its intrinsics are known), and either n
+    /// within max_angle_deg of the line of sight and every measured point within the 3 x 3
+    /// pixels around p's ray behind p by more than `margin`, or (whatever n) no measured point
+    /// within 5 x 5 pixels: outside the object's silhouette, see `background`. -1 when
     /// no sensor did (occluded, grazing, outside every view, or on the measured surface).
     int seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
 
