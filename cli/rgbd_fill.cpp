@@ -103,11 +103,25 @@ int main(int argc, char** argv) {
                    "head top: fill with the inpainted heights when the ellipsoid does not fit "
                    "(else the crown stays open)")(
             "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
+            "max-open-rim", cli::po::value<double>()->default_value(1.0)->value_name("F"),
+            "large holes: fill only holes whose edge borders the outside of the surface (below "
+            "its lowest or above its highest point in a column) for at most the share F")(
+            "max-biharmonic-slope", cli::po::value<double>()->default_value(1.0)->value_name("S"),
+            "large holes: harmonic instead of biharmonic solve where the radius changes faster "
+            "than S times the height (the underside of an overhang)")(
             "min-rim-radial", cli::po::value<double>()->default_value(0.45)->value_name("C"),
             "large holes: fill only when the rim normals' mean n.radial is at least C")(
             "clearance", cli::po::value<double>()->default_value(0.9)->value_name("X"),
             "large holes and head top: no new point within X spacings of another")(
-            "fill-openings", "also fill small holes that a sensor saw through")(
+            "no-carve",
+            "large holes and head top: keep new points that a sensor saw as empty space")(
+            "carve-margin", cli::po::value<double>()->default_value(2.0)->value_name("X"),
+            "large holes and head top: a new point is in empty space when a sensor facing it "
+            "measured the surface more than X spacings behind it (or nothing)")(
+            "max-contradicted", cli::po::value<double>()->default_value(0.2)->value_name("F"),
+            "large holes and head top: a hole whose new points the sensors contradict in more "
+            "than the share F stays open")("fill-openings",
+                                           "also fill small holes that a sensor saw through")(
             "ignore-poses", "no visibility test: every small hole is filled")(
             "k", cli::po::value<int>()->default_value(10)->value_name("N"),
             "nearest neighbours of the boundary criteria")(
@@ -194,9 +208,14 @@ int main(int argc, char** argv) {
             inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
             inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
             inpaint.biharmonic = vm.count("no-biharmonic") == 0;
+            inpaint.max_biharmonic_slope = ctx.get<double>("max-biharmonic-slope");
+            inpaint.max_open_rim = ctx.get<double>("max-open-rim");
             inpaint.top_without_ellipsoid = vm.count("top-without-ellipsoid") > 0;
             inpaint.min_rim_radial = ctx.get<double>("min-rim-radial");
             inpaint.clearance = ctx.get<double>("clearance");
+            inpaint.carve = vm.count("no-carve") == 0;
+            inpaint.free_space.margin = ctx.get<double>("carve-margin");
+            inpaint.max_contradicted = ctx.get<double>("max-contradicted");
             inpaint.visible_max_angle_deg = detect.visible_max_angle_deg;
             inpaint.fill_openings = fill.fill_openings;
             inpaint.check();

@@ -27,6 +27,7 @@
 #include <limits>
 #include <vector>
 
+#include "algorithms/holes/free_space.hpp"
 #include "algorithms/holes/hole_detection.hpp"
 #include "algorithms/holes/hole_filling.hpp"
 #include "toolkit/progress.hpp"
@@ -70,9 +71,20 @@ struct InpaintOptions {
     /// (continues the rim's slope and curvature; OpenCV's Telea flattens), Telea's result
     /// where the solve fails.
     bool biharmonic = true;
+    /// ... except in large holes whose radius changes faster than their height (mean |dr/dh|
+    /// of Telea's radius over the hole above this): the underside of an overhang, closer to
+    /// horizontal than vertical, whose rims are creases: there the harmonic solve (the rims'
+    /// values, not their slopes; §12.2 [M]).
+    double max_biharmonic_slope = 1.0;
     /// Star-shape test [M]: a hole is filled only when the mean of n . radial over its rim
     /// pixels is at least this (0.45: rim normals within ~63 degrees of horizontal-outward).
     double min_rim_radial = 0.45;
+    /// Enclosure test [M]: a hole is filled only when at most this share of its edge (pixel
+    /// sides) borders the outside of the surface (below the lowest or above the highest known
+    /// pixel of a column) rather than measured pixels: a notch in the open bottom boundary is
+    /// no hole, and the surface beyond the lowest observed ring is not predicted by a rim
+    /// (left to the mesher). 1 = no test.
+    double max_open_rim = 1.0;
     double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
     /// §13 [M]: head-top hole components smaller than this share of the largest one are
     /// sampling gaps among seen pixels, not the crown (left to §11).
@@ -92,6 +104,17 @@ struct InpaintOptions {
     double visible_max_angle_deg = 60.0;
     double ray_clearance = 1.0;
     bool fill_openings = false;
+    /// [M] (§12.3 / §13 step 5, proposed §12.4): a proposed point that a sensor saw as empty
+    /// space (a clear, front-facing line of sight and the measured surface well behind it, or
+    /// background; free_space.hpp) is invented: dropped. Needs sensors; off with
+    /// fill_openings (the same evidence).
+    bool carve = true;
+    FreeSpaceOptions free_space;
+    /// [M] (§12.3 / §13 step 5, proposed §12.4): a hole component whose proposed points the sensors
+    /// contradict in more than this share is dropped whole: its inpainting disagrees with what was
+    /// measured, and its unseen part is no more trustworthy than its seen part (a bulge is carved
+    /// where a sensor saw past it and survives where none could).
+    double max_contradicted = 0.2;
     void check() const;
 };
 

@@ -1,0 +1,129 @@
+#include "algorithms/holes/free_space.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::holes {
+
+void FreeSpaceOptions::check() const {
+    RGBD_CHECK(std::isfinite(pixel) && pixel >= 0.25 && pixel <= 20,
+               "free space: pixel must be in [0.25, 20] spacings");
+    RGBD_CHECK(std::isfinite(margin) && margin >= 0 && margin <= 100,
+               "free space: margin must be in [0, 100] spacings");
+    RGBD_CHECK(std::isfinite(max_angle_deg) && max_angle_deg > 0 && max_angle_deg < 90,
+               "free space: the facing angle must be in (0, 90) degrees");
+    RGBD_CHECK(background_border >= 0 && background_border <= 1000,
+               "free space: the background border must be in [0, 1000] pixels");
+}
+
+namespace {
+constexpr float kNone = std::numeric_limits<float>::infinity();
+constexpr int kPad = 3;  // pixels around the points' bounding box
+}  // namespace
+
+FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
+                     const std::vector<SensorView>& sensors, double spacing_m,
+                     const FreeSpaceOptions& options)
+    : options_(options), spacing_(spacing_m) {
+    options.check();
+    RGBD_CHECK(std::isfinite(spacing_m) && spacing_m > 0,
+               "free space: the spacing must be positive");
+    if (points.empty()) return;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& p : points) centroid += p;
+    centroid /= double(points.size());
+    for (const auto& s : sensors) {
+        Map m;
+        m.sensor = s;
+        m.centre = s.world_from_sensor.translation();
+        const Eigen::Vector3d to_object = centroid - m.centre;
+        if (to_object.norm() <= 0) continue;
+        m.forward = to_object.normalized();
+        const Eigen::Vector3d seed =
+            std::abs(m.forward.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+        m.down = (seed - seed.dot(m.forward) * m.forward).normalized();
+        m.right = m.down.cross(m.forward);
+        // Image-plane coordinates (tan of the angle) and depth of every point in front.
+        std::vector<double> x(points.size()), y(points.size()), z(points.size());
+        std::vector<double> depths;
+        double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const Eigen::Vector3d d = points[i] - m.centre;
+            z[i] = d.dot(m.forward);
+            if (!(z[i] > 0)) continue;
+            x[i] = d.dot(m.right) / z[i];
+            y[i] = d.dot(m.down) / z[i];
+            x0 = std::min(x0, x[i]), x1 = std::max(x1, x[i]);
+            y0 = std::min(y0, y[i]), y1 = std::max(y1, y[i]);
+            depths.push_back(z[i]);
+        }
+        if (depths.size() < 10) continue;
+        std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+        m.focal = depths[depths.size() / 2] / (options.pixel * spacing_m);
+        m.cols = static_cast<int>(std::ceil((x1 - x0) * m.focal)) + 1 + 2 * kPad;
+        m.rows = static_cast<int>(std::ceil((y1 - y0) * m.focal)) + 1 + 2 * kPad;
+        if (double(m.cols) * m.rows > 16e6) continue;  // not an object in front of a sensor
+        m.u0 = x0 - kPad / m.focal;
+        m.v0 = y0 - kPad / m.focal;
+        m.nearest.assign(std::size_t(m.cols) * m.rows, kNone);
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            if (!(z[i] > 0)) continue;
+            const int c = static_cast<int>((x[i] - m.u0) * m.focal);
+            const int r = static_cast<int>((y[i] - m.v0) * m.focal);
+            if (c < 0 || r < 0 || c >= m.cols || r >= m.rows) continue;
+            const std::size_t k = std::size_t(r) * m.cols + c;
+            m.nearest[k] = std::min(m.nearest[k], static_cast<float>(z[i]));
+        }
+        maps_.push_back(std::move(m));
+    }
+}
+
+int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+    const double cos_face = std::cos(options_.max_angle_deg * M_PI / 180.0);
+    for (std::size_t s = 0; s < maps_.size(); ++s) {
+        const Map& m = maps_[s];
+        const Eigen::Vector3d d = p - m.centre;
+        const double z = d.dot(m.forward);
+        if (!(z > 0)) continue;
+        if (m.sensor.intrinsics) {
+            const Eigen::Vector3d c = m.sensor.world_from_sensor.inverse() * p;
+            if (c.z() <= 0) continue;
+            const auto& k = *m.sensor.intrinsics;
+            const double u = k.fx * c.x() / c.z() + k.cx, v = k.fy * c.y() / c.z() + k.cy;
+            if (u < 0 || v < 0 || u > k.width - 1 || v > k.height - 1) continue;
+        }
+        const int c = static_cast<int>(std::floor((d.dot(m.right) / z - m.u0) * m.focal));
+        const int r = static_cast<int>(std::floor((d.dot(m.down) / z - m.v0) * m.focal));
+        if (c < 0 || r < 0 || c >= m.cols || r >= m.rows) continue;
+        float near3 = kNone, near5 = kNone;
+        for (int dr = -2; dr <= 2; ++dr)
+            for (int dc = -2; dc <= 2; ++dc) {
+                const int r2 = r + dr, c2 = c + dc;
+                if (r2 < 0 || c2 < 0 || r2 >= m.rows || c2 >= m.cols) continue;
+                const float depth = m.nearest[std::size_t(r2) * m.cols + c2];
+                near5 = std::min(near5, depth);
+                if (std::abs(dr) <= 1 && std::abs(dc) <= 1) near3 = std::min(near3, depth);
+            }
+        if (near3 < kNone) {
+            // Something measured in front of p (the view of it was blocked), or p on the
+            // measured surface: no evidence. Everything behind by the margin: seen through,
+            // when the sensor would have measured p's surface (facing it, not grazing).
+            if (n.dot(-d.normalized()) >= cos_face && near3 > z + options_.margin * spacing_)
+                return static_cast<int>(s);
+            continue;
+        }
+        // Outside the silhouette of the measured object whatever p's normal: a point on the
+        // object projects inside it from every sensor.
+        // No return anywhere near the ray, well inside the sensor's view of the object.
+        const int border = kPad + options_.background_border;
+        if (options_.background && near5 == kNone && c >= border && r >= border &&
+            c < m.cols - border && r < m.rows - border)
+            return static_cast<int>(s);
+    }
+    return -1;
+}
+
+}  // namespace rgbd::holes
