@@ -15,7 +15,9 @@ Variants (--variants):
 - default: rgbd-reconstruct CAP -o mesh.ply --report DIR --metrics m.json, i.e.
   cloud -> clean --distance -> upsample (8 neighbours; only when the colour camera has more
   pixels than the depth camera) -> align -> clean --density -> fill -> mesh --watertight;
-- skip-distance, skip-upsample, skip-density, skip-fill: the same with --skip STAGE;
+- skip-distance, skip-upsample, skip-density, skip-fill: the same with --skip STAGE (on the
+  person, skip-upsample is the default's run: Kinect v1 colour has the depth's pixel count, so
+  upsampling never runs);
 - o3d-spr, o3d-spr-trim: PEERS.md's Open3D 0.16 pipeline on the views of rgbd-cloud: per-view
   statistical outlier removal (k 20, std 2), 5 mm voxels + normals for point-to-plane ICP
   between neighbouring views (48/24/12/6 mm, 40/40/40/30 iterations) from the rig's
@@ -285,7 +287,7 @@ def run_object(obj, a, b, eb, chain, rows, extra):
         est = [pose_of(c) for c, _ in read_stream(aligned)]
         if len(est) == len(truth) and all(p is not None for p in truth + est):
             pose_err["ours"] = relative_rotation_errors(est, truth)
-    o3d_done = {}
+    o3d_done, ran = {}, {}
     for v in variants:
         print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: {v}", file=sys.stderr, flush=True)
         if v.startswith("o3d"):
@@ -296,8 +298,13 @@ def run_object(obj, a, b, eb, chain, rows, extra):
                 if person:
                     pose_err["o3d"] = relative_rotation_errors(poses, truth)
             mesh, t, info = o3d_done[v], o3d_done["time"], {}
+        elif person and v == "skip-upsample" and "default" in ran:
+            # Kinect v1: colour and depth have the same pixel count, upsampling never runs.
+            mesh, t, info = ran["default"]
+            info = dict(info, note="same as default: no upsampling on Kinect v1 data")
         else:
             mesh, t, info = ours(obj, v, cap, b, d, chain, frames, a.seed)
+            ran[v] = (mesh, t, info)
         e = evaluate(eb, mesh, reference, aligned, a.seed)
         s = e.get("surface", {})
         q = e.get("mesh_quality", {})
