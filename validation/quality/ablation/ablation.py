@@ -404,7 +404,8 @@ def main():
     chain = a.chain
     if chain == "auto":
         chain = "reconstruct" if has_skip(b) else "pipe"
-    elif chain == "reconstruct" and not has_skip(b):
+    elif chain == "reconstruct" and any(v.startswith("skip-") for v in a.variants) and \
+            not has_skip(b):
         sys.exit(f"ablation: {b}/rgbd-reconstruct has no --skip")
     t_start = time.perf_counter()
     print(f"work {a.work}; chain {chain}; bin {b}; eval {eb}", file=sys.stderr, flush=True)
@@ -427,7 +428,7 @@ def main():
         cmd = " ".join(shlex.quote(x) for x in [sys.argv[0]] + sys.argv[1:])
         with open(a.out, "w") as f:
             f.write(f"# Ablation of rgbd-reconstruct's stages ({datetime.date.today()})\n\n"
-                    f"- commit {head}; machine: {os.cpu_count()} cores (nproc), shared\n"
+                    f"- commit {head}; machine: {len(os.sched_getaffinity(0))} cores (nproc), shared\n"
                     f"- command: `{cmd}`\n- chain: {chain}; seed {a.seed}; person frames "
                     f"{a.person_frames}; total {total:.0f} s\n\n{table}\n\n" +
                     "\n".join(verdict) + "\n")
