@@ -426,9 +426,10 @@ def main():
         head = subprocess.run(["git", "-C", HERE, "rev-parse", "--short", "HEAD"],
                               capture_output=True, text=True).stdout.strip() or "?"
         cmd = " ".join(shlex.quote(x) for x in [sys.argv[0]] + sys.argv[1:])
+        cores = len(os.sched_getaffinity(0))
         with open(a.out, "w") as f:
             f.write(f"# Ablation of rgbd-reconstruct's stages ({datetime.date.today()})\n\n"
-                    f"- commit {head}; machine: {len(os.sched_getaffinity(0))} cores (nproc), shared\n"
+                    f"- commit {head}; machine: {cores} cores (nproc), shared\n"
                     f"- command: `{cmd}`\n- chain: {chain}; seed {a.seed}; person frames "
                     f"{a.person_frames}; total {total:.0f} s\n\n{table}\n\n" +
                     "\n".join(verdict) + "\n")
