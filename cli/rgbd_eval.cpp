@@ -12,6 +12,7 @@
 #include <limits>
 #include <sstream>
 
+#include "algorithms/evaluation/mesh_quality.hpp"
 #include "algorithms/evaluation/metrics.hpp"
 #include "algorithms/render/picture.hpp"
 #include "cli/common/report_page.hpp"
@@ -232,7 +233,12 @@ int main(int argc, char** argv) {
         "point-to-triangle distances from area-uniform samples. With --gt-poses (a capture's "
         "gt/world_from_depth.json) and a view stream as RESULT, it also reports each view's "
         "rotation and translation error. With --points (the points the result was made from), "
-        "the distance of the result's vertices to them. --baseline screened-poisson runs Open3D "
+        "the distance of the result's vertices to them. A mesh result also gets \"mesh_quality\": "
+        "shares of sliver faces (minimum angle < 5 / 10 deg, by count and area), fold edges "
+        "(adjacent normals > 120 deg apart), spike vertices (a face normal > 60 deg from the "
+        "vertex's area-weighted normal) and, with --points, the share of its area farther than "
+        "3 mm from every input point and of grey fill vertices (128,128,128) within 3 mm of "
+        "one. --baseline screened-poisson runs Open3D "
         "0.16's Screened Poisson (Debian's python3-open3d) on the same input points at each "
         "--baseline-depths, normals as given or estimated by Open3D towards the sensors, times "
         "it, and evaluates its meshes exactly like the result, side by side (JSON and a table "
@@ -275,9 +281,10 @@ int main(int argc, char** argv) {
         const bool baseline_given = ctx.options().count("baseline") > 0;
         const bool report_given = ctx.options().count("report") > 0;
         if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given &&
-            !report_given)
+            !report_given && !ctx.options().count("points"))
             throw cli::UsageError(
-                "give --reference MESH, --gt-poses JSON, --baseline NAME and/or --report DIR");
+                "give --reference MESH, --points STREAM, --gt-poses JSON, --baseline NAME and/or "
+                "--report DIR");
         evaluation::MetricOptions options;
         std::vector<int> depths;
         double trim = 0;
@@ -339,6 +346,13 @@ int main(int argc, char** argv) {
         if (input_geometry && result.mesh)
             out["input_distance"] =
                 input_distance(*result.mesh, input_geometry->vertices, options.invented_tau_m);
+        evaluation::MeshQualityOptions quality_options;
+        quality_options.seed = ctx.seed();
+        auto mesh_quality = [&](const Mesh& mesh) {
+            return evaluation::mesh_quality(
+                mesh, input_geometry ? &input_geometry->vertices : nullptr, quality_options);
+        };
+        if (result.mesh) out["mesh_quality"] = mesh_quality(*result.mesh);
         if (ctx.options().count("gt-poses")) {
             out["poses"] = cli::evaluate_poses(result.views, ctx.get<std::string>("gt-poses"),
                                                !ctx.options().count("keep-gauge"));
@@ -376,6 +390,7 @@ int main(int argc, char** argv) {
                 }
                 run.report["input_distance"] =
                     input_distance(run.mesh, input_geometry->vertices, options.invented_tau_m);
+                run.report["mesh_quality"] = mesh_quality(run.mesh);
                 b["runs"].push_back(run.report);
             }
             if (best < 0) {  // no reference: depth 9 (PEERS.md's choice), else the last
@@ -417,6 +432,13 @@ int main(int argc, char** argv) {
                 row("input dist med mm", "input_distance", "median_mm", 1.0);
                 row("input dist p95 mm", "input_distance", "p95_mm", 1.0);
             }
+            if (out.contains("mesh_quality")) {
+                row("slivers <5deg", "mesh_quality", "sliver_fraction_5deg", 1.0);
+                row("fold edges", "mesh_quality", "fold_edge_fraction", 1.0);
+                row("spike vertices", "mesh_quality", "spike_vertex_fraction", 1.0);
+                row("far area >3mm", "mesh_quality", "far_area_fraction_3mm", 1.0);
+                row("grey vertices", "mesh_quality", "grey_vertex_fraction", 1.0);
+            }
             t << "time s            " << pad("-", 8);
             for (const auto& r : runs) t << pad(cell(r.report, "time_s"), 9);
             t << "\n";
@@ -457,6 +479,7 @@ int main(int argc, char** argv) {
             Report ours = Report::object();
             if (out.contains("surface")) ours["surface"] = out["surface"];
             if (out.contains("input_distance")) ours["input_distance"] = out["input_distance"];
+            if (out.contains("mesh_quality")) ours["mesh_quality"] = out["mesh_quality"];
             columns.push_back({"ours", ours});
             for (const auto& r : runs)
                 columns.push_back({"SPR d" + std::to_string(r.depth), r.report});

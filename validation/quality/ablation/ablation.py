@@ -1,0 +1,440 @@
+#!/usr/bin/python3
+"""Ablation benchmark of rgbd-reconstruct's stages against Open3D Screened Poisson (issue 17):
+one command, one markdown table.
+
+Objects (--objects):
+- bunny: CGAL's demo bunny (libcgal-dev's data.tar.gz, data/meshes/bunny00.off), rendered by
+  rgbd-synth as an 8-Kinect-v2 ring: --height-m 0.45 --up y;
+- max_planck, bust_man_wreath: the busts of ../common/rgbd_stream.py (BUSTS, their rgbd-synth
+  arguments);
+  all with rgbd-synth's default noise and rig.json poses off by 1.5 deg / 15 mm, --seed;
+- person: the real sequence shared/data/multiview/uva_cv2_person_kinect1 (Kinect v1 class,
+  per-frame camera.xml poses, no true surface), frames --person-frames (positions A:B).
+
+Variants (--variants):
+- default: rgbd-reconstruct CAP -o mesh.ply --report DIR --metrics m.json, i.e.
+  cloud -> clean --distance -> upsample (8 neighbours; only when the colour camera has more
+  pixels than the depth camera) -> align -> clean --density -> fill -> mesh --watertight;
+- skip-distance, skip-upsample, skip-density, skip-fill: the same with --skip STAGE (on the
+  person, skip-upsample is the default's run: Kinect v1 colour has the depth's pixel count, so
+  upsampling never runs);
+- o3d-spr, o3d-spr-trim: PEERS.md's Open3D 0.16 pipeline on the views of rgbd-cloud: per-view
+  statistical outlier removal (k 20, std 2), 5 mm voxels + normals for point-to-plane ICP
+  between neighbouring views (48/24/12/6 mm, 40/40/40/30 iterations) from the rig's
+  (camera.xml) poses, Open3D pose graph (Levenberg-Marquardt, closing edge uncertain), merge of
+  the full clouds with normals (hybrid 10 mm / 30, towards each view's camera), 2 mm voxels,
+  post outlier removal (k 20, std 2), Screened Poisson depth 9 (scale 1.1, width 0), untrimmed
+  and trimmed at the 2% density quantile. Time: the whole Open3D pipeline from the loaded
+  views (rgbd-cloud not counted).
+When the rgbd-reconstruct in --bin has no --skip (older builds), --chain pipe (the default
+--chain auto falls back to it) runs the equivalent pipe
+    rgbd-cloud | rgbd-clean --distance | rgbd-upsample --neighbors 8 | rgbd-align |
+    rgbd-clean --density | rgbd-fill | rgbd-mesh --watertight -o mesh.ply
+with the skipped stage left out (rgbd-upsample only on the Kinect v2 rings); time = its wall
+time. With rgbd-reconstruct, time = the sum of reconstruct.stages time_s (no I/O, no
+evaluation, no report pictures; the wall time of the process is in the JSON beside the table).
+
+Scoring: every mesh, ours and Open3D's, by the same scorer,
+    rgbd-eval MESH --reference CAP/gt/mesh.ply --tau-mm 1,2,5
+F-score at 1/2/5 mm, invented surface (share of the mesh's area farther than 5 mm from the
+truth), completeness mean (truth -> mesh, mm), accuracy mean (mesh -> truth, mm) and
+rgbd-eval's mesh_quality (sliver_fraction_5deg: faces with a minimum angle < 5 deg; fold
+edges; spike vertices). The person has no truth: time, mesh_quality against the aligned input
+points (rgbd-eval MESH --points ALIGNED: far area > 3 mm, grey fill vertices) and the rotation
+error of consecutive views' relative poses against camera.xml (median, p90; ours = rgbd-align
+on the default chain's cleaned views, Open3D = its pose graph).
+
+Verdict per object: for every skipped stage, the default (with it) "earns its place" when its
+F@2mm and completeness are no worse and its invented surface is no higher than without it;
+on the busts, the issue's targets: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm.
+
+Usage: ablation.py [--objects bunny,max_planck,bust_man_wreath,person]
+                   [--variants default,skip-distance,skip-upsample,skip-density,skip-fill,
+                               o3d-spr,o3d-spr-trim]
+                   [--bin build/bin] [--eval-bin DIR] [--work DIR] [--person-frames 0:50]
+                   [--seed 1] [--chain auto|reconstruct|pipe] [--out FILE.md]
+"""
+import argparse
+import datetime
+import json
+import os
+import shlex
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+
+import numpy as np
+
+# Open3D's OpenMP workers spin while they wait by default: many times slower on a shared machine.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "common"))
+from rgbd_stream import BUSTS, DATA, pose_of, read_stream, rgb_of, xyz_of  # noqa: E402
+
+PERSON = os.path.normpath(os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1"))
+CGAL_DATA = "/usr/share/doc/libcgal-dev/data.tar.gz"
+STAGES = ["distance", "upsample", "density", "fill"]
+ALL_VARIANTS = ["default"] + [f"skip-{s}" for s in STAGES] + ["o3d-spr", "o3d-spr-trim"]
+BUSTS_WITH_TARGETS = ("max_planck", "bust_man_wreath")
+
+
+def sh(cmd, log=None):
+    """Runs a shell command (bash, pipefail); exits with its stderr on failure."""
+    r = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], capture_output=True, text=True)
+    if log:
+        with open(log, "a") as f:
+            f.write(f"$ {cmd}\n{r.stderr}\n")
+    if r.returncode != 0:
+        sys.exit(f"ablation: failed ({r.returncode}): {cmd}\n{r.stderr[-4000:]}")
+    return r.stdout
+
+
+def has_skip(b):
+    r = subprocess.run([f"{b}/rgbd-reconstruct", "--help"], capture_output=True, text=True)
+    return "--skip" in r.stdout + r.stderr
+
+
+# --------------------------------------------------------------------------- captures
+
+
+def make_capture(obj, b, work, seed):
+    """Capture folder of a synthetic object (rendered once per work dir and seed)."""
+    cap = os.path.join(work, f"{obj}_s{seed}", "cap")
+    if os.path.isdir(os.path.join(cap, "gt")):
+        return cap
+    os.makedirs(os.path.dirname(cap), exist_ok=True)
+    if obj == "bunny":
+        mesh = os.path.join(work, "bunny00.off")
+        if not os.path.exists(mesh):
+            with tarfile.open(CGAL_DATA) as t:
+                member = t.getmember("data/meshes/bunny00.off")
+                with open(mesh, "wb") as f:
+                    f.write(t.extractfile(member).read())
+        extra = ["--height-m", "0.45", "--up", "y"]
+    else:
+        rel, extra = BUSTS[obj]
+        mesh = os.path.join(DATA, rel)
+    sh(f"{b}/rgbd-synth {shlex.quote(mesh)} -o {cap} -q --seed {seed} " + " ".join(extra))
+    return cap
+
+
+# --------------------------------------------------------------------------- our chain
+
+
+def ours(obj, variant, cap, b, d, chain, frames, seed):
+    """Runs our chain (default or --skip STAGE); returns (mesh path, time_s, info dict)."""
+    skip = variant[len("skip-"):] if variant.startswith("skip-") else None
+    mesh = os.path.join(d, f"{variant}.ply")
+    info = {}
+    log = os.path.join(d, f"{variant}.log")
+    if chain == "reconstruct":
+        metrics = os.path.join(d, f"{variant}_m.json")
+        opts = f" --skip {skip}" if skip else ""
+        if frames:
+            opts += f" --frames {frames}"
+        t0 = time.perf_counter()
+        sh(f"{b}/rgbd-reconstruct {cap} -o {mesh} --report {d}/{variant}_report "
+           f"--metrics {metrics} --seed {seed} -q{opts}", log)
+        wall = time.perf_counter() - t0
+        m = json.load(open(metrics))
+        rec = m.get("reconstruct", m)
+        stages = rec.get("stages") or []
+        info = {"wall_s": wall, "stages": stages}
+        t = sum(s.get("time_s", 0.0) for s in stages) if stages else wall
+        return mesh, t, info
+    # The equivalent pipe.
+    upsample = obj != "person"  # Kinect v1: colour and depth have the same pixel count
+    parts = [f"{b}/rgbd-cloud {cap} -q" + (f" --frames {frames}" if frames else "")]
+    if skip != "distance":
+        parts.append(f"{b}/rgbd-clean --distance -q")
+    if upsample and skip != "upsample":
+        parts.append(f"{b}/rgbd-upsample --neighbors 8 --capture {cap} -q")
+    parts.append(f"{b}/rgbd-align -q --seed {seed}")
+    if skip != "density":
+        parts.append(f"{b}/rgbd-clean --density -q")
+    if skip != "fill":
+        parts.append(f"{b}/rgbd-fill -q")
+    parts.append(f"{b}/rgbd-mesh --watertight -q -o {mesh}")
+    t0 = time.perf_counter()
+    sh(" | ".join(parts), log)
+    t = time.perf_counter() - t0
+    return mesh, t, {"wall_s": t, "chain": " | ".join(parts)}
+
+
+# --------------------------------------------------------------------------- Open3D peer
+
+
+def o3d_pipeline(views, out_untrimmed, out_trimmed, depth=9, trim=0.02):
+    """PEERS.md's Open3D pipeline on sensor-frame views [(comments, records)]; returns
+    (seconds, world_from_sensor poses after the pose graph)."""
+    import open3d as o3d
+    reg = o3d.pipelines.registration
+    t0 = time.perf_counter()
+    full, small, init = [], [], []
+    for comments, doc in views:
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
+        rgb = rgb_of(doc)
+        if rgb is not None:
+            pc.colors = o3d.utility.Vector3dVector(rgb)
+        pc, _ = pc.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
+        s = pc.voxel_down_sample(0.005)
+        s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=30))
+        s.orient_normals_towards_camera_location(np.zeros(3))
+        full.append(pc)
+        small.append(s)
+        p = pose_of(comments)
+        init.append(p if p is not None else np.eye(4))
+    n = len(views)
+    graph = reg.PoseGraph()
+    for p in init:
+        graph.nodes.append(reg.PoseGraphNode(p))
+    edges = range(n) if n > 2 else range(n - 1)
+    for i in edges:
+        j = (i + 1) % n  # source j onto target i; the closing edge (j = 0) is uncertain
+        t = np.linalg.inv(init[i]) @ init[j]
+        for dist, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
+            t = reg.registration_icp(small[j], small[i], dist, t,
+                                     reg.TransformationEstimationPointToPlane(),
+                                     reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
+        info = reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, t)
+        graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                reg.GlobalOptimizationConvergenceCriteria(),
+                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
+                                                             edge_prune_threshold=0.25,
+                                                             reference_node=0))
+    poses = [np.asarray(node.pose) for node in graph.nodes]
+    merged = o3d.geometry.PointCloud()
+    for pc, pose in zip(full, poses):
+        w = o3d.geometry.PointCloud(pc)
+        w.transform(pose)
+        w.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.01, max_nn=30))
+        w.orient_normals_towards_camera_location(pose[:3, 3])
+        merged += w
+    merged = merged.voxel_down_sample(0.002)
+    merged, _ = merged.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
+    merged.normalize_normals()
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+            merged, depth=depth, width=0, scale=1.1, linear_fit=False)
+    seconds = time.perf_counter() - t0
+    o3d.io.write_triangle_mesh(out_untrimmed, mesh)
+    dens = np.asarray(dens)
+    mesh.remove_vertices_by_mask(dens < np.quantile(dens, trim))
+    o3d.io.write_triangle_mesh(out_trimmed, mesh)
+    return seconds, poses
+
+
+# --------------------------------------------------------------------------- scoring
+
+
+def evaluate(eb, mesh, reference=None, points=None, seed=1):
+    cmd = f"{eb}/rgbd-eval {mesh} -q --seed {seed}"
+    if reference:
+        cmd += f" --reference {reference} --tau-mm 1,2,5"
+    if points:
+        cmd += f" --points {points}"
+    return json.loads(sh(cmd))
+
+
+def relative_rotation_errors(est, truth):
+    """Rotation error (degrees) of every consecutive relative pose against the truth."""
+    out = []
+    for i in range(len(truth) - 1):
+        g = np.linalg.inv(truth[i]) @ truth[i + 1]
+        e = np.linalg.inv(est[i]) @ est[i + 1]
+        r = (np.linalg.inv(g) @ e)[:3, :3]
+        out.append(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))))
+    return np.array(out)
+
+
+def fmt(x, spec):
+    return "-" if x is None else format(x, spec)
+
+
+# --------------------------------------------------------------------------- main
+
+
+def run_object(obj, a, b, eb, chain, rows, extra):
+    d = os.path.join(a.work, f"{obj}_s{a.seed}")
+    os.makedirs(d, exist_ok=True)
+    person = obj == "person"
+    frames = a.person_frames if person else None
+    if person:
+        cap, reference = PERSON, None
+    else:
+        cap = make_capture(obj, b, a.work, a.seed)
+        reference = os.path.join(cap, "gt", "mesh.ply")
+    variants = [v for v in a.variants if v in ALL_VARIANTS]
+    views = aligned = None
+    pose_err = {}
+    need_views = person or any(v.startswith("o3d") for v in variants)
+    if need_views:
+        raw = os.path.join(d, "views.ply")
+        sh(f"{b}/rgbd-cloud {cap} -q" + (f" --frames {frames}" if frames else "") + f" > {raw}")
+        views = read_stream(raw)
+    if person:
+        # The default chain's aligned points (Kinect v1: no upsampling): the input of the mesh
+        # quality measure, and our poses.
+        aligned = os.path.join(d, "aligned.ply")
+        sh(f"{b}/rgbd-clean --distance -q < {raw} | {b}/rgbd-align -q --seed {a.seed} "
+           f"> {aligned}")
+        truth = [pose_of(c) for c, _ in views]
+        est = [pose_of(c) for c, _ in read_stream(aligned)]
+        if len(est) == len(truth) and all(p is not None for p in truth + est):
+            pose_err["ours"] = relative_rotation_errors(est, truth)
+    o3d_done, ran = {}, {}
+    for v in variants:
+        print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: {v}", file=sys.stderr, flush=True)
+        if v.startswith("o3d"):
+            if not o3d_done:
+                u, tr = os.path.join(d, "o3d-spr.ply"), os.path.join(d, "o3d-spr-trim.ply")
+                secs, poses = o3d_pipeline(views, u, tr)
+                o3d_done = {"o3d-spr": u, "o3d-spr-trim": tr, "time": secs}
+                if person:
+                    pose_err["o3d"] = relative_rotation_errors(poses, truth)
+            mesh, t, info = o3d_done[v], o3d_done["time"], {}
+        elif person and v == "skip-upsample" and "default" in ran:
+            # Kinect v1: colour and depth have the same pixel count, upsampling never runs.
+            mesh, t, info = ran["default"]
+            info = dict(info, note="same as default: no upsampling on Kinect v1 data")
+        else:
+            mesh, t, info = ours(obj, v, cap, b, d, chain, frames, a.seed)
+            ran[v] = (mesh, t, info)
+        e = evaluate(eb, mesh, reference, aligned, a.seed)
+        s = e.get("surface", {})
+        q = e.get("mesh_quality", {})
+        pe = pose_err.get("o3d" if v.startswith("o3d") else "ours") if person else None
+        if person and v.startswith("skip-") and v in ("skip-distance",):
+            pe = None  # its alignment differs from the default's; not measured separately
+        row = {
+            "object": obj, "variant": v, "time_s": t,
+            "f1": s.get("fscore_1mm"), "f2": s.get("fscore_2mm"), "f5": s.get("fscore_5mm"),
+            "invented": s.get("invented_surface_fraction"),
+            "completeness_mm": 1000 * s["completeness_mean_m"] if s else None,
+            "accuracy_mm": 1000 * s["accuracy_mean_m"] if s else None,
+            "sliver5": q.get("sliver_fraction_5deg"), "folds": q.get("fold_edge_fraction"),
+            "spikes": q.get("spike_vertex_fraction"), "far3": q.get("far_area_fraction_3mm"),
+            "grey": q.get("grey_vertex_fraction"),
+            "pose_med": float(np.median(pe)) if pe is not None and len(pe) else None,
+            "pose_p90": float(np.percentile(pe, 90)) if pe is not None and len(pe) else None,
+        }
+        rows.append(row)
+        extra.append({"object": obj, "variant": v, "mesh": mesh, "info": info, "eval": e})
+        print(table_row(row), file=sys.stderr, flush=True)
+
+
+HEADER = ("| object | variant | F@1mm | F@2mm | F@5mm | invented >5mm | completeness mean mm | "
+          "accuracy mean mm | sliver_fraction_5deg | time s | fold edges | spike vertices | "
+          "far >3mm (person) | grey (person) | pose rot err deg med / p90 (person) |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+def table_row(r):
+    pose = "-" if r["pose_med"] is None else f"{r['pose_med']:.3f} / {r['pose_p90']:.3f}"
+    inv = "-" if r["invented"] is None else f"{100 * r['invented']:.2f}%"
+    return (f"| {r['object']} | {r['variant']} | {fmt(r['f1'], '.3f')} | {fmt(r['f2'], '.3f')} | "
+            f"{fmt(r['f5'], '.3f')} | {inv} | {fmt(r['completeness_mm'], '.2f')} | "
+            f"{fmt(r['accuracy_mm'], '.2f')} | {fmt(r['sliver5'], '.4f')} | "
+            f"{r['time_s']:.1f} | {fmt(r['folds'], '.4f')} | {fmt(r['spikes'], '.4f')} | "
+            f"{fmt(r['far3'], '.4f')} | {fmt(r['grey'], '.4f')} | {pose} |")
+
+
+def verdicts(rows):
+    out = []
+    by = {}
+    for r in rows:
+        by.setdefault(r["object"], {})[r["variant"]] = r
+    for obj, v in by.items():
+        parts = []
+        base = v.get("default")
+        if obj == "person" or base is None or base["f2"] is None:
+            out.append(f"- {obj}: no ground truth (or no default run): no stage verdict")
+            continue
+        for stage in STAGES:
+            s = v.get(f"skip-{stage}")
+            if s is None:
+                continue
+            checks = [("F@2mm", base["f2"] >= s["f2"]),
+                      ("completeness", base["completeness_mm"] <= s["completeness_mm"]),
+                      ("invented", base["invented"] <= s["invented"])]
+            bad = [n for n, ok in checks if not ok]
+            parts.append(f"{stage}: " + ("earns its place" if not bad else
+                                         "does NOT earn its place (" + ", ".join(bad) +
+                                         " worse with it)"))
+        line = f"- {obj}: " + ("; ".join(parts) if parts else "no --skip variant run")
+        if obj in BUSTS_WITH_TARGETS:
+            t = [("F@2mm >= 0.96", base["f2"] >= 0.96),
+                 ("invented <= 0.5%", base["invented"] <= 0.005),
+                 ("completeness <= 1.0 mm", base["completeness_mm"] <= 1.0)]
+            line += "; targets: " + ", ".join(f"{n} {'yes' if ok else 'NO'}" for n, ok in t)
+        out.append(line)
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--objects", default="bunny,max_planck,bust_man_wreath,person")
+    ap.add_argument("--variants", default=",".join(ALL_VARIANTS))
+    ap.add_argument("--bin", default="build/bin", help="folder of the rgbd-* tools")
+    ap.add_argument("--eval-bin", default=None,
+                    help="folder of the rgbd-eval that scores (default --bin)")
+    ap.add_argument("--work", default=None, help="work folder (default: a new temporary one)")
+    ap.add_argument("--person-frames", default="0:50", help="frame positions A:B[:STEP]")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--chain", default="auto", choices=["auto", "reconstruct", "pipe"])
+    ap.add_argument("--out", default=None, help="also write the table to this markdown file")
+    a = ap.parse_args()
+    a.objects = [x for x in a.objects.split(",") if x]
+    a.variants = [x for x in a.variants.split(",") if x]
+    for v in a.variants:
+        if v not in ALL_VARIANTS:
+            sys.exit(f"ablation: unknown variant {v} ({', '.join(ALL_VARIANTS)})")
+    for o in a.objects:
+        if o not in ("bunny", "person") and o not in BUSTS:
+            sys.exit(f"ablation: unknown object {o}")
+    b = os.path.abspath(a.bin)
+    eb = os.path.abspath(a.eval_bin or a.bin)
+    a.work = os.path.abspath(a.work or tempfile.mkdtemp(prefix="ablation_"))
+    os.makedirs(a.work, exist_ok=True)
+    chain = a.chain
+    if chain == "auto":
+        chain = "reconstruct" if has_skip(b) else "pipe"
+    elif chain == "reconstruct" and any(v.startswith("skip-") for v in a.variants) and \
+            not has_skip(b):
+        sys.exit(f"ablation: {b}/rgbd-reconstruct has no --skip")
+    t_start = time.perf_counter()
+    print(f"work {a.work}; chain {chain}; bin {b}; eval {eb}", file=sys.stderr, flush=True)
+    rows, extra = [], []
+    for obj in a.objects:
+        run_object(obj, a, b, eb, chain, rows, extra)
+    lines = [HEADER] + [table_row(r) for r in rows]
+    verdict = verdicts(rows)
+    table = "\n".join(lines)
+    print(table)
+    print()
+    print("\n".join(verdict))
+    total = time.perf_counter() - t_start
+    print(f"\n(total {total:.0f} s)")
+    with open(os.path.join(a.work, "ablation.json"), "w") as f:
+        json.dump({"rows": rows, "runs": extra}, f, indent=1, default=str)
+    if a.out:
+        head = subprocess.run(["git", "-C", HERE, "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True).stdout.strip() or "?"
+        cmd = " ".join(shlex.quote(x) for x in [sys.argv[0]] + sys.argv[1:])
+        cores = len(os.sched_getaffinity(0))
+        with open(a.out, "w") as f:
+            f.write(f"# Ablation of rgbd-reconstruct's stages ({datetime.date.today()})\n\n"
+                    f"- commit {head}; machine: {cores} cores (nproc), shared\n"
+                    f"- command: `{cmd}`\n- chain: {chain}; seed {a.seed}; person frames "
+                    f"{a.person_frames}; total {total:.0f} s\n\n{table}\n\n" +
+                    "\n".join(verdict) + "\n")
+        print(f"wrote {a.out}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
