@@ -10,6 +10,7 @@
 
 #include "algorithms/denoise/density_outliers.hpp"
 #include "algorithms/denoise/distance_outliers.hpp"
+#include "algorithms/evaluation/mesh_quality.hpp"
 #include "algorithms/frames/depth_to_cloud.hpp"
 #include "algorithms/render/picture.hpp"
 #include "algorithms/upsample/upsample_view.hpp"
@@ -410,6 +411,8 @@ int main(int argc, char** argv) {
         stages.add("mesh", timings["mesh"].get<double>(), mesh_in, mesh.number_of_vertices(),
                    {{"faces", mesh.number_of_faces()}});
         report["stages"] = stages.rows;
+        // Slivers, folds, spikes, surface far from every input point, grey fill colours.
+        report["mesh_quality"] = evaluation::mesh_quality(mesh, &input_geometry.vertices);
         report["counts"] = {{"views", pose_views.size()},
                             {"mesh_vertices", mesh.number_of_vertices()},
                             {"mesh_faces", mesh.number_of_faces()}};

@@ -136,6 +136,8 @@ def ours(obj, variant, cap, b, d, chain, frames, seed):
         if frames:
             opts += f" --frames {frames}"
         t0 = time.perf_counter()
+        if variant == "default":  # its aligned views give the person's poses
+            opts += f" --stages-dir {d}/{variant}_stages"
         sh(f"{b}/rgbd-reconstruct {cap} -o {mesh} --report {d}/{variant}_report "
            f"--metrics {metrics} --seed {seed} -q{opts}", log)
         wall = time.perf_counter() - t0
@@ -277,20 +279,36 @@ def run_object(obj, a, b, eb, chain, rows, extra):
         raw = os.path.join(d, "views.ply")
         sh(f"{b}/rgbd-cloud {cap} -q" + (f" --frames {frames}" if frames else "") + f" > {raw}")
         views = read_stream(raw)
+    o3d_done, ran = {}, {}
     if person:
-        # The default chain's aligned points (Kinect v1: no upsampling): the input of the mesh
-        # quality measure, and our poses.
-        aligned = os.path.join(d, "aligned.ply")
-        sh(f"{b}/rgbd-clean --distance -q < {raw} | {b}/rgbd-align -q --seed {a.seed} "
-           f"> {aligned}")
+        # Our poses and the input of the mesh quality measure: with rgbd-reconstruct, the
+        # default job's own aligned views (--stages-dir: 02-align, and 03-density = the
+        # measured points the mesher gets); else the default chain's aligned points (Kinect v1:
+        # no upsampling) from a separate run.
+        st = os.path.join(d, "default_stages")
+        if chain == "reconstruct" and "default" in variants:
+            print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: default", file=sys.stderr,
+                  flush=True)
+            ran["default"] = ours(obj, "default", cap, b, d, chain, frames, a.seed)
+            posed = os.path.join(st, "02-align.ply")
+            aligned = os.path.join(st, "03-density.ply")
+            if not os.path.exists(aligned):
+                aligned = posed
+        else:
+            aligned = posed = os.path.join(d, "aligned.ply")
+            sh(f"{b}/rgbd-clean --distance -q < {raw} | {b}/rgbd-align -q --seed {a.seed} "
+               f"> {aligned}")
         truth = [pose_of(c) for c, _ in views]
-        est = [pose_of(c) for c, _ in read_stream(aligned)]
+        est = [pose_of(c) for c, _ in read_stream(posed)]
         if len(est) == len(truth) and all(p is not None for p in truth + est):
             pose_err["ours"] = relative_rotation_errors(est, truth)
-    o3d_done, ran = {}, {}
     for v in variants:
-        print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: {v}", file=sys.stderr, flush=True)
-        if v.startswith("o3d"):
+        if v not in ran:
+            print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: {v}", file=sys.stderr,
+                  flush=True)
+        if v in ran:
+            mesh, t, info = ran[v]
+        elif v.startswith("o3d"):
             if not o3d_done:
                 u, tr = os.path.join(d, "o3d-spr.ply"), os.path.join(d, "o3d-spr-trim.ply")
                 secs, poses = o3d_pipeline(views, u, tr)
