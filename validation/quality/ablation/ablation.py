@@ -415,6 +415,16 @@ def main():
     for o in a.objects:
         if o not in ("bunny", "person") and o not in BUSTS:
             sys.exit(f"ablation: unknown object {o}")
+    # The busts and the person come from ../shared/data beside the checkout; the bunny ships
+    # with Debian's libcgal-dev.
+    missing = [o for o in a.objects if o != "bunny" and not os.path.exists(
+        PERSON if o == "person" else os.path.join(DATA, BUSTS[o][0]))]
+    for o in missing:
+        print(f"ablation: skipping {o}: its data is not in {os.path.dirname(DATA)}",
+              file=sys.stderr)
+    a.objects = [o for o in a.objects if o not in missing]
+    if not a.objects:
+        sys.exit("ablation: no object to run")
     b = os.path.abspath(a.bin)
     eb = os.path.abspath(a.eval_bin or a.bin)
     a.work = os.path.abspath(a.work or tempfile.mkdtemp(prefix="ablation_"))
