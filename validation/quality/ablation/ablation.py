@@ -377,13 +377,16 @@ def verdicts(rows):
             s = v.get(f"skip-{stage}")
             if s is None:
                 continue
-            checks = [("F@2mm", base["f2"] >= s["f2"]),
-                      ("completeness", base["completeness_mm"] <= s["completeness_mm"]),
-                      ("invented", base["invented"] <= s["invented"])]
-            bad = [n for n, ok in checks if not ok]
+            checks = [("F@2mm", base["f2"] >= s["f2"],
+                       f"{base['f2']:.4f} vs {s['f2']:.4f} without"),
+                      ("completeness", base["completeness_mm"] <= s["completeness_mm"],
+                       f"{base['completeness_mm']:.3f} vs {s['completeness_mm']:.3f} mm"),
+                      ("invented", base["invented"] <= s["invented"],
+                       f"{100 * base['invented']:.3f}% vs {100 * s['invented']:.3f}%")]
+            bad = [f"{n} {detail}" for n, ok, detail in checks if not ok]
             parts.append(f"{stage}: " + ("earns its place" if not bad else
-                                         "does NOT earn its place (" + ", ".join(bad) +
-                                         " worse with it)"))
+                                         "does NOT earn its place (worse with it: " +
+                                         ", ".join(bad) + ")"))
         line = f"- {obj}: " + ("; ".join(parts) if parts else "no --skip variant run")
         if obj in BUSTS_WITH_TARGETS:
             t = [("F@2mm >= 0.96", base["f2"] >= 0.96),
@@ -435,6 +438,12 @@ def main():
     elif chain == "reconstruct" and any(v.startswith("skip-") for v in a.variants) and \
             not has_skip(b):
         sys.exit(f"ablation: {b}/rgbd-reconstruct has no --skip")
+    # The commit measured: read at the start (the tree may move on during a long run).
+    head = subprocess.run(["git", "-C", HERE, "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True).stdout.strip() or "?"
+    dirty = subprocess.run(["git", "-C", HERE, "status", "--porcelain", "--untracked-files=no"],
+                           capture_output=True, text=True).stdout.strip()
+    head += " (with uncommitted changes)" if dirty else ""
     t_start = time.perf_counter()
     print(f"work {a.work}; chain {chain}; bin {b}; eval {eb}", file=sys.stderr, flush=True)
     rows, extra = [], []
@@ -451,8 +460,6 @@ def main():
     with open(os.path.join(a.work, "ablation.json"), "w") as f:
         json.dump({"rows": rows, "runs": extra}, f, indent=1, default=str)
     if a.out:
-        head = subprocess.run(["git", "-C", HERE, "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True).stdout.strip() or "?"
         cmd = " ".join(shlex.quote(x) for x in [sys.argv[0]] + sys.argv[1:])
         cores = len(os.sched_getaffinity(0))
         with open(a.out, "w") as f:
