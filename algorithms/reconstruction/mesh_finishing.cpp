@@ -93,6 +93,7 @@ struct LoopPlane {
     /// robust sigmas (1.4826 median absolute deviation) of the median.
     Eigen::Vector3d robust_centre = Eigen::Vector3d::Zero();
     Eigen::Vector3d robust_normal = Eigen::Vector3d::UnitZ();
+    double robust_rms = 0;  ///< RMS distance of the kept vertices to the robust plane
 };
 
 void fit_pca_plane(const std::vector<Eigen::Vector3d>& points, const std::vector<char>& keep,
@@ -116,10 +117,14 @@ double median_of(std::vector<double> values) {
     return *mid;
 }
 
-LoopPlane fit_loop_plane(const Mesh& mesh, Halfedge h) {
+std::vector<Eigen::Vector3d> loop_points(const Mesh& mesh, Halfedge h) {
     std::vector<Eigen::Vector3d> loop;
     for (Halfedge x : CGAL::halfedges_around_face(h, mesh))
         loop.push_back(to_eigen(mesh.point(mesh.target(x))));
+    return loop;
+}
+
+LoopPlane fit_loop_plane(const std::vector<Eigen::Vector3d>& loop) {
     LoopPlane plane;
     plane.size = loop.size();
     std::vector<char> keep(loop.size(), 1);
@@ -131,6 +136,7 @@ LoopPlane fit_loop_plane(const Mesh& mesh, Halfedge h) {
     plane.rms = std::sqrt(plane.rms / static_cast<double>(loop.size()));
     plane.robust_centre = plane.centre;
     plane.robust_normal = plane.normal;
+    plane.robust_rms = plane.rms;
     std::vector<double> residual(loop.size()), spread(loop.size());
     for (int round = 0; round < 3 && loop.size() >= 8; ++round) {
         for (std::size_t i = 0; i < loop.size(); ++i)
@@ -143,8 +149,17 @@ LoopPlane fit_loop_plane(const Mesh& mesh, Halfedge h) {
             kept += keep[i] = std::abs(residual[i] - med) <= 2.5 * sigma;
         if (kept < 8) break;
         fit_pca_plane(loop, keep, plane.robust_centre, plane.robust_normal);
+        double sum = 0;
+        for (std::size_t i = 0; i < loop.size(); ++i)
+            if (keep[i])
+                sum += std::pow((loop[i] - plane.robust_centre).dot(plane.robust_normal), 2);
+        plane.robust_rms = std::sqrt(sum / static_cast<double>(kept));
     }
     return plane;
+}
+
+LoopPlane fit_loop_plane(const Mesh& mesh, Halfedge h) {
+    return fit_loop_plane(loop_points(mesh, h));
 }
 
 /// Without an up direction: a loop that is planar and meets the surface around it at a crease
@@ -165,48 +180,63 @@ bool is_crease_cut(const Mesh& mesh, Halfedge h, const LoopPlane& plane) {
 }
 
 /// With up: the cut the object stood on (base of a bust, floor under the feet, turntable): a
-/// roughly planar loop, within 30 degrees of horizontal, at the bottom of the mesh.
+/// loop roughly planar once the vertices far off its plane are set aside (a ragged rim: gaps
+/// that climb up the side, noise at the grazing bottom edge), within 30 degrees of horizontal,
+/// at the bottom of the mesh.
 bool is_support_cut(const LoopPlane& plane, const Eigen::Vector3d& up, double low, double high) {
-    if (plane.size < 8 || plane.rms > 0.1 * plane.radius) return false;
-    if (std::abs(plane.normal.dot(up)) < std::cos(30.0 * M_PI / 180.0)) return false;
-    return plane.centre.dot(up) - low <= 0.15 * (high - low);
+    if (plane.size < 8 || plane.robust_rms > 0.1 * plane.radius) return false;
+    if (std::abs(plane.robust_normal.dot(up)) < std::cos(30.0 * M_PI / 180.0)) return false;
+    return plane.robust_centre.dot(up) - low <= 0.15 * (high - low);
 }
 
-/// Extends the loop of border halfedge h straight down (along -up) to the cut: the loop's robust
-/// plane moved down to its deep quintile. Vertices already below it drop a twentieth of a mean
-/// edge, so no wall triangle is degenerate. Two triangles per loop edge. Returns a border
-/// halfedge of the new loop (planar but for those few vertices).
-Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const LoopPlane& plane,
-                            const Eigen::Vector3d& up) {
-    const Eigen::Vector3d down_normal =
-        plane.robust_normal.dot(up) > 0 ? -plane.robust_normal : plane.robust_normal;
-    const double drop_rate = std::max(-down_normal.dot(up), 1e-3);  // > cos 30 for a cut
-    std::vector<Mesh::Vertex_index> top;
+/// The plane the object stood on: a point on it and its downward unit normal (within 30 degrees
+/// of -up).
+struct SupportPlane {
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();
+    Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+};
+
+/// The loops' robust plane moved down to their deep quintile. The rim's lowest vertices are its
+/// noisiest (grazing views of the bottom edge) and its highest climb into gaps of the seen rim:
+/// the cut goes through the deep quintile, neither the deepest vertex nor the median. Measured on
+/// the validation busts (measure_mesh.py, F@2mm / invented with --watertight): quantile 0.75:
+/// 0.962 / 0.23% (Max Planck), 0.964 / 0.64% (wreath); 0.8: 0.963 / 0.23%, 0.962 / 0.68%; 0.9:
+/// 0.972 / 0.26%, 0.953 / 0.65%.
+SupportPlane support_plane(const std::vector<Eigen::Vector3d>& rim, const Eigen::Vector3d& up) {
+    const LoopPlane plane = fit_loop_plane(rim);
+    SupportPlane support;
+    support.down = plane.robust_normal.dot(up) > 0 ? -plane.robust_normal : plane.robust_normal;
     std::vector<double> depth;
+    depth.reserve(rim.size());
+    for (const auto& p : rim) depth.push_back((p - plane.robust_centre).dot(support.down));
+    constexpr double kCutQuantile = 0.8;
+    auto deep = depth.begin() +
+                static_cast<std::ptrdiff_t>(kCutQuantile * static_cast<double>(depth.size() - 1));
+    std::nth_element(depth.begin(), deep, depth.end());
+    support.point = plane.robust_centre + *deep * support.down;
+    return support;
+}
+
+/// Extends the loop of border halfedge h straight down (along -up) to the support plane.
+/// Vertices already below it drop a twentieth of a mean edge, so no wall triangle is degenerate.
+/// Two triangles per loop edge. Returns a border halfedge of the new loop (planar but for those
+/// few vertices).
+Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const SupportPlane& support,
+                            const Eigen::Vector3d& up) {
+    const double drop_rate = std::max(-support.down.dot(up), 1e-3);  // > cos 30 for a cut
+    std::vector<Mesh::Vertex_index> top;
     double edge = 0;
     for (Halfedge x : CGAL::halfedges_around_face(h, mesh)) {
         top.push_back(mesh.source(x));
-        const Eigen::Vector3d a = to_eigen(mesh.point(mesh.source(x)));
-        depth.push_back((a - plane.robust_centre).dot(down_normal));
-        edge += (to_eigen(mesh.point(mesh.target(x))) - a).norm();
+        edge +=
+            (to_eigen(mesh.point(mesh.target(x))) - to_eigen(mesh.point(mesh.source(x)))).norm();
     }
     const std::size_t n = top.size();
-    // The loop's lowest vertices are its noisiest (grazing views of the bottom edge) and its
-    // highest climb into gaps of the seen rim: the cut goes through the deep quintile, neither
-    // the deepest vertex nor the median. Measured on the validation busts (measure_mesh.py,
-    // F@2mm / invented with --watertight): quantile 0.75: 0.962 / 0.23% (Max Planck), 0.964 /
-    // 0.64% (wreath); 0.8: 0.963 / 0.23%, 0.962 / 0.68%; 0.9: 0.972 / 0.26%, 0.953 / 0.65%.
-    constexpr double kCutQuantile = 0.8;
-    auto deep =
-        depth.begin() + static_cast<std::ptrdiff_t>(kCutQuantile * static_cast<double>(n - 1));
-    std::nth_element(depth.begin(), deep, depth.end());
-    const double cut = *deep;
     const double min_drop = 0.05 * edge / static_cast<double>(n);
     std::vector<Mesh::Vertex_index> bottom(n);
     for (std::size_t i = 0; i < n; ++i) {
         const Eigen::Vector3d a = to_eigen(mesh.point(top[i]));
-        const double drop =
-            std::max(min_drop, (cut - (a - plane.robust_centre).dot(down_normal)) / drop_rate);
+        const double drop = std::max(min_drop, -(a - support.point).dot(support.down) / drop_rate);
         bottom[i] = mesh.add_vertex(to_point(a - drop * up));
     }
     for (std::size_t i = 0; i < n; ++i) {
@@ -216,6 +246,45 @@ Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const LoopPlane& plane,
     }
     const Halfedge base = mesh.halfedge(bottom[0], bottom[1]);
     return mesh.is_border(base) ? base : mesh.opposite(base);
+}
+
+/// With up: the loops that make up the cut the object stood on. The support cuts
+/// (is_support_cut) and every other loop of at least 8 edges that lies at the bottom: within
+/// 30 degrees of horizontal (robustly) and reaching down to the support cuts' rim, so a rim split
+/// into several loops (a thin bridge of faces across the base, a pinched rim) or a ragged part
+/// of it gets the same base. The result flags them in `borders` order; `support` receives the
+/// plane through all their vertices.
+std::vector<char> support_loops(const Mesh& mesh, const std::vector<Halfedge>& borders,
+                                const Eigen::Vector3d& up, double low, double high,
+                                SupportPlane& support) {
+    std::vector<char> flags(borders.size(), 0);
+    std::vector<LoopPlane> planes(borders.size());
+    std::vector<Eigen::Vector3d> rim;
+    double reach = -std::numeric_limits<double>::infinity(), spread = 0;
+    for (std::size_t i = 0; i < borders.size(); ++i) {
+        planes[i] = fit_loop_plane(mesh, borders[i]);
+        if (!is_support_cut(planes[i], up, low, high)) continue;
+        flags[i] = 1;
+        // The top of the support rim's band: its robust centre plus 2.5 robust RMS.
+        reach = std::max(reach, planes[i].robust_centre.dot(up) + 2.5 * planes[i].robust_rms);
+        spread = std::max(spread, planes[i].robust_rms);
+    }
+    if (reach == -std::numeric_limits<double>::infinity()) return flags;
+    for (std::size_t i = 0; i < borders.size(); ++i) {
+        if (flags[i] || planes[i].size < 8) continue;
+        if (std::abs(planes[i].robust_normal.dot(up)) < std::cos(30.0 * M_PI / 180.0)) continue;
+        // Its deep quintile within the support rim's band.
+        std::vector<double> heights;
+        for (const auto& p : loop_points(mesh, borders[i])) heights.push_back(p.dot(up));
+        auto deep = heights.begin() + static_cast<std::ptrdiff_t>(0.2 * (heights.size() - 1));
+        std::nth_element(heights.begin(), deep, heights.end());
+        flags[i] = *deep <= reach && planes[i].robust_centre.dot(up) <= reach + 2.5 * spread;
+    }
+    for (std::size_t i = 0; i < borders.size(); ++i)
+        if (flags[i])
+            for (const auto& p : loop_points(mesh, borders[i])) rim.push_back(p);
+    support = support_plane(rim, up);
+    return flags;
 }
 
 }  // namespace
@@ -241,7 +310,11 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     PMP::extract_boundary_cycles(mesh, std::back_inserter(borders));
     std::size_t faired = 0, refined = 0, flat = 0, fans = 0, largest = 0;
     const std::size_t faces_before = mesh.number_of_faces();
-    for (Halfedge h : borders) {
+    SupportPlane support;
+    const std::vector<char> on_support = up ? support_loops(mesh, borders, *up, low, high, support)
+                                            : std::vector<char>(borders.size(), 0);
+    for (std::size_t loop = 0; loop < borders.size(); ++loop) {
+        Halfedge h = borders[loop];
         if (!mesh.is_border(h)) continue;  // closed by an earlier fill
         const std::size_t edges = loop_length(mesh, h);
         largest = std::max(largest, edges);
@@ -251,12 +324,12 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
                             .use_2d_constrained_delaunay_triangulation(true)
                             .do_not_use_cubic_algorithm(edges > 200);
         bool ok = false;
-        const LoopPlane plane = fit_loop_plane(mesh, h);
-        const bool cut = up ? is_support_cut(plane, *up, low, high) : is_crease_cut(mesh, h, plane);
+        const bool cut =
+            up ? on_support[loop] != 0 : is_crease_cut(mesh, h, fit_loop_plane(mesh, h));
         if (cut) {
             // The object stood on its cut: the sides go down to it (the sensors rarely see
             // their last millimetres), then the base is flat.
-            if (up) h = extrude_to_support(mesh, h, plane, *up);
+            if (up) h = extrude_to_support(mesh, h, support, *up);
             PMP::triangulate_and_refine_hole(mesh, h, std::back_inserter(faces),
                                              std::back_inserter(vertices), np);
             ok = !faces.empty();

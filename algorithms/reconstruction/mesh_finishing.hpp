@@ -23,10 +23,14 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// Closes every boundary loop. A cut gets a flat refined patch; other loops are triangulated,
 /// refined and faired (up to `fair_max_edges` edges; larger ones only refined); when CGAL finds
 /// no triangulation, a fan around the loop's centroid, refined and faired. With `up` (world up),
-/// a cut is the loop the object stood on: its best-fit plane within 30 degrees of horizontal,
-/// its centroid in the lowest 15% of the mesh's height and the mesh above it; the sides are
-/// first extended straight down to the cut plane (fitted robustly to the loop, through its
-/// deep quintile: the sensors rarely see the last millimetres above a base). Without `up`, a
+/// the cut is where the object stood: the loops whose robust plane (refitted without the
+/// vertices far off it: gaps of a ragged rim, grazing noise) is within 30 degrees of horizontal,
+/// with an RMS residual under a tenth of the loop's radius and the centre in the lowest 15% of
+/// the mesh's height, plus every other loop of 8+ edges within 30 degrees of horizontal whose
+/// deep quintile reaches their rim's band (a rim split into several loops). All of them share one
+/// cut plane (metres, world frame), the robust plane of their pooled vertices moved to its deep
+/// quintile (the sensors rarely see the last millimetres above a base); the sides are extended
+/// straight down to it and capped flat. Without `up`, a
 /// cut is a planar loop meeting the surface at a crease (the faces along it steep to its plane).
 /// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
 /// faces_added, largest_hole_edges, up (null when unknown), time_s.

@@ -3,6 +3,8 @@
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
 #include <CGAL/Polygon_mesh_processing/manifoldness.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 
@@ -10,6 +12,7 @@
 #include <cmath>
 #include <vector>
 
+#include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "sphere_cloud.hpp"
 #include "toolkit/error.hpp"
 
@@ -236,6 +239,77 @@ TEST(ReconstructSurface, WatertightWithUpCapsTheBaseFlatAndFairsTheCrown) {
     EXPECT_THROW(o.check(), rgbd::InputError);
     o.up = Eigen::Vector3d(0, std::nan(""), 1);
     EXPECT_THROW(o.check(), rgbd::InputError);
+}
+
+// A column standing on its cut (radius 5 cm, 10 cm tall, closed on top, base at z = 0, never
+// seen) whose seen bottom rim is ragged and split: every fourth rim vertex climbs 15 mm up the
+// side (a gap of the seen rim), the others scatter by 0.5 mm, and a strip of faces across the
+// base at z = 0 (a bridge the front spanned) splits the rim into two loops. Both loops are the
+// support cut: one flat base at z = 0 (the rim's deep quintile), nothing bulges below it or
+// into the column.
+TEST(ReconstructSurface, RaggedRimSplitInTwoLoopsStillGetsOneFlatBase) {
+    constexpr int kRing = 40, kLevels = 5, kStrip = 10;
+    constexpr double kR = 0.05, kStep = 0.02;
+    std::vector<rgbd::Point_3> points;
+    std::vector<std::vector<std::size_t>> faces;
+    auto ring = [&](int level, int k) { return std::size_t(level * kRing + (k % kRing)); };
+    for (int level = 0; level <= kLevels; ++level)
+        for (int k = 0; k < kRing; ++k) {
+            const double a = 2 * M_PI * k / kRing;
+            double z = level * kStep;
+            if (level == 0) z = k % 4 == 0 ? 0.015 : (k % 2 ? 0.0005 : -0.0005);
+            points.emplace_back(kR * std::cos(a), kR * std::sin(a), z);
+        }
+    for (int level = 0; level < kLevels; ++level)
+        for (int k = 0; k < kRing; ++k) {
+            faces.push_back({ring(level, k), ring(level, k + 1), ring(level + 1, k + 1)});
+            faces.push_back({ring(level, k), ring(level + 1, k + 1), ring(level + 1, k)});
+        }
+    const std::size_t apex = points.size();
+    points.emplace_back(0, 0, kLevels * kStep);
+    for (int k = 0; k < kRing; ++k) faces.push_back({ring(kLevels, k), ring(kLevels, k + 1), apex});
+    // The bridge: rows from rim vertex 1 to 19 and from 2 to 18 (parallel chords).
+    std::vector<std::size_t> row_a{ring(0, 1)}, row_b{ring(0, 2)};
+    const Eigen::Vector3d a0 = rgbd::to_eigen(points[ring(0, 1)]),
+                          a1 = rgbd::to_eigen(points[ring(0, 19)]);
+    const Eigen::Vector3d b0 = rgbd::to_eigen(points[ring(0, 2)]),
+                          b1 = rgbd::to_eigen(points[ring(0, 18)]);
+    for (int i = 1; i < kStrip; ++i) {
+        const double t = double(i) / kStrip;
+        row_a.push_back(points.size());
+        points.push_back(rgbd::to_point(a0 + t * (a1 - a0)));
+        row_b.push_back(points.size());
+        points.push_back(rgbd::to_point(b0 + t * (b1 - b0)));
+    }
+    row_a.push_back(ring(0, 19));
+    row_b.push_back(ring(0, 18));
+    for (int i = 0; i < kStrip; ++i) {
+        faces.push_back({row_a[i], row_a[i + 1], row_b[i + 1]});
+        faces.push_back({row_a[i], row_b[i + 1], row_b[i]});
+    }
+    namespace PMP = CGAL::Polygon_mesh_processing;
+    ASSERT_TRUE(PMP::orient_polygon_soup(points, faces));
+    Mesh mesh;
+    PMP::polygon_soup_to_polygon_mesh(points, faces, mesh);
+    std::vector<Mesh::Halfedge_index> loops;
+    PMP::extract_boundary_cycles(mesh, std::back_inserter(loops));
+    ASSERT_EQ(loops.size(), 2u);
+
+    const rgbd::Report report =
+        rgbd::reconstruction::internal::close_holes(mesh, Eigen::Vector3d(0, 0, 1));
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    EXPECT_EQ(report["flat_cuts"], 2) << report.dump();
+    EXPECT_EQ(report["faired"], 0) << report.dump();
+    std::size_t base = 0;
+    for (auto v : mesh.vertices()) {
+        const rgbd::Point_3& p = mesh.point(v);
+        EXPECT_GT(p.z(), -0.002);  // nothing below the cut
+        if (std::hypot(p.x(), p.y()) < 0.045 && p.z() < 0.05) {
+            ++base;  // inside the base disc: on the cut plane, no bulge into the column
+            EXPECT_NEAR(p.z(), 0.0, 0.002);
+        }
+    }
+    EXPECT_GT(base, 20u);
 }
 
 // A cloud much denser than max_points (a turn of many overlapping frames): the front scales
