@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 
+#include "tests/validation/synth_test_shapes.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::evaluation {
@@ -20,40 +21,8 @@ constexpr double kPi = 3.14159265358979323846;
 
 /// Icosphere of the given radius: icosahedron subdivided `levels` times (20 * 4^levels faces).
 Mesh icosphere(double radius, int levels) {
-    const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-    std::vector<Eigen::Vector3d> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0},
-                                      {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
-                                      {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    for (auto& p : v) p.normalize();
-    std::vector<std::array<int, 3>> f = {
-        {0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-        {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-        {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-    for (int l = 0; l < levels; ++l) {
-        std::map<std::pair<int, int>, int> mid;
-        auto midpoint = [&](int a, int b) {
-            const auto key = std::minmax(a, b);
-            auto it = mid.find(key);
-            if (it != mid.end()) return it->second;
-            v.push_back((v[a] + v[b]).normalized());
-            mid[key] = int(v.size()) - 1;
-            return int(v.size()) - 1;
-        };
-        std::vector<std::array<int, 3>> next;
-        for (const auto& tri : f) {
-            const int a = midpoint(tri[0], tri[1]), b = midpoint(tri[1], tri[2]),
-                      c = midpoint(tri[2], tri[0]);
-            next.push_back({tri[0], a, c});
-            next.push_back({tri[1], b, a});
-            next.push_back({tri[2], c, b});
-            next.push_back({a, b, c});
-        }
-        f = std::move(next);
-    }
     Mesh mesh;
-    std::vector<Mesh::Vertex_index> ids;
-    for (const auto& p : v) ids.push_back(mesh.add_vertex(to_point(radius * p)));
-    for (const auto& tri : f) mesh.add_face(ids[tri[0]], ids[tri[1]], ids[tri[2]]);
+    synth::testing::add_icosphere(mesh, Eigen::Vector3d::Zero(), radius, levels);
     return mesh;
 }
 
