@@ -72,7 +72,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "common"))
-from rgbd_stream import BUSTS, DATA, pose_of, read_stream, rgb_of, xyz_of  # noqa: E402
+from rgbd_stream import BUSTS, DATA, optimise, pose_of, read_stream, rgb_of, xyz_of  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1"))
 CGAL_DATA = "/usr/share/doc/libcgal-dev/data.tar.gz"
@@ -203,12 +203,7 @@ def o3d_pipeline(views, out_untrimmed, out_trimmed, depth=9, trim=0.02):
                                      reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
         info = reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, t)
         graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
-                                reg.GlobalOptimizationConvergenceCriteria(),
-                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
-                                                             edge_prune_threshold=0.25,
-                                                             reference_node=0))
+    optimise(graph)
     poses = [np.asarray(node.pose) for node in graph.nodes]
     merged = o3d.geometry.PointCloud()
     for pc, pose in zip(full, poses):

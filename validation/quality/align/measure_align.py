@@ -37,7 +37,7 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, pose_of, read_stream, run,  # noqa: E402
+from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, optimise, pose_of, read_stream, run,  # noqa: E402
                          xyz_of)
 
 
@@ -82,17 +82,6 @@ def o3d_p2plane(src, tgt, t):
         t = reg.registration_icp(src, tgt, d, t, reg.TransformationEstimationPointToPlane(),
                                  reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
     return t
-
-
-def optimise(graph):
-    """Open3D's pose graph (PEERS.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
-    reg = o3d.pipelines.registration
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
-                                reg.GlobalOptimizationConvergenceCriteria(),
-                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
-                                                             edge_prune_threshold=0.25,
-                                                             reference_node=0))
 
 
 def o3d_ring(docs, colored):

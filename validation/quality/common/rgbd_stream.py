@@ -96,6 +96,18 @@ def o3d_view_cloud(doc, voxel):
     return pc
 
 
+def optimise(graph):
+    """Open3D's pose graph (PEERS.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
+    import open3d as o3d
+    reg = o3d.pipelines.registration
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                reg.GlobalOptimizationConvergenceCriteria(),
+                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
+                                                             edge_prune_threshold=0.25,
+                                                             reference_node=0))
+
+
 # ../shared/data beside the repository, and the busts of the validation scripts with the
 # rgbd-synth arguments that size and orient them (mesh path relative to DATA).
 DATA = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
