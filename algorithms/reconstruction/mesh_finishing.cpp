@@ -46,6 +46,9 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction) {
 
 namespace {
 
+/// Holes with more corners are triangulated in a 3D Delaunay search space (see close_holes).
+constexpr std::size_t kCubicMaxEdges = 300;
+
 using Halfedge = Mesh::Halfedge_index;
 
 std::size_t loop_length(const Mesh& mesh, Halfedge h) {
@@ -320,9 +323,16 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
         largest = std::max(largest, edges);
         std::vector<Mesh::Face_index> faces;
         std::vector<Mesh::Vertex_index> vertices;
-        const auto np = CGAL::parameters::use_delaunay_triangulation(true)
+        // A hole that projects onto its plane is triangulated by a 2D constrained Delaunay
+        // triangulation; else by Liepa's dynamic programme over all triangulations (cubic in
+        // the corners, 0.4 s for 200). The 3D Delaunay search space is faster but picks its
+        // triangles by comparing cell addresses: the mesh depended on the heap's layout (the
+        // length of the input file's name changed it), so it is used only past the cubic
+        // algorithm's reach.
+        const bool large = edges > kCubicMaxEdges;
+        const auto np = CGAL::parameters::use_delaunay_triangulation(large)
                             .use_2d_constrained_delaunay_triangulation(true)
-                            .do_not_use_cubic_algorithm(edges > 200);
+                            .do_not_use_cubic_algorithm(large);
         bool ok = false;
         const bool cut =
             up ? on_support[loop] != 0 : is_crease_cut(mesh, h, fit_loop_plane(mesh, h));

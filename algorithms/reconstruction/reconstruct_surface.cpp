@@ -98,16 +98,30 @@ PointCloud bounded(const PointCloud& cloud, std::size_t max_points, double spaci
                          ": cannot down-sample to the point budget");
 }
 
+/// CGAL's default random generator is seeded from the clock (CGAL::Random(), whole seconds).
+/// The surface mesher draws its initial points from it, and the Delaunay hole triangulation
+/// shuffles the hole's corners with it (spatial_sort), which decides between equally valid
+/// triangulations of cospherical corners. Seeded for the scope: the same input gives the same
+/// mesh in every process; the caller's generator is restored afterwards.
+class ScopedDefaultRandom {
+public:
+    explicit ScopedDefaultRandom(unsigned seed) : saved_(CGAL::get_default_random()) {
+        CGAL::get_default_random() = CGAL::Random(seed);
+    }
+    ~ScopedDefaultRandom() { CGAL::get_default_random() = saved_; }
+    ScopedDefaultRandom(const ScopedDefaultRandom&) = delete;
+    ScopedDefaultRandom& operator=(const ScopedDefaultRandom&) = delete;
+
+private:
+    CGAL::Random saved_;
+};
+
 void poisson(const std::vector<Pwn>& pwn, double spacing, const ReconstructionOptions& o,
              Mesh& mesh) {
-    // The surface mesher draws its initial points from CGAL's default generator, which is
-    // seeded from the clock: seed it for repeatable meshes, and restore it afterwards.
-    const CGAL::Random saved = CGAL::get_default_random();
-    CGAL::get_default_random() = CGAL::Random(0);
+    const ScopedDefaultRandom seeded(0);
     const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
         pwn.begin(), pwn.end(), PointOf(), NormalOf(), mesh, spacing, o.sm_angle_deg, o.sm_radius,
         o.sm_distance);
-    CGAL::get_default_random() = saved;
     if (!ok) throw AlgorithmError("reconstruction: the Poisson solver failed");
 }
 
@@ -319,6 +333,7 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                          Report* report, const Progress& progress) {
     options.check();
     Stopwatch watch;
+    const ScopedDefaultRandom seeded(0);
     RGBD_CHECK(cloud.size() >= 100, "reconstruction: " + view_name(cloud) + " has " +
                                         std::to_string(cloud.size()) +
                                         " points; at least 100 are needed");

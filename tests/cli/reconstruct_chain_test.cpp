@@ -99,20 +99,15 @@ TEST(ReconstructChain, PipeAndOneCommandGiveTheSameMesh) {
         return bytes.substr(bytes.find("end_header\n"));
     };
     EXPECT_TRUE(body("piped_open.ply") == body("one_open.ply"));
-    // --watertight closes the holes with CGAL's hole triangulation, refinement and fairing and
-    // remeshes the patches, and that is not reproducible across processes yet: the same points
-    // in two files that differ only in their history lines gave 45,752 and 45,761 vertices (one
-    // file: always the same mesh, for any thread count). So: the same open part, both closed,
-    // nearly the same size.
+    // The same closed mesh too. --watertight closes the holes with CGAL's Delaunay hole
+    // triangulation, whose corner shuffle draws from CGAL's clock-seeded default generator:
+    // the mesher seeds it, else two runs a second apart differed by a few vertices.
+    EXPECT_TRUE(body("piped.ply") == body("one.ply"));
     const rgbd::Mesh a = read_mesh_document(temp_root() / "piped.ply");
-    const rgbd::Mesh b = read_mesh_document(temp_root() / "one.ply");
     const rgbd::Mesh open = read_mesh_document(temp_root() / "one_open.ply");
     ASSERT_GT(a.number_of_faces(), 1000u);
     EXPECT_TRUE(CGAL::is_closed(a));
-    EXPECT_TRUE(CGAL::is_closed(b));
     EXPECT_FALSE(CGAL::is_closed(open));
-    const double faces_a = static_cast<double>(a.number_of_faces());
-    EXPECT_NEAR(static_cast<double>(b.number_of_faces()), faces_a, 0.005 * faces_a);
 
     // Every stage of the method ran, in order, with its time and point counts.
     const auto m = nlohmann::json::parse(slurp(temp_root() / "one_report" / "metrics.json"));

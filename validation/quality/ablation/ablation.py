@@ -44,15 +44,14 @@ points (rgbd-eval MESH --points ALIGNED: far area > 3 mm, grey fill vertices) an
 error of consecutive views' relative poses against camera.xml (median, p90; ours = rgbd-align
 on the default chain's cleaned views, Open3D = its pose graph).
 
-Verdict per object: for every skipped stage, the default (with it) "earns its place" when its
-F@2mm and completeness are no worse and its invented surface is no higher than without it;
-on the busts, the issue's targets: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm.
+Seeds (--seeds 1,2,3): every synthetic ring is rendered and run once per seed (noise and rig
+error drawn anew); the table shows the mean over the seeds first, then every run.
 
-Usage: ablation.py [--objects bunny,max_planck,bust_man_wreath,person]
-                   [--variants default,skip-distance,skip-upsample,skip-density,skip-fill,
-                               o3d-spr,o3d-spr-trim]
-                   [--bin build/bin] [--eval-bin DIR] [--work DIR] [--person-frames 0:50]
-                   [--seed 1] [--chain auto|reconstruct|pipe] [--out FILE.md]
+Verdict per object and stage, on the paired differences default - skip-STAGE over the seeds:
+"earns its place" when F@2mm and completeness are no worse and invented surface no higher on
+the mean; "no measurable effect" when one is worse on the mean by less than twice the standard
+error of the paired difference (the seeds' spread); "HURTS" beyond it. On the busts, the
+issue's targets on every seed: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm.
 """
 import argparse
 import datetime
@@ -256,15 +255,15 @@ def fmt(x, spec):
 # --------------------------------------------------------------------------- main
 
 
-def run_object(obj, a, b, eb, chain, rows, extra):
-    d = os.path.join(a.work, f"{obj}_s{a.seed}")
+def run_object(obj, a, b, eb, chain, rows, extra, seed):
+    d = os.path.join(a.work, f"{obj}_s{seed}")
     os.makedirs(d, exist_ok=True)
     person = obj == "person"
     frames = a.person_frames if person else None
     if person:
         cap, reference = PERSON, None
     else:
-        cap = make_capture(obj, b, a.work, a.seed)
+        cap = make_capture(obj, b, a.work, seed)
         reference = os.path.join(cap, "gt", "mesh.ply")
     variants = [v for v in a.variants if v in ALL_VARIANTS]
     views = aligned = None
@@ -284,14 +283,14 @@ def run_object(obj, a, b, eb, chain, rows, extra):
         if chain == "reconstruct" and "default" in variants:
             print(f"[{datetime.datetime.now():%H:%M:%S}] {obj}: default", file=sys.stderr,
                   flush=True)
-            ran["default"] = ours(obj, "default", cap, b, d, chain, frames, a.seed)
+            ran["default"] = ours(obj, "default", cap, b, d, chain, frames, seed)
             posed = os.path.join(st, "02-align.ply")
             aligned = os.path.join(st, "03-density.ply")
             if not os.path.exists(aligned):
                 aligned = posed
         else:
             aligned = posed = os.path.join(d, "aligned.ply")
-            sh(f"{b}/rgbd-clean --distance -q < {raw} | {b}/rgbd-align -q --seed {a.seed} "
+            sh(f"{b}/rgbd-clean --distance -q < {raw} | {b}/rgbd-align -q --seed {seed} "
                f"> {aligned}")
         truth = [pose_of(c) for c, _ in views]
         est = [pose_of(c) for c, _ in read_stream(posed)]
@@ -316,16 +315,16 @@ def run_object(obj, a, b, eb, chain, rows, extra):
             mesh, t, info = ran["default"]
             info = dict(info, note="same as default: no upsampling on Kinect v1 data")
         else:
-            mesh, t, info = ours(obj, v, cap, b, d, chain, frames, a.seed)
+            mesh, t, info = ours(obj, v, cap, b, d, chain, frames, seed)
             ran[v] = (mesh, t, info)
-        e = evaluate(eb, mesh, reference, aligned, a.seed)
+        e = evaluate(eb, mesh, reference, aligned, seed)
         s = e.get("surface", {})
         q = e.get("mesh_quality", {})
         pe = pose_err.get("o3d" if v.startswith("o3d") else "ours") if person else None
         if person and v.startswith("skip-") and v in ("skip-distance",):
             pe = None  # its alignment differs from the default's; not measured separately
         row = {
-            "object": obj, "variant": v, "time_s": t,
+            "object": obj, "variant": v, "seed": seed, "time_s": t,
             "f1": s.get("fscore_1mm"), "f2": s.get("fscore_2mm"), "f5": s.get("fscore_5mm"),
             "invented": s.get("invented_surface_fraction"),
             "completeness_mm": 1000 * s["completeness_mean_m"] if s else None,
@@ -337,58 +336,101 @@ def run_object(obj, a, b, eb, chain, rows, extra):
             "pose_p90": float(np.percentile(pe, 90)) if pe is not None and len(pe) else None,
         }
         rows.append(row)
-        extra.append({"object": obj, "variant": v, "mesh": mesh, "info": info, "eval": e})
+        extra.append({"object": obj, "variant": v, "seed": seed, "mesh": mesh, "info": info, "eval": e})
         print(table_row(row), file=sys.stderr, flush=True)
 
 
-HEADER = ("| object | variant | F@1mm | F@2mm | F@5mm | invented >5mm | completeness mean mm | "
+HEADER = ("| object | variant | seed | F@1mm | F@2mm | F@5mm | invented >5mm | completeness mean mm | "
           "accuracy mean mm | sliver_fraction_5deg | time s | fold edges | spike vertices | "
           "far >3mm (person) | grey (person) | pose rot err deg med / p90 (person) |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 def table_row(r):
     pose = "-" if r["pose_med"] is None else f"{r['pose_med']:.3f} / {r['pose_p90']:.3f}"
     inv = "-" if r["invented"] is None else f"{100 * r['invented']:.2f}%"
-    return (f"| {r['object']} | {r['variant']} | {fmt(r['f1'], '.3f')} | {fmt(r['f2'], '.3f')} | "
+    return (f"| {r['object']} | {r['variant']} | {r['seed']} | {fmt(r['f1'], '.3f')} | {fmt(r['f2'], '.3f')} | "
             f"{fmt(r['f5'], '.3f')} | {inv} | {fmt(r['completeness_mm'], '.2f')} | "
             f"{fmt(r['accuracy_mm'], '.2f')} | {fmt(r['sliver5'], '.4f')} | "
             f"{r['time_s']:.1f} | {fmt(r['folds'], '.4f')} | {fmt(r['spikes'], '.4f')} | "
             f"{fmt(r['far3'], '.4f')} | {fmt(r['grey'], '.4f')} | {pose} |")
 
 
+METRICS = [("F@2mm", "f2", -1, ".4f", ""), ("completeness", "completeness_mm", 1, ".3f", " mm"),
+           ("invented", "invented", 1, ".3%", "")]
+
+
 def verdicts(rows):
+    """Per object and stage: the paired differences default - skip-STAGE over the seeds, signed
+    so that > 0 is worse with the stage. "earns its place": no metric worse on the mean; "no
+    measurable effect": worse on the mean but by less than twice the standard error of the
+    paired difference (the seeds' spread), so the sign is not known; "HURTS": worse beyond it
+    (with one seed any worse digit counts)."""
     out = []
     by = {}
     for r in rows:
-        by.setdefault(r["object"], {})[r["variant"]] = r
+        by.setdefault(r["object"], {}).setdefault(r["variant"], {})[r["seed"]] = r
     for obj, v in by.items():
         parts = []
-        base = v.get("default")
-        if obj == "person" or base is None or base["f2"] is None:
+        base = v.get("default", {})
+        if obj == "person" or not base or any(r["f2"] is None for r in base.values()):
             out.append(f"- {obj}: no ground truth (or no default run): no stage verdict")
             continue
         for stage in STAGES:
-            s = v.get(f"skip-{stage}")
-            if s is None:
+            skip = v.get(f"skip-{stage}")
+            if not skip:
                 continue
-            checks = [("F@2mm", base["f2"] >= s["f2"],
-                       f"{base['f2']:.4f} vs {s['f2']:.4f} without"),
-                      ("completeness", base["completeness_mm"] <= s["completeness_mm"],
-                       f"{base['completeness_mm']:.3f} vs {s['completeness_mm']:.3f} mm"),
-                      ("invented", base["invented"] <= s["invented"],
-                       f"{100 * base['invented']:.3f}% vs {100 * s['invented']:.3f}%")]
-            bad = [f"{n} {detail}" for n, ok, detail in checks if not ok]
-            parts.append(f"{stage}: " + ("earns its place" if not bad else
-                                         "does NOT earn its place (worse with it: " +
-                                         ", ".join(bad) + ")"))
-        line = f"- {obj}: " + ("; ".join(parts) if parts else "no --skip variant run")
+            seeds = sorted(set(base) & set(skip))
+            worse, unsure = [], []
+            for name, key, sign, spec, unit in METRICS:
+                d = np.array([sign * (base[s][key] - skip[s][key]) for s in seeds])
+                mean = float(d.mean())
+                se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
+                with_ = np.mean([base[s][key] for s in seeds])
+                without = np.mean([skip[s][key] for s in seeds])
+                detail = (f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} without" +
+                          (f", paired difference {abs(mean):{spec}}{unit} +- {se:{spec}}{unit}"
+                           if len(d) > 1 else ""))
+                if mean > 2 * se:
+                    worse.append(detail)
+                elif mean > 0:
+                    unsure.append(detail)
+            if worse:
+                parts.append(f"{stage}: HURTS (" + "; ".join(worse) + ")")
+            elif unsure:
+                parts.append(f"{stage}: no measurable effect (worse on the mean, within the "
+                             f"seeds' spread: " + "; ".join(unsure) + ")")
+            else:
+                parts.append(f"{stage}: earns its place")
+        n = len(base)
+        line = f"- {obj} ({n} seed{'s' if n > 1 else ''}): " + (
+            "; ".join(parts) if parts else "no --skip variant run")
         if obj in BUSTS_WITH_TARGETS:
-            t = [("F@2mm >= 0.96", base["f2"] >= 0.96),
-                 ("invented <= 0.5%", base["invented"] <= 0.005),
-                 ("completeness <= 1.0 mm", base["completeness_mm"] <= 1.0)]
-            line += "; targets: " + ", ".join(f"{n} {'yes' if ok else 'NO'}" for n, ok in t)
+            worst = {k: [r[k] for r in base.values()] for k in ("f2", "invented",
+                                                               "completeness_mm")}
+            t = [("F@2mm >= 0.96", min(worst["f2"]) >= 0.96),
+                 ("invented <= 0.5%", max(worst["invented"]) <= 0.005),
+                 ("completeness <= 1.0 mm", max(worst["completeness_mm"]) <= 1.0)]
+            line += "; targets (every seed): " + ", ".join(
+                f"{n} {'yes' if ok else 'NO'}" for n, ok in t)
         out.append(line)
+    return out
+
+
+def mean_rows(rows):
+    """One row per object and variant: the mean over the seeds (time included)."""
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["object"], r["variant"]), []).append(r)
+    out = []
+    for (obj, var), rs in groups.items():
+        m = dict(rs[0])
+        m["seed"] = f"mean of {len(rs)}"
+        for k, x in rs[0].items():
+            if k in ("object", "variant", "seed") or x is None or isinstance(x, str):
+                continue
+            m[k] = float(np.mean([r[k] for r in rs]))
+        out.append(m)
     return out
 
 
@@ -401,12 +443,17 @@ def main():
                     help="folder of the rgbd-eval that scores (default --bin)")
     ap.add_argument("--work", default=None, help="work folder (default: a new temporary one)")
     ap.add_argument("--person-frames", default="0:50", help="frame positions A:B[:STEP]")
-    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=None, help="one seed (same as --seeds N)")
+    ap.add_argument("--seeds", default="1",
+                    help="comma-separated seeds of the synthetic rings (the person: the first)")
     ap.add_argument("--chain", default="auto", choices=["auto", "reconstruct", "pipe"])
     ap.add_argument("--out", default=None, help="also write the table to this markdown file")
     a = ap.parse_args()
     a.objects = [x for x in a.objects.split(",") if x]
     a.variants = [x for x in a.variants.split(",") if x]
+    a.seeds = [a.seed] if a.seed is not None else [int(x) for x in a.seeds.split(",") if x]
+    if not a.seeds:
+        sys.exit("ablation: no seed")
     for v in a.variants:
         if v not in ALL_VARIANTS:
             sys.exit(f"ablation: unknown variant {v} ({', '.join(ALL_VARIANTS)})")
@@ -443,8 +490,10 @@ def main():
     print(f"work {a.work}; chain {chain}; bin {b}; eval {eb}", file=sys.stderr, flush=True)
     rows, extra = [], []
     for obj in a.objects:
-        run_object(obj, a, b, eb, chain, rows, extra)
-    lines = [HEADER] + [table_row(r) for r in rows]
+        for seed in (a.seeds[:1] if obj == "person" else a.seeds):
+            run_object(obj, a, b, eb, chain, rows, extra, seed)
+    shown = rows if len(a.seeds) == 1 else mean_rows(rows) + rows
+    lines = [HEADER] + [table_row(r) for r in shown]
     verdict = verdicts(rows)
     table = "\n".join(lines)
     print(table)
@@ -460,7 +509,7 @@ def main():
         with open(a.out, "w") as f:
             f.write(f"# Ablation of rgbd-reconstruct's stages ({datetime.date.today()})\n\n"
                     f"- commit {head}; machine: {cores} cores (nproc), shared\n"
-                    f"- command: `{cmd}`\n- chain: {chain}; seed {a.seed}; person frames "
+                    f"- command: `{cmd}`\n- chain: {chain}; seeds {a.seeds}; person frames "
                     f"{a.person_frames}; total {total:.0f} s\n\n{table}\n\n" +
                     "\n".join(verdict) + "\n")
         print(f"wrote {a.out}", file=sys.stderr)
