@@ -97,8 +97,9 @@ public:
     JointRefinement(std::vector<Working>& work, std::vector<std::vector<std::size_t>> partners,
                     const JointSettings& settings);
 
-    /// Matches every working point at the current poses within dmax (metres).
-    void match(double dmax);
+    /// Matches every `stride`-th working point of each view (the others stay unmatched: coarse
+    /// rounds only steer) at the current poses within dmax (metres).
+    void match(double dmax, std::size_t stride = 1);
     /// One Gauss-Newton step from the last match at distance dmax: moves every free view with
     /// at least `min_matches` matched points. Returns the largest displacement of any working
     /// point (m), or nothing when no view could move (nothing to solve, or a singular system).

@@ -204,6 +204,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                               kPartnerHops),
         js);
     const IcpCriteria& crit = options.icp.criteria;
+    std::size_t smallest_view = work[0].reg.xyz.size();
+    for (const Working& w : work) smallest_view = std::min(smallest_view, w.reg.xyz.size());
     std::vector<int> moved_iterations(nv, 0);
     std::vector<char> converged(nv, 0);
 
@@ -218,8 +220,12 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             bool round_converged = false;
             const int max_it =
                 options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
+            // Coarse rounds on every 2^k-th working point (k = rounds left, at most 3, at least
+            // ~1000 points per view); the finest round on all of them.
+            std::size_t stride = std::size_t{1} << std::min(options.rounds - 1 - round, 3);
+            while (stride > 1 && smallest_view / stride < 1000) stride /= 2;
             for (int it = 0; it < max_it; ++it) {
-                joint.match(dmax);
+                joint.match(dmax, stride);
                 const std::optional<double> max_motion =
                     joint.step(dmax, kMinMatches, moved_iterations);
                 if (!max_motion) break;

@@ -78,7 +78,7 @@ JointRefinement::JointRefinement(std::vector<Working>& work,
     sq_sum_.assign(nv, 0.0);
 }
 
-void JointRefinement::match(double dmax) {
+void JointRefinement::match(double dmax, std::size_t stride) {
     const std::size_t nv = work_.size();
     // Relative placement of every partner's working frame: partner_from_view.
     std::vector<std::vector<Pose>> rel(nv);
@@ -98,6 +98,10 @@ void JointRefinement::match(double dmax) {
         for (std::size_t i = first; i < end; ++i) {
             const std::size_t a = offset_[v] + i;
             Match m;
+            if (stride > 1 && i % stride != 0) {
+                match_[a] = m;
+                continue;
+            }
             double bound = max_sq;
             // The previous match bounds the nearest distance: much smaller searches.
             std::size_t hinted = part.size();
