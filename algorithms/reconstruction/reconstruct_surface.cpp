@@ -12,11 +12,16 @@
 #include <CGAL/poisson_surface_reconstruction.h>
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
+#include <memory>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -85,12 +90,37 @@ using NormalOf = CGAL::Second_of_pair_property_map<Pwn>;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
 
-/// Voxel-downsamples until at most max_points remain (voxel grows from ŝ sqrt(n / max)).
+/// Occupied voxels of edge `voxel` on the grid of sampling::voxel_downsample (anchored at the
+/// minimum corner `lo`): the size its output would have, from the coordinates alone.
+std::size_t occupied_voxels(const std::vector<Eigen::Vector3d>& xyz, const Eigen::Vector3d& lo,
+                            double voxel) {
+    std::vector<std::uint64_t> keys(xyz.size());
+    tbb::parallel_for(std::size_t(0), xyz.size(), [&](std::size_t i) {
+        const Eigen::Vector3d c = ((xyz[i] - lo) / voxel).array().floor();
+        keys[i] = (static_cast<std::uint64_t>(c.x()) & 0x1FFFFF) |
+                  ((static_cast<std::uint64_t>(c.y()) & 0x1FFFFF) << 21) |
+                  ((static_cast<std::uint64_t>(c.z()) & 0x1FFFFF) << 42);
+    });
+    tbb::parallel_sort(keys.begin(), keys.end());
+    return static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
+}
+
+/// Voxel-downsamples until at most max_points remain (voxel grows from ŝ sqrt(n / max) by 10%
+/// steps). The voxel is chosen by counting occupied voxels on the bare coordinates; only the
+/// chosen one down-samples the cloud with all its properties.
 PointCloud bounded(const PointCloud& cloud, std::size_t max_points, double spacing, double& voxel) {
     voxel = 0.0;
     if (max_points == 0 || cloud.size() <= max_points) return cloud;
+    std::vector<Eigen::Vector3d> xyz;
+    xyz.reserve(cloud.size());
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    for (auto idx : cloud.points) {
+        xyz.push_back(to_eigen(cloud.points.point(idx)));
+        lo = lo.cwiseMin(xyz.back());
+    }
     voxel = spacing * std::sqrt(static_cast<double>(cloud.size()) / max_points);
     for (int attempt = 0; attempt < 60; ++attempt, voxel *= 1.1) {
+        if (occupied_voxels(xyz, lo, voxel) > max_points) continue;
         PointCloud down = sampling::voxel_downsample(cloud, voxel);
         if (down.size() <= max_points) return down;
     }
@@ -269,6 +299,8 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
     const auto uncoloured = cloud.flag(kUncolouredFlag);
     std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
     std::vector<Rgb> all_rgb, orig_rgb;
+    all_xyz.reserve(cloud.size());
+    all_rgb.reserve(cloud.size());
     for (auto idx : cloud.points) {
         const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
         all_xyz.push_back(p);
@@ -278,8 +310,12 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
             orig_rgb.push_back(colors.get(idx));
         }
     }
-    const rgbd::internal::KdTree all_tree(all_xyz);
-    const rgbd::internal::KdTree orig_tree(orig_xyz);
+    // The two trees are built side by side (millions of points on a dense sequence).
+    std::unique_ptr<rgbd::internal::KdTree> all_ptr, orig_ptr;
+    tbb::parallel_invoke([&] { all_ptr = std::make_unique<rgbd::internal::KdTree>(all_xyz); },
+                         [&] { orig_ptr = std::make_unique<rgbd::internal::KdTree>(orig_xyz); });
+    const rgbd::internal::KdTree& all_tree = *all_ptr;
+    const rgbd::internal::KdTree& orig_tree = *orig_ptr;
     const bool separate = (synthetic.has_value() || uncoloured.has_value()) && !orig_xyz.empty();
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);

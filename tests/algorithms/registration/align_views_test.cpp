@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 
+#include "algorithms/registration/align_stages.hpp"
 #include "algorithms/registration/icp.hpp"
 #include "synthetic_views.hpp"
 #include "toolkit/error.hpp"
@@ -184,6 +186,59 @@ TEST(AlignViews, FrontAndBackViewsFail) {
     EXPECT_EQ(result.verdict, Verdict::kFail);
     EXPECT_EQ(result.views[1].verdict, Verdict::kFail);
     EXPECT_FALSE(result.views[1].reason.empty());
+}
+
+TEST(AlignViews, JointPartnersAreBoundedInViewsAndSymmetric) {
+    // A closed turn of 50 consecutive pairs: two hops reach two views either side, whatever
+    // the number of views (the joint matching stays linear in views).
+    const std::size_t nv = 50;
+    std::vector<rgbd::registration::PairAlignment> pairs;
+    for (std::size_t v = 0; v < nv; ++v) {
+        rgbd::registration::PairAlignment p;
+        p.target = v;
+        p.source = (v + 1) % nv;
+        pairs.push_back(p);
+    }
+    const auto partners = rgbd::registration::detail::partner_views(nv, pairs, 2);
+    ASSERT_EQ(partners.size(), nv);
+    for (std::size_t v = 0; v < nv; ++v) {
+        ASSERT_EQ(partners[v].size(), 4u) << "view " << v;
+        EXPECT_TRUE(std::is_sorted(partners[v].begin(), partners[v].end()));
+        for (std::size_t d : {1u, 2u}) {
+            for (std::size_t u : {(v + d) % nv, (v + nv - d) % nv}) {
+                EXPECT_TRUE(std::binary_search(partners[v].begin(), partners[v].end(), u))
+                    << v << " misses " << u;
+                EXPECT_TRUE(std::binary_search(partners[u].begin(), partners[u].end(), v));
+            }
+        }
+    }
+    // Without pairs (no pairwise stage) every other view is a partner.
+    const auto all = rgbd::registration::detail::partner_views(5, {}, 2);
+    for (std::size_t v = 0; v < 5; ++v) {
+        EXPECT_EQ(all[v].size(), 4u);
+        EXPECT_FALSE(std::binary_search(all[v].begin(), all[v].end(), v));
+    }
+}
+
+TEST(AlignViews, TurnOfTwentyFourViewsKeepsEveryConsecutivePairAndClosesTheLoop) {
+    // A sequence-like turn: 24 views 15 degrees apart, each joint partner only two views away.
+    const Ring ring = make_ring(24, 2, 5);
+    const auto result = rgbd::registration::align_views(ring.views, {});
+    ASSERT_EQ(result.views.size(), 24u);
+    double worst = 0;
+    for (std::size_t i = 0; i < 24; ++i) {
+        const std::size_t j = (i + 1) % 24;
+        const Pose est =
+            result.views[i].world_from_sensor.inverse() * result.views[j].world_from_sensor;
+        const Pose gt = ring.truth[i].inverse() * ring.truth[j];
+        worst = std::max(worst, rgbd::rotation_error_deg(est, gt));
+    }
+    std::cout << "turn of 24: worst consecutive rotation error " << worst << " deg, "
+              << result.time_s << " s\n";
+    EXPECT_LT(worst, 0.2);
+    expect_close(ring, result, 0.3, 0.002);
+    ASSERT_TRUE(result.loop.found);
+    EXPECT_LE(result.loop.after_rotation_deg, result.loop.before_rotation_deg + 1e-9);
 }
 
 TEST(AlignViews, BadInput) {

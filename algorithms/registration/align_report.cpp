@@ -1,0 +1,144 @@
+// Reporting and checks of align_views (icp.hpp): verdict names, option checks, the JSON
+// report, and applying an alignment to the views.
+#include <cmath>
+#include <string>
+
+#include "algorithms/registration/icp.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::registration {
+const char* to_string(Verdict verdict) {
+    switch (verdict) {
+        case Verdict::kPass:
+            return "PASS";
+        case Verdict::kWarn:
+            return "WARN";
+        case Verdict::kFail:
+            return "FAIL";
+    }
+    return "?";
+}
+
+void MultiViewOptions::check() const {
+    icp.check();
+    RGBD_CHECK(std::isfinite(voxel_m) && voxel_m >= 0, "align_views: voxel_m must be >= 0");
+    RGBD_CHECK(std::isfinite(voxel_factor) && voxel_factor > 0 && voxel_factor <= 100,
+               "align_views: voxel_factor must be in (0, 100]");
+    RGBD_CHECK(normal_k >= 3 && normal_k <= 1024, "align_views: normal_k must be in [3, 1024]");
+    RGBD_CHECK(max_points_per_view == 0 || max_points_per_view >= 100,
+               "align_views: max_points_per_view must be 0 (no bound) or at least 100");
+    RGBD_CHECK(std::isfinite(min_motion_spacing) && min_motion_spacing >= 0,
+               "align_views: min_motion_spacing must be >= 0");
+    RGBD_CHECK(rounds >= 1 && rounds <= 1000, "align_views: rounds must be in [1, 1000]");
+    RGBD_CHECK(fail_fitness >= 0 && fail_fitness <= 1 && warn_fitness >= 0 && warn_fitness <= 1,
+               "align_views: fitness thresholds must be in [0, 1]");
+    RGBD_CHECK(max_rotation_deg > 0 && max_translation_m > 0,
+               "align_views: pose-change limits must be positive");
+    RGBD_CHECK(pair_neighbours >= 1 && pair_neighbours <= 64,
+               "align_views: pair_neighbours must be in [1, 64]");
+    RGBD_CHECK(max_pair_angle_deg > 0 && max_pair_angle_deg <= 180,
+               "align_views: max_pair_angle_deg must be in (0, 180]");
+    RGBD_CHECK(std::isfinite(feature_voxel_factor) && feature_voxel_factor >= 1 &&
+                   feature_voxel_factor <= 100,
+               "align_views: feature_voxel_factor must be in [1, 100]");
+    RGBD_CHECK(std::isfinite(feature_radius_factor) && feature_radius_factor >= 1 &&
+                   feature_radius_factor <= 100,
+               "align_views: feature_radius_factor must be in [1, 100]");
+    RGBD_CHECK(ransac_iterations >= 1 && ransac_iterations <= 10000000,
+               "align_views: ransac_iterations must be in [1, 1e7]");
+    RGBD_CHECK(max_prior_rotation_deg > 0, "align_views: max_prior_rotation_deg must be > 0");
+    RGBD_CHECK(std::isfinite(max_prior_translation_m) && max_prior_translation_m > 0,
+               "align_views: max_prior_translation_m must be > 0");
+    RGBD_CHECK(std::isfinite(global_min_gain) && global_min_gain >= 0 && global_min_gain <= 1,
+               "align_views: global_min_gain must be in [0, 1]");
+    RGBD_CHECK(std::isfinite(colour_weight) && colour_weight >= 0 && colour_weight <= 100,
+               "align_views: colour_weight must be in [0, 100]");
+    RGBD_CHECK(std::isfinite(colour_sigma) && colour_sigma > 0 && colour_sigma <= 1,
+               "align_views: colour_sigma must be in (0, 1]");
+    RGBD_CHECK(pair_fail_fitness >= 0 && pair_fail_fitness <= 1 && pair_warn_fitness >= 0 &&
+                   pair_warn_fitness <= 1,
+               "align_views: pair fitness thresholds must be in [0, 1]");
+    RGBD_CHECK(prune_rotation_deg > 0 && prune_translation_spacing > 0,
+               "align_views: prune thresholds must be positive");
+}
+
+Report MultiViewResult::to_json() const {
+    Report r;
+    r["verdict"] = to_string(verdict);
+    r["spacing_m"] = spacing_m;
+    r["voxel_m"] = voxel_m;
+    r["max_distances_m"] = max_distances_m;
+    r["iterations"] = iterations;
+    r["time_s"] = time_s;
+    r["views"] = Report::array();
+    for (const ViewAlignment& v : views) {
+        Report j;
+        j["view"] = v.view_id;
+        j["verdict"] = to_string(v.verdict);
+        j["world_from_sensor"] = pose_to_3x4(v.world_from_sensor);
+        j["correction"] = pose_to_3x4(v.correction);
+        j["fitness"] = v.fitness;
+        j["inlier_rmse_m"] = v.inlier_rmse;
+        j["iterations"] = v.iterations;
+        j["converged"] = v.converged;
+        j["rotation_change_deg"] = v.rotation_change_deg;
+        j["translation_change_m"] = v.translation_change_m;
+        j["ring_rotation_deg"] = v.ring_rotation_deg;
+        j["ring_translation_m"] = v.ring_translation_m;
+        j["pairs"] = v.pairs;
+        if (!v.reason.empty()) j["reason"] = v.reason;
+        r["views"].push_back(j);
+    }
+    r["pairwise_time_s"] = pairwise_time_s;
+    r["start"] = start;
+    r["pairwise_fitness"] = pairwise_fitness;
+    r["joint_only_fitness"] = joint_only_fitness;
+    r["pairs"] = Report::array();
+    for (const PairAlignment& p : pairs) {
+        Report j;
+        j["target"] = p.target;
+        j["source"] = p.source;
+        j["verdict"] = to_string(p.verdict);
+        if (!p.reason.empty()) j["reason"] = p.reason;
+        j["method"] = p.method;
+        j["target_from_source"] = pose_to_3x4(p.target_from_source);
+        j["fitness"] = p.fitness;
+        j["inlier_rmse_m"] = p.inlier_rmse;
+        j["colour_rmse"] = p.colour_rmse;
+        j["ransac_inliers"] = p.ransac_inliers;
+        j["candidates"] = p.candidates;
+        j["in_graph"] = p.in_graph;
+        j["ring_rotation_deg"] = p.ring_rotation_deg;
+        j["ring_translation_m"] = p.ring_translation_m;
+        r["pairs"].push_back(j);
+    }
+    if (loop.found) {
+        Report l;
+        l["order"] = loop.order;
+        l["before_rotation_deg"] = loop.before_rotation_deg;
+        l["before_translation_m"] = loop.before_translation_m;
+        l["after_rotation_deg"] = loop.after_rotation_deg;
+        l["after_translation_m"] = loop.after_translation_m;
+        r["loop_closure"] = l;
+    }
+    return r;
+}
+
+void apply_alignment(std::vector<PointCloud>& views, const MultiViewResult& result) {
+    RGBD_CHECK(views.size() == result.views.size(),
+               "apply_alignment: " + std::to_string(views.size()) + " views but " +
+                   std::to_string(result.views.size()) + " results");
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        PointCloud& view = views[v];
+        const ViewAlignment& va = result.views[v];
+        if (view.view.frame == ViewFrame::kSensor) {
+            view.view.world_from_sensor = va.world_from_sensor;
+            to_world_frame(view);
+        } else {
+            transform(view, va.correction);
+            if (view.view.world_from_sensor) view.view.world_from_sensor = va.world_from_sensor;
+        }
+    }
+}
+
+}  // namespace rgbd::registration
