@@ -14,7 +14,7 @@
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
 
-namespace rgbd::cli {
+namespace rgbd::pipeline {
 
 /// What the fill stage runs, and with which options (each struct checked by its owner).
 struct FillStageOptions {
@@ -45,4 +45,4 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
                                      const FillStageOptions& options, Report& report,
                                      const Progress& progress = {});
 
-}  // namespace rgbd::cli
+}  // namespace rgbd::pipeline
