@@ -16,15 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_clean_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_clean_test")
 
 nlohmann::json metrics(const std::string& file) {
     return nlohmann::json::parse(slurp(temp_root() / file));
