@@ -17,13 +17,16 @@ namespace examples {
 inline constexpr double kRadius = 0.15;  ///< sphere radius (m), centred at the world origin
 
 /// Writes a capture folder (rig.json, one frame set) of the sphere seen by `count` 320x240
-/// cameras on a ring of radius 0.8 m, 0.3 m above the centre, each looking at the centre.
-inline std::filesystem::path make_capture(const std::filesystem::path& root, int count = 6) {
+/// cameras on a ring of radius 0.8 m, each looking at the centre from 0.3 m above it (the
+/// underside stays unseen) or, with `above_and_below`, from 0.3 m above and below in turn.
+inline std::filesystem::path make_capture(const std::filesystem::path& root, int count = 6,
+                                          bool above_and_below = false) {
     std::filesystem::remove_all(root);
     rgbd::io::Rig rig;
     for (int s = 0; s < count; ++s) {
         const double a = 2 * std::numbers::pi * s / count;
-        const Eigen::Vector3d eye(0.8 * std::cos(a), 0.8 * std::sin(a), 0.3);
+        const Eigen::Vector3d eye(0.8 * std::cos(a), 0.8 * std::sin(a),
+                                  above_and_below && s % 2 ? -0.3 : 0.3);
         const Eigen::Vector3d z = -eye.normalized();
         const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
         rgbd::io::SensorSpec sensor;

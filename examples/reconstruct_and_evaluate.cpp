@@ -13,7 +13,8 @@ int main(int argc, char** argv) try {
     const bool given = argc > 2;
     const std::filesystem::path root =
         given ? std::filesystem::path(argv[1])
-              : examples::make_capture(std::filesystem::temp_directory_path() / "rgbd_ex_mesh");
+              : examples::make_capture(std::filesystem::temp_directory_path() / "rgbd_ex_mesh", 8,
+                                       /*above_and_below=*/true);
     const rgbd::io::Capture capture = rgbd::io::open_capture(root);
     rgbd::pipeline::ReconstructOptions options;  // every stage with its defaults, watertight
     const rgbd::pipeline::ReconstructResult result =

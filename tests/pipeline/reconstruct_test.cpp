@@ -1,7 +1,8 @@
 // pipeline::reconstruct, the chain rgbd-reconstruct runs, as a library call: on a synthetic
-// ring of a sphere (examples/example_data.hpp, exact depth) the mesh matches the sphere, the
-// stage rows chain (each stage's points in are the previous one's points out), timings() is
-// the rows' times, --skip leaves rows out, and bad options or frame sets are InputErrors.
+// capture of a sphere seen from all sides (examples/example_data.hpp, exact depth, 8 cameras
+// above and below) the mesh is closed and on the sphere, the stage rows chain (each stage's points
+// in are the previous one's points out), timings() is the rows' times, --skip leaves rows out, and
+// bad options or frame sets are InputErrors.
 #include "pipeline/reconstruct.hpp"
 
 #include <gtest/gtest.h>
@@ -17,14 +18,15 @@ namespace {
 const rgbd::io::Capture& capture() {
     static const rgbd::io::Capture c = rgbd::io::open_capture(
         examples::make_capture(std::filesystem::temp_directory_path() /
-                               ("rgbd_pipeline_test_" + std::to_string(::getpid()))));
+                                   ("rgbd_pipeline_test_" + std::to_string(::getpid())),
+                               8, /*above_and_below=*/true));
     return c;
 }
 
 TEST(Reconstruct, TheMeshMatchesTheSphereAndTheStagesChain) {
     rgbd::pipeline::ReconstructOptions options;
     const auto frames = rgbd::pipeline::frameset_frames(capture(), 0);
-    ASSERT_EQ(frames.size(), 6u);
+    ASSERT_EQ(frames.size(), 8u);
     const auto result = rgbd::pipeline::reconstruct(capture(), frames, options);
     // Every mesh vertex lies on the sphere (closing patches included, within 5 mm).
     std::size_t off = 0;
@@ -33,6 +35,9 @@ TEST(Reconstruct, TheMeshMatchesTheSphereAndTheStagesChain) {
         off += std::abs(std::hypot(p.x(), p.y(), p.z()) - examples::kRadius) > 0.005;
     }
     EXPECT_GT(result.mesh.number_of_faces(), 1000u);
+    std::size_t border = 0;
+    for (const auto h : result.mesh.halfedges()) border += result.mesh.is_border(h);
+    EXPECT_EQ(border, 0u) << "the default (watertight) mesh is closed";
     EXPECT_LT(off, result.mesh.number_of_vertices() / 50) << off << " vertices off the sphere";
     // Rows: clouds, distance, (upsample: colour not finer, 0 views), align, density, fill, mesh.
     std::vector<std::string> names;
@@ -47,7 +52,7 @@ TEST(Reconstruct, TheMeshMatchesTheSphereAndTheStagesChain) {
     ASSERT_EQ(timings.size(), result.stages.size());
     for (const auto& row : result.stages) EXPECT_EQ(timings[row.stage].get<double>(), row.time_s);
     EXPECT_EQ(result.stages_report().size(), result.stages.size());
-    EXPECT_EQ(result.poses.size(), 6u);
+    EXPECT_EQ(result.poses.size(), 8u);
     EXPECT_EQ(result.report["counts"]["mesh_faces"], result.mesh.number_of_faces());
 }
 
