@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "cli/common/fill_stage.hpp"
+#include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "toolkit/error.hpp"
 

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/denoise/cell_grid.hpp"
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/spacing_sample.hpp"
@@ -64,293 +65,6 @@ struct Camera {
     int x0 = 0, y0 = 0, bw = 0, bh = 0;
     std::vector<float> depth;
 };
-
-/// Components of the eps graph over `pts` (p ~ q iff |p - q| <= eps), exactly, without a
-/// radius search per point: points are binned in cells of side c = eps / sqrt(3) (any two
-/// points of a cell are closer than eps, so a cell lies in one component) and only cells at
-/// most 2 apart on every axis can hold a linked pair (3 cells apart means more than 2c > eps
-/// on that axis); a pair of cells is tested point by point, stopping at the first link, and
-/// skipped when both already share a component. Writes each point's component
-/// label (a cell index, equal for the points of one component) to `label`. Returns false
-/// without touching `label` when the grid would not fit 21 bits per axis.
-constexpr std::uint64_t key_of(std::uint64_t x, std::uint64_t y, std::uint64_t z) {
-    return (x << 42) | (y << 21) | z;
-}
-constexpr std::uint64_t kKeyMask = (std::uint64_t(1) << 21) - 1;
-
-/// Points binned in cubic cells of side `cell` (cell coordinates offset by 2, so that
-/// neighbour offsets -2..2 never underflow), sorted by cell key.
-struct CellGrid {
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed;  ///< (cell key, point), sorted
-    std::vector<std::uint64_t> keys;                             ///< unique cell keys, sorted
-    std::vector<std::uint32_t> start;  ///< cell c's points: keyed[start[c], start[c + 1])
-
-    /// False (grid left empty) when the extent needs more than 21 bits per axis.
-    bool build(const std::vector<Eigen::Vector3d>& pts, double cell) {
-        const std::size_t m = pts.size();
-        if (!(cell > 0.0) || m == 0) return false;
-        Eigen::Vector3d lo = pts[0], hi = pts[0];
-        for (const auto& p : pts) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
-        constexpr double kMaxCells = double(1 << 21) - 8.0;
-        if (((hi - lo) / cell).maxCoeff() >= kMaxCells) return false;
-        origin = lo;
-        side = cell;
-        keyed.resize(m);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 4096),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                                  const Eigen::Vector3d c = (pts[a] - lo) / cell;
-                                  keyed[a] = {
-                                      key_of(std::uint64_t(c.x()) + 2, std::uint64_t(c.y()) + 2,
-                                             std::uint64_t(c.z()) + 2),
-                                      std::uint32_t(a)};
-                              }
-                          });
-        sort_keyed(hi - lo, cell);
-        for (std::size_t a = 0; a < m; ++a)
-            if (a == 0 || keyed[a].first != keyed[a - 1].first) {
-                keys.push_back(keyed[a].first);
-                start.push_back(std::uint32_t(a));
-            }
-        start.push_back(std::uint32_t(m));
-        // Dense column index when it is small next to the points (it nearly always is for
-        // surfaces): column (x, y)'s cells are keys[column_start[x ny + y], ... + 1]).
-        const Eigen::Vector3d span = (hi - lo) / cell;
-        nx = std::size_t(span.x()) + 5;
-        ny = std::size_t(span.y()) + 5;
-        if (nx * ny <= 4 * m + 4096) {
-            column_start.assign(nx * ny + 1, 0);
-            for (const std::uint64_t key : keys)
-                ++column_start[std::size_t(key >> 42) * ny + std::size_t((key >> 21) & kKeyMask) +
-                               1];
-            for (std::size_t c = 0; c < nx * ny; ++c) column_start[c + 1] += column_start[c];
-        }
-        return true;
-    }
-    std::size_t cells() const { return keys.size(); }
-    /// Grid coordinates of the cell holding p (offset included), as build() assigns them.
-    Eigen::Matrix<std::int64_t, 3, 1> cell_of(const Eigen::Vector3d& p) const {
-        const Eigen::Vector3d c = (p - origin) / side;
-        return {std::int64_t(c.x()) + 2, std::int64_t(c.y()) + 2, std::int64_t(c.z()) + 2};
-    }
-
-    /// Sorts `keyed` by (key, point). When the grid has fewer than 2^32 cells, a stable LSD
-    /// radix sort of the linear cell index (x ny + y) nz + z, which orders cells as the keys
-    /// do (3 passes of 11 bits); else a comparison sort.
-    void sort_keyed(const Eigen::Vector3d& extent, double cell) {
-        const Eigen::Vector3d span = extent / cell;
-        const double lx = std::floor(span.x()) + 5, ly = std::floor(span.y()) + 5,
-                     lz = std::floor(span.z()) + 5;
-        if (lx * ly * lz >= 4294967295.0) {
-            tbb::parallel_sort(keyed.begin(), keyed.end());
-            return;
-        }
-        const std::uint64_t my = std::uint64_t(ly), mz = std::uint64_t(lz);
-        const std::size_t m = keyed.size();
-        std::vector<std::pair<std::uint32_t, std::uint32_t>> a(m), b(m);
-        for (std::size_t i = 0; i < m; ++i) {
-            const std::uint64_t k = keyed[i].first;
-            a[i] = {std::uint32_t(((k >> 42) * my + ((k >> 21) & kKeyMask)) * mz + (k & kKeyMask)),
-                    keyed[i].second};
-        }
-        constexpr int kBits = 11;
-        constexpr std::uint32_t kBuckets = 1u << kBits;
-        std::vector<std::uint32_t> count(kBuckets);
-        for (int shift = 0; shift < 32; shift += kBits) {
-            std::fill(count.begin(), count.end(), 0u);
-            for (const auto& e : a) ++count[(e.first >> shift) & (kBuckets - 1)];
-            std::uint32_t sum = 0;
-            for (auto& c : count) {
-                const std::uint32_t c0 = c;
-                c = sum;
-                sum += c0;
-            }
-            for (const auto& e : a) b[count[(e.first >> shift) & (kBuckets - 1)]++] = e;
-            a.swap(b);
-        }
-        // Points are in increasing order within a cell (stable passes over an input in
-        // point order), as the comparison sort of (key, point) leaves them.
-        std::vector<std::uint64_t> key_of_point(m);
-        for (const auto& e : keyed) key_of_point[e.second] = e.first;
-        for (std::size_t i = 0; i < m; ++i) keyed[i] = {key_of_point[a[i].second], a[i].second};
-    }
-
-    /// The cells (x, y, z0 .. z1) (grid coordinates, offset included) as a range [first, last)
-    /// of cell indices; empty outside the grid.
-    std::pair<std::size_t, std::size_t> column(std::int64_t x, std::int64_t y, std::int64_t z0,
-                                               std::int64_t z1) const {
-        constexpr std::int64_t kLimit = std::int64_t(1) << 21;
-        if (x < 0 || y < 0 || x >= kLimit || y >= kLimit) return {0, 0};
-        z0 = std::max<std::int64_t>(0, z0);
-        z1 = std::min<std::int64_t>(kLimit - 1, z1);
-        if (z0 > z1) return {0, 0};
-        const std::uint64_t first = key_of(std::uint64_t(x), std::uint64_t(y), std::uint64_t(z0));
-        const std::uint64_t last = key_of(std::uint64_t(x), std::uint64_t(y), std::uint64_t(z1));
-        std::size_t b = 0, e = keys.size();
-        if (!column_start.empty()) {
-            if (std::size_t(x) >= nx || std::size_t(y) >= ny) return {0, 0};
-            const std::size_t c = std::size_t(x) * ny + std::size_t(y);
-            b = column_start[c];
-            e = column_start[c + 1];
-            while (b < e && keys[b] < first) ++b;  // a surface crosses a column in few cells
-        } else {
-            b = std::size_t(std::lower_bound(keys.begin(), keys.end(), first) - keys.begin());
-        }
-        std::size_t l = b;
-        while (l < e && keys[l] <= last) ++l;
-        return {b, l};
-    }
-
-private:
-    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
-    double side = 0.0;
-    std::size_t nx = 0, ny = 0;
-    std::vector<std::uint32_t> column_start;
-};
-
-bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
-                    std::vector<std::uint32_t>& label) {
-    const std::size_t m = pts.size();
-    CellGrid grid;
-    if (!grid.build(pts, eps / std::sqrt(3.0) * (1.0 - 1e-9))) return false;
-    const auto& keyed = grid.keyed;
-    const auto& keys = grid.keys;
-    const auto& start = grid.start;
-    const std::size_t cells = grid.cells();
-    const double eps2 = eps * eps;
-    detail::DisjointSets sets(cells);
-    const auto linked = [&](std::size_t ca, std::size_t cb) {
-        for (std::uint32_t i = start[ca]; i < start[ca + 1]; ++i)
-            for (std::uint32_t j = start[cb]; j < start[cb + 1]; ++j)
-                if ((pts[keyed[i].second] - pts[keyed[j].second]).squaredNorm() <= eps2)
-                    return true;
-        return false;
-    };
-    // In parallel: the pairs of cells that can hold a linked pair. Neighbours at most one cell
-    // apart on every axis nearly always link, so they are tested here; the rest are only
-    // listed, and tested below unless union-find already joined them.
-    constexpr std::size_t kBlock = 512;
-    const std::size_t blocks = (cells + kBlock - 1) / kBlock;
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> near_links(blocks),
-        far_pairs(blocks);
-    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t blk) {
-        for (std::size_t ca = blk * kBlock; ca < std::min(cells, (blk + 1) * kBlock); ++ca) {
-            const std::uint64_t x = keys[ca] >> 42, y = (keys[ca] >> 21) & kKeyMask,
-                                z = keys[ca] & kKeyMask;
-            // Cells after this one in key order: (dx, dy) > (0, 0), or dx = dy = 0, dz > 0.
-            for (int dx = 0; dx <= 2; ++dx)
-                for (int dy = -2; dy <= 2; ++dy) {
-                    if (dx == 0 && dy < 0) continue;
-                    const int dz_min = dx == 0 && dy == 0 ? 1 : -2;
-                    const auto [c0, c1] =
-                        grid.column(std::int64_t(x) + dx, std::int64_t(y) + dy,
-                                    std::int64_t(z) + dz_min, std::int64_t(z) + 2);
-                    for (std::size_t cb = c0; cb < c1; ++cb) {
-                        const int dz = int(std::int64_t(keys[cb] & kKeyMask) - std::int64_t(z));
-                        const std::pair<std::uint32_t, std::uint32_t> pair{std::uint32_t(ca),
-                                                                           std::uint32_t(cb)};
-                        if (dx <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1) {
-                            if (linked(ca, cb)) near_links[blk].push_back(pair);
-                        } else {
-                            far_pairs[blk].push_back(pair);
-                        }
-                    }
-                }
-        }
-    });
-    for (const auto& block : near_links)
-        for (const auto& [ca, cb] : block) sets.unite(ca, cb);
-    for (const auto& block : far_pairs)
-        for (const auto& [ca, cb] : block)
-            if (sets.find(ca) != sets.find(cb) && linked(ca, cb)) sets.unite(ca, cb);
-    label.assign(m, 0);
-    for (std::size_t c = 0; c < cells; ++c) {
-        const std::uint32_t root = sets.find(std::uint32_t(c));
-        for (std::uint32_t i = start[c]; i < start[c + 1]; ++i) label[keyed[i].second] = root;
-    }
-    return true;
-}
-
-/// sampling::robust_spacing(pts, sample, seed), exactly (same query sample, nearest other
-/// point, same median), with the nearest neighbours found on a cell grid instead of a kd-tree:
-/// cells of side c ~ the spacing a surface over the bounding box's largest face would have;
-/// rings of cells around the query's are searched until the best distance is at most R c
-/// after ring R (any point outside ring R is farther than R c), or all rings are searched. Falls
-/// back to the kd-tree for extents the grid cannot hold.
-double grid_spacing(const std::vector<Eigen::Vector3d>& pts, std::size_t sample,
-                    std::uint64_t seed) {
-    const std::size_t n = pts.size();
-    Eigen::Vector3d lo = pts[0], hi = pts[0];
-    for (const auto& p : pts) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-    }
-    Eigen::Vector3d ext = hi - lo;
-    std::sort(ext.data(), ext.data() + 3);
-    const double cell = std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(n));
-    CellGrid grid;
-    if (!(cell > 0.0) || !grid.build(pts, cell)) return sampling::robust_spacing(pts, sample, seed);
-    // Rings beyond the grid's extent hold no cells: the search is complete there.
-    const Eigen::Vector3d span = (hi - lo) / cell;
-    const std::int64_t all_rings = std::int64_t(span.maxCoeff()) + 2;
-    // The median only needs the exact distances of the lower half: a query not settled
-    // within kCapRings rings (an isolated outlier) is farther than kCapRings c from every other
-    // point and gets that lower bound; the result is exact as long as fewer than half the
-    // queries are capped (checked below; otherwise every ring is searched).
-    constexpr std::int64_t kCapRings = 2;
-    std::int64_t max_ring = std::min(all_rings, kCapRings);
-    const std::vector<std::uint32_t> queries = internal::spacing_sample(n, sample, seed);
-    std::vector<double> dist(queries.size(), 0.0);
-    const auto search = [&] {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, queries.size(), 256),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                    const std::uint32_t qi = queries[i];
-                    const Eigen::Vector3d& p = pts[qi];
-                    const auto c = grid.cell_of(p);
-                    double best = std::numeric_limits<double>::infinity();
-                    // Cells (x, y, z0 .. z1) of one column.
-                    const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0,
-                                           std::int64_t z1) {
-                        const auto [c0, c1] = grid.column(x, y, z0, z1);
-                        for (std::uint32_t a = grid.start[c0]; a < grid.start[c1]; ++a) {
-                            const std::uint32_t j = grid.keyed[a].second;
-                            if (j != qi) best = std::min(best, (pts[j] - p).squaredNorm());
-                        }
-                    };
-                    visit(c.x(), c.y(), c.z(), c.z());
-                    for (std::int64_t ring = 1; ring <= max_ring; ++ring) {
-                        // The shell at Chebyshev distance `ring`: full columns on its x / y
-                        // faces, the two z caps elsewhere.
-                        for (std::int64_t x = c.x() - ring; x <= c.x() + ring; ++x)
-                            for (std::int64_t y = c.y() - ring; y <= c.y() + ring; ++y) {
-                                if (std::abs(x - c.x()) == ring || std::abs(y - c.y()) == ring) {
-                                    visit(x, y, c.z() - ring, c.z() + ring);
-                                } else {
-                                    visit(x, y, c.z() - ring, c.z() - ring);
-                                    visit(x, y, c.z() + ring, c.z() + ring);
-                                }
-                            }
-                        if (best <= double(ring) * cell * double(ring) * cell) break;
-                    }
-                    dist[i] = std::min(std::sqrt(best), double(max_ring) * cell);
-                }
-            });
-    };
-    search();
-    const std::size_t m = dist.size();
-    const std::size_t capped =
-        std::size_t(std::count(dist.begin(), dist.end(), double(max_ring) * cell));
-    if (max_ring < all_rings && capped > 0 && capped + m / 2 + 1 > m) {
-        max_ring = all_rings;
-        search();
-    }
-    return internal::spacing_median(dist);
-}
 
 }  // namespace
 
@@ -493,7 +207,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     std::vector<double> view_spacing(gathered.size(), -1.0);
     tbb::parallel_for(std::size_t(0), gathered.size(), [&](std::size_t v) {
         if (gathered[v].xyz.size() >= 10)
-            view_spacing[v] = grid_spacing(gathered[v].xyz, 2000, options.seed);
+            view_spacing[v] = detail::grid_spacing(gathered[v].xyz, 2000, options.seed);
     });
     std::vector<double> spacings;
     for (const double s : view_spacing)
@@ -508,7 +222,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     // test; `gridded` false when the extent needed the kd-tree instead).
     std::vector<Eigen::Vector3d> normal;
     double radius = 0.0;
-    CellGrid grid;
+    detail::CellGrid grid;
     bool gridded = false;
     if (reference == DensityReference::kSensors) {
         // Measured density: the points within r of p_i, r chosen so that a frontal surface seen
@@ -561,8 +275,8 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                     std::pair<std::uint32_t, std::uint32_t> runs[9];
                     for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
                         const std::uint64_t key = grid.keys[ca];
-                        const std::uint64_t x = key >> 42, y = (key >> 21) & kKeyMask,
-                                            z = key & kKeyMask;
+                        const std::uint64_t x = key >> 42, y = (key >> 21) & detail::kKeyMask,
+                                            z = key & detail::kKeyMask;
                         int nr = 0;
                         for (std::int64_t cx = std::int64_t(x) - 1; cx <= std::int64_t(x) + 1; ++cx)
                             for (std::int64_t cy = std::int64_t(y) - 1; cy <= std::int64_t(y) + 1;
@@ -832,7 +546,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             report["cluster_eps_m"] = eps;
             // Component label of every survivor; equal labels = one component.
             std::vector<std::uint32_t> label;
-            if (!eps_components(pts, eps, label)) {
+            if (!detail::eps_components(pts, eps, label)) {
                 // Grid too fine for the extent: radius search per point instead.
                 const internal::KdTree alive_tree(pts);
                 constexpr std::size_t kBlock = 1024;

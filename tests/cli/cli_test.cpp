@@ -18,16 +18,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::line_count;
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_cli_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_cli_test")
 
 const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd-mesh",
                         "rgbd-eval",     "rgbd-reconstruct", "rgbd-info",  "rgbd-synth",

@@ -21,15 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_reconstruct_chain_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_reconstruct_chain_test")
 
 /// A 6-sensor Kinect v2 ring of a bumpy ellipsoid (colour 1920x1080 over depth 512x424, so
 /// super-resolution runs), rendered once per test process.

@@ -16,18 +16,19 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_clean_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_clean_test")
 
 nlohmann::json metrics(const std::string& file) {
     return nlohmann::json::parse(slurp(temp_root() / file));
+}
+
+/// rgbd-clean OPTIONS on views.ply (output NAME.ply, --metrics m_NAME.json): the per-view
+/// metrics documents, empty (and a test failure) when the run failed.
+nlohmann::json clean_documents(const std::string& options, const std::string& name) {
+    const Outcome r = run("$BIN/rgbd-clean " + options + " views.ply --metrics m_" + name +
+                          ".json > " + name + ".ply");
+    EXPECT_EQ(r.code, 0) << r.err;
+    return r.code == 0 ? metrics("m_" + name + ".json")["documents"] : nlohmann::json::array();
 }
 
 /// A 4-sensor ring capture of an ellipsoid, rendered once; views.ply = its organised views.
@@ -76,16 +77,14 @@ TEST_F(RgbdClean, MarkEqualsDelete) {
 
 // --knn-test adds Pass B: it runs, reports its threshold and can only remove more.
 TEST_F(RgbdClean, KnnTestAddsThePassBStatistic) {
-    Outcome r =
-        run("$BIN/rgbd-clean --distance views.ply --metrics m_plain.json > plain.ply && "
-            "$BIN/rgbd-clean --distance --knn-test views.ply --metrics m_knn.json > knn.ply");
-    ASSERT_EQ(r.code, 0) << r.err;
-    const auto plain = metrics("m_plain.json"), knn = metrics("m_knn.json");
+    const auto plain = clean_documents("--distance", "plain");
+    const auto knn = clean_documents("--distance --knn-test", "knn");
+    ASSERT_EQ(plain.size(), 4u);
+    ASSERT_EQ(knn.size(), 4u);
     for (std::size_t v = 0; v < 4; ++v) {
-        EXPECT_EQ(plain["documents"][v]["statistical"], 0);
-        EXPECT_TRUE(knn["documents"][v].contains("r_threshold"));
-        EXPECT_GE(knn["documents"][v]["removed"].get<int>(),
-                  plain["documents"][v]["removed"].get<int>());
+        EXPECT_EQ(plain[v]["statistical"], 0);
+        EXPECT_TRUE(knn[v].contains("r_threshold"));
+        EXPECT_GE(knn[v]["removed"].get<int>(), plain[v]["removed"].get<int>());
     }
 }
 
@@ -134,18 +133,17 @@ TEST_F(RgbdClean, HighRecallRemovesMoreAndExplicitOptionsWin) {
 // --smooth keeps what --distance keeps and moves the survivors along their rays; on a view
 // without a grid it is an error naming the view.
 TEST_F(RgbdClean, SmoothMovesTheSurvivorsAndDeletesNothingMore) {
-    Outcome r =
-        run("$BIN/rgbd-clean --distance views.ply --metrics m_rough.json > rough.ply && "
-            "$BIN/rgbd-clean --distance --smooth views.ply --metrics m_smooth.json > smooth.ply");
-    ASSERT_EQ(r.code, 0) << r.err;
-    const auto rough = metrics("m_rough.json"), smooth = metrics("m_smooth.json");
+    const auto rough = clean_documents("--distance", "rough");
+    const auto smooth = clean_documents("--distance --smooth", "smooth");
+    ASSERT_EQ(rough.size(), 4u);
+    ASSERT_EQ(smooth.size(), 4u);
     for (std::size_t v = 0; v < 4; ++v) {
-        EXPECT_EQ(smooth["documents"][v]["removed"], rough["documents"][v]["removed"]);
-        const auto& s = smooth["documents"][v]["smooth"];
+        EXPECT_EQ(smooth[v]["removed"], rough[v]["removed"]);
+        const auto& s = smooth[v]["smooth"];
         EXPECT_GT(s["moved"].get<int>(), 0);
         EXPECT_GT(s["mean_shift_mm"].get<double>(), 0.0);
-        EXPECT_EQ(s["input_points"].get<int>() + rough["documents"][v]["removed"].get<int>(),
-                  rough["documents"][v]["input_points"].get<int>());
+        EXPECT_EQ(s["input_points"].get<int>() + rough[v]["removed"].get<int>(),
+                  rough[v]["input_points"].get<int>());
     }
     Outcome merged =
         run("$BIN/rgbd-align views.ply --merge -q > merged_s.ply && "

@@ -21,15 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_fill_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_fill_test")
 
 // 20 degrees above the equator: both sensors see it more obliquely than 60 degrees.
 const Eigen::Vector3d kOcclusion = Eigen::Vector3d(std::cos(0.35), 0, std::sin(0.35));

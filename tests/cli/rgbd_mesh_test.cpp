@@ -16,16 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::line_count;
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_mesh_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_mesh_test")
 
 /// ASCII PLY stream document: Fibonacci samples of a sphere (radius 0.1 m) with outward
 /// normals, red above z = 0 and blue below; `bad` replaces one coordinate by nan.

@@ -20,16 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using rgbd::test::line_count;
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_upsample_test");
-    return root;
-}
-
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
+RGBD_TOOL_TEST_SCRATCH("rgbd_upsample_test")
 
 /// A 2-sensor capture of a sphere (OFF), rendered once, and its cleaned view stream.
 class Upsample : public ::testing::Test {

@@ -19,7 +19,8 @@ const std::map<std::string, std::set<std::string>> kAllowed = {
     {"io", {"toolkit", "io"}},
     {"algorithms", {"toolkit", "algorithms"}},
     {"sensors", {"toolkit", "io", "sensors"}},
-    {"cli", {"toolkit", "io", "algorithms", "sensors", "cli"}},
+    {"pipeline", {"toolkit", "io", "algorithms", "pipeline"}},
+    {"cli", {"toolkit", "io", "algorithms", "sensors", "pipeline", "cli"}},
     {"validation", {"toolkit", "io", "algorithms", "validation"}},
 };
 

@@ -60,3 +60,18 @@ inline Outcome run_in(const std::filesystem::path& dir, const std::string& comma
 }
 
 }  // namespace rgbd::test
+
+/// The scratch folder and command runner of a tool test file: defines `temp_root()` (a
+/// scratch_dir named `prefix`, made once per test process) and `run(command)` (run_in that
+/// folder) in the including file's anonymous namespace, with Outcome, slurp and line_count.
+#define RGBD_TOOL_TEST_SCRATCH(prefix)                                             \
+    using rgbd::test::line_count;                                                  \
+    using rgbd::test::Outcome;                                                     \
+    using rgbd::test::slurp;                                                       \
+    std::filesystem::path temp_root() {                                            \
+        static const std::filesystem::path root = rgbd::test::scratch_dir(prefix); \
+        return root;                                                               \
+    }                                                                              \
+    rgbd::test::Outcome run(const std::string& command) {                          \
+        return rgbd::test::run_in(temp_root(), command);                           \
+    }

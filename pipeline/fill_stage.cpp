@@ -1,9 +1,9 @@
-#include "cli/common/fill_stage.hpp"
+#include "pipeline/fill_stage.hpp"
 
 #include <algorithm>
 #include <limits>
 
-namespace rgbd::cli {
+namespace rgbd::pipeline {
 
 Rgb mechanism_color(holes::FillMechanism mechanism) {
     switch (mechanism) {
@@ -137,4 +137,4 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
     return cloud;
 }
 
-}  // namespace rgbd::cli
+}  // namespace rgbd::pipeline

@@ -1,4 +1,4 @@
-// The fill stage (ALGORITHMS.md §9-§13) as one call, shared by rgbd-fill and rgbd-reconstruct so
+// The fill stage (docs/algorithms.md §9-§13) as one call, shared by rgbd-fill and rgbd-reconstruct so
 // that the pipe and the one-command run add the same points: hole detection on the aligned
 // views, small holes by one of the four mechanisms, then the head top and large holes by 3D
 // inpainting.
@@ -14,7 +14,7 @@
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
 
-namespace rgbd::cli {
+namespace rgbd::pipeline {
 
 /// What the fill stage runs, and with which options (each struct checked by its owner).
 struct FillStageOptions {
@@ -45,4 +45,4 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
                                      const FillStageOptions& options, Report& report,
                                      const Progress& progress = {});
 
-}  // namespace rgbd::cli
+}  // namespace rgbd::pipeline

@@ -1,0 +1,279 @@
+#include "pipeline/reconstruct.hpp"
+
+#include <algorithm>
+
+#include "algorithms/evaluation/mesh_quality.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::pipeline {
+
+namespace {
+
+/// Points in a set of views.
+std::size_t count_points(const std::vector<PointCloud>& views) {
+    std::size_t n = 0;
+    for (const auto& v : views) n += v.size();
+    return n;
+}
+
+/// The noise model of the rig's sensors (their noise.model, else their model) when they all
+/// agree on one the denoisers know, else Kinect v2 (rgbd-clean's default).
+denoise::NoiseModel rig_noise_model(const io::Rig& rig) {
+    std::optional<denoise::NoiseModel> found;
+    for (const auto& sensor : rig.sensors) {
+        std::optional<denoise::NoiseModel> model;
+        for (const std::string& name : {sensor.noise_model, sensor.model}) {
+            if (name.empty() || model) continue;
+            try {
+                model = denoise::parse_noise_model(name);
+            } catch (const InputError&) {
+            }
+        }
+        if (!model || (found && *found != *model)) return denoise::NoiseModel::kKinectV2;
+        found = model;
+    }
+    return found ? *found : denoise::NoiseModel::kKinectV2;
+}
+
+/// A stage's progress: stage_begin on construction, stage_end on destruction.
+class StageScope {
+public:
+    StageScope(const ReconstructHooks& hooks, std::string stage)
+        : hooks_(hooks), stage_(std::move(stage)) {
+        if (hooks_.stage_begin) progress_ = hooks_.stage_begin(stage_);
+    }
+    ~StageScope() {
+        if (hooks_.stage_end) hooks_.stage_end(stage_);
+    }
+    StageScope(const StageScope&) = delete;
+    StageScope& operator=(const StageScope&) = delete;
+    const Progress& progress() const { return progress_; }
+
+private:
+    const ReconstructHooks& hooks_;
+    std::string stage_;
+    Progress progress_;
+};
+
+}  // namespace
+
+const std::vector<std::string>& optional_stages() {
+    static const std::vector<std::string> stages = {"distance", "upsample", "density", "fill"};
+    return stages;
+}
+
+std::vector<FrameRef> frameset_frames(const io::Capture& capture, std::size_t frameset) {
+    const std::string root = capture.root.string();
+    std::vector<FrameRef> frames;
+    if (capture.framesets.empty()) {
+        for (const auto& sensor : capture.rig.sensors) {
+            const auto it = capture.frames.find(sensor.id);
+            if (it == capture.frames.end()) continue;
+            for (std::size_t i = 0; i < it->second.size(); ++i) frames.emplace_back(sensor.id, i);
+        }
+    } else {
+        RGBD_CHECK(frameset < capture.framesets.size(),
+                   root + ": frame set " + std::to_string(frameset) + " is out of range (" +
+                       std::to_string(capture.framesets.size()) + " frame sets)");
+        const io::FrameSet& set = capture.framesets[frameset];
+        for (std::size_t s = 0; s < capture.rig.sensors.size() && s < set.frames.size(); ++s) {
+            if (set.frames[s] < 0) continue;
+            const std::string& id = capture.rig.sensors[s].id;
+            const auto position = capture.find_frame(id, set.frames[s]);
+            RGBD_CHECK(position.has_value(), root + ": frame set " + std::to_string(frameset) +
+                                                 " names frame " + std::to_string(set.frames[s]) +
+                                                 " of sensor " + id +
+                                                 ", which its frames.csv does not list");
+            frames.emplace_back(id, *position);
+        }
+    }
+    RGBD_CHECK(!frames.empty(), root + ": no frames selected");
+    return frames;
+}
+
+void ReconstructOptions::check() const {
+    for (const auto& s : skip)
+        RGBD_CHECK(std::find(optional_stages().begin(), optional_stages().end(), s) !=
+                       optional_stages().end(),
+                   "unknown stage '" + s + "' (valid: distance, upsample, density, fill)");
+    RGBD_CHECK(extraction.crop_radius_m >= 0, "crop_radius_m must be >= 0");
+    upsample.check();
+    mesh.check();
+}
+
+Report ReconstructResult::stages_report() const {
+    Report rows = Report::array();
+    for (const auto& row : stages) {
+        Report r = row.extra;
+        r["stage"] = row.stage;
+        r["time_s"] = row.time_s;
+        r["points_in"] = row.points_in;
+        r["points_out"] = row.points_out;
+        rows.push_back(std::move(r));
+    }
+    return rows;
+}
+
+Report ReconstructResult::timings() const {
+    Report t = Report::object();
+    for (const auto& row : stages) t[row.stage] = row.time_s;
+    return t;
+}
+
+ReconstructResult reconstruct(const io::Capture& capture, const std::vector<FrameRef>& frames,
+                              const ReconstructOptions& options, const ReconstructHooks& hooks) {
+    options.check();
+    const auto& skip = options.skip;
+    const std::string root = capture.root.string();
+    ReconstructResult result;
+    Report& report = result.report;
+    auto add_stage = [&](const std::string& name, double seconds, std::size_t in, std::size_t out,
+                         Report extra = Report::object()) {
+        result.stages.push_back({name, seconds, in, out, std::move(extra)});
+    };
+    auto views_after = [&](int index, const std::string& stage,
+                           const std::vector<PointCloud>& views) {
+        if (hooks.views_after) hooks.views_after(index, stage, views);
+    };
+    const denoise::NoiseModel model =
+        options.noise_model ? *options.noise_model : rig_noise_model(capture.rig);
+    report["noise_model"] = denoise::to_string(model);
+    denoise::DistanceOptions distance_options = options.distance;
+    distance_options.noise_model = model;
+    denoise::DensityOptions density_options = options.density;
+    density_options.noise_model = model;
+    density_options.seed = options.seed;
+
+    // 1. clouds, 2. distance-based cleaning and 3. super-resolution, one view at a time.
+    Stopwatch watch;
+    double clean_time = 0, upsample_time = 0;
+    std::size_t cloud_points = 0, clean_points = 0, upsample_views = 0;
+    std::vector<PointCloud> views;
+    report["views"] = Report::array();
+    {
+        StageScope scope(hooks, "clouds");
+        const auto centre = object_centre(capture, frames);
+        for (const auto& [id, position] : frames) {
+            Report v;
+            const RgbdFrame frame = io::load_frame(capture, id, position);
+            PointCloud cloud = view_from_frame(frame, static_cast<int>(views.size()), options.cloud,
+                                               centre, options.extraction, v);
+            cloud_points += cloud.size();
+            if (!skip.count("distance")) {
+                Stopwatch clean_watch;
+                v["distance"] = denoise::remove_distance_outliers(cloud, distance_options);
+                clean_time += clean_watch.seconds();
+            }
+            clean_points += cloud.size();
+            v["points_after_cleaning"] = cloud.size();
+            if (cloud.size() < 100)
+                throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
+                                 ") has only " + std::to_string(cloud.size()) +
+                                 " points in the depth window");
+            // Super-resolution where the colour camera has more pixels than the depth one.
+            const bool finer_colour =
+                !frame.color.empty() &&
+                static_cast<double>(frame.color.total()) > static_cast<double>(frame.depth.total());
+            if (!skip.count("upsample") && finer_colour && cloud.view.has_grid()) {
+                Stopwatch upsample_watch;
+                v["upsample"] = upsample::upsample_view(cloud, frame, options.upsample);
+                upsample_time += upsample_watch.seconds();
+                ++upsample_views;
+            }
+            report["views"].push_back(v);
+            views.push_back(std::move(cloud));
+            report_progress(scope.progress(), static_cast<double>(views.size()) / frames.size());
+        }
+    }
+    const std::size_t upsampled_points = count_points(views);
+    add_stage("clouds", watch.seconds() - clean_time - upsample_time, 0, cloud_points,
+              {{"views", views.size()}});
+    if (!skip.count("distance")) add_stage("distance", clean_time, cloud_points, clean_points);
+    if (!skip.count("upsample")) {
+        add_stage("upsample", upsample_time, clean_points, upsampled_points,
+                  {{"views", upsample_views}});
+        if (upsample_views == 0 && hooks.info)
+            hooks.info("upsample: no view has a colour camera finer than its depth camera");
+    }
+    if (hooks.info) hooks.info("clouds: " + std::to_string(views.size()) + " views");
+    views_after(1, "views", views);
+
+    // 4. alignment.
+    watch = Stopwatch();
+    {
+        StageScope scope(hooks, "align");
+        report["align"] = align_stage(views, options.align, scope.progress());
+    }
+    const double align_time = watch.seconds();
+    views_after(2, "align", views);
+    add_stage("align", align_time, upsampled_points, count_points(views));
+    for (const auto& v : report["align"]["views"])
+        if (v["verdict"] != "PASS" && hooks.warn)
+            hooks.warn("view " + std::to_string(v["view"].get<int>()) + " (" +
+                       v["sensor"].get<std::string>() + "): registration " +
+                       v["verdict"].get<std::string>());
+
+    // 5. density-based cleaning over the aligned views.
+    if (!skip.count("density")) {
+        watch = Stopwatch();
+        const std::size_t in = count_points(views);
+        {
+            StageScope scope(hooks, "density");
+            report["density"] =
+                denoise::remove_density_outliers(views, density_options, scope.progress());
+        }
+        add_stage("density", watch.seconds(), in, count_points(views));
+        views_after(3, "density", views);
+    }
+
+    // The aligned poses for the pose evaluation, before the views are consumed.
+    for (const auto& v : views) {
+        PointCloud p;
+        p.view = v.view;
+        result.poses.push_back(std::move(p));
+    }
+
+    // 6. hole filling: one more view with the added points.
+    if (!skip.count("fill")) {
+        watch = Stopwatch();
+        const std::size_t in = count_points(views);
+        std::vector<PointCloud*> pointers;
+        for (auto& v : views) pointers.push_back(&v);
+        Report fill_report;
+        std::optional<PointCloud> added;
+        {
+            StageScope scope(hooks, "fill");
+            added = fill_stage(pointers, options.fill, fill_report, scope.progress());
+        }
+        if (fill_report.contains("note") && hooks.warn)
+            hooks.warn(fill_report["note"].get<std::string>());
+        const std::size_t count = added ? added->size() : 0;
+        if (added) views.push_back(std::move(*added));
+        report["fill"] = fill_report;
+        add_stage("fill", watch.seconds(), in, in + count, {{"points_added", count}});
+        views_after(4, "fill", views);
+    }
+
+    // The aligned points, for the mesh quality and pictures.
+    result.input = render::from_views(views);
+
+    // 7. merge + mesh.
+    watch = Stopwatch();
+    const std::size_t mesh_in = count_points(views);
+    {
+        StageScope scope(hooks, "mesh");
+        Report mesh_report;
+        result.mesh = mesh_stage(std::move(views), options.mesh, mesh_report, scope.progress());
+        report["mesh"] = mesh_report;
+    }
+    add_stage("mesh", watch.seconds(), mesh_in, result.mesh.number_of_vertices(),
+              {{"faces", result.mesh.number_of_faces()}});
+    // Slivers, folds, spikes, surface far from every input point, grey fill colours.
+    report["mesh_quality"] = evaluation::mesh_quality(result.mesh, &result.input.vertices);
+    report["counts"] = {{"views", result.poses.size()},
+                        {"mesh_vertices", result.mesh.number_of_vertices()},
+                        {"mesh_faces", result.mesh.number_of_faces()}};
+    return result;
+}
+
+}  // namespace rgbd::pipeline

@@ -1,0 +1,229 @@
+#include "pipeline/stages.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "algorithms/frames/object_extraction.hpp"
+#include "algorithms/normals/estimate_normals.hpp"
+#include "algorithms/sampling/merge_views.hpp"
+#include "io/mesh_io.hpp"
+#include "io/ply_stream.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::pipeline {
+
+namespace fs = std::filesystem;
+
+std::optional<Eigen::Vector3d> object_centre(
+    const io::Capture& capture, const std::vector<std::pair<std::string, std::size_t>>& jobs) {
+    std::vector<Pose> poses;
+    for (const auto& [id, position] : jobs) {
+        const io::FrameRecord& record = capture.frames.at(id).at(position);
+        const io::SensorSpec& sensor = capture.rig.sensor(id);
+        if (record.world_from_depth)
+            poses.push_back(*record.world_from_depth);
+        else if (sensor.has_world_from_depth)
+            poses.push_back(sensor.world_from_depth);
+        else
+            return std::nullopt;
+    }
+    return frames::axes_convergence_point(poses);
+}
+
+std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig) {
+    std::vector<Pose> poses;
+    for (const io::SensorSpec& sensor : rig.sensors) {
+        if (!sensor.has_world_from_depth) return std::nullopt;
+        poses.push_back(sensor.world_from_depth);
+    }
+    return frames::axes_convergence_point(poses);
+}
+
+PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
+                     int view_id, const frames::CloudOptions& cloud_options,
+                     const std::optional<Eigen::Vector3d>& centre,
+                     const ExtractionOptions& extraction, Report& report) {
+    return view_from_frame(io::load_frame(capture, sensor_id, position), view_id, cloud_options,
+                           centre, extraction, report);
+}
+
+PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
+                           const frames::CloudOptions& cloud_options,
+                           const std::optional<Eigen::Vector3d>& centre,
+                           const ExtractionOptions& extraction, Report& report) {
+    PointCloud cloud = frames::depth_to_cloud(frame, cloud_options, &report);
+    cloud.view.id = view_id;
+    cloud.view.frame_index = frame.frame_index;
+    report["view"] = view_id;
+    report["sensor"] = frame.sensor_id;
+    report["frame_index"] = frame.frame_index;
+    report["points_in_window"] = cloud.size();
+    if (centre && extraction.crop_radius_m > 0)
+        report["crop"] = frames::crop_to_sphere(cloud, *centre, extraction.crop_radius_m);
+    report["points"] = cloud.size();
+    return cloud;
+}
+
+namespace {
+
+/// Normals oriented towards each view's own sensor, for views that have none.
+void ensure_view_normals(std::vector<PointCloud>& views) {
+    normals::NormalOptions options;
+    options.orientation = normals::NormalOrientation::kAuto;
+    for (auto& view : views)
+        if (!view.points.has_normal_map() && view.size() >= 3)
+            normals::estimate_normals(view, options);
+}
+
+}  // namespace
+
+Report align_stage(std::vector<PointCloud>& views, const registration::MultiViewOptions& options,
+                   const Progress& progress) {
+    ensure_view_normals(views);
+    const registration::MultiViewResult result =
+        registration::align_views(views, options, progress);
+    registration::apply_alignment(views, result);
+    Report report = result.to_json();
+    for (std::size_t i = 0; i < views.size() && i < report["views"].size(); ++i)
+        report["views"][i]["sensor"] = views[i].view.sensor;
+    return report;
+}
+
+Mesh mesh_stage(std::vector<PointCloud>&& views,
+                const reconstruction::ReconstructionOptions& options, Report& report,
+                const Progress& progress) {
+    RGBD_CHECK(!views.empty(), "no views to mesh");
+    // The sensors' common up tells --watertight where the object stood (its flat base).
+    reconstruction::ReconstructionOptions with_up = options;
+    if (!with_up.up) {
+        std::vector<Pose> sensors;
+        for (const auto& view : views)
+            if (view.view.world_from_sensor) sensors.push_back(*view.view.world_from_sensor);
+        with_up.up = sensors_up(sensors, 0.7);
+    }
+    ensure_view_normals(views);
+    for (auto& view : views) to_world_frame(view);
+    PointCloud merged =
+        views.size() == 1 ? std::move(views.front()) : sampling::merge_views(std::move(views));
+    if (!merged.points.has_normal_map()) {
+        normals::NormalOptions normal_options;
+        normal_options.orientation = normals::NormalOrientation::kMst;
+        report["normals"] = normals::estimate_normals(merged, normal_options);
+    }
+    report["input_points"] = merged.size();
+    Report reconstruction;
+    Mesh mesh = reconstruction::reconstruct_surface(merged, with_up, &reconstruction, progress);
+    report["reconstruction"] = reconstruction;
+    return mesh;
+}
+
+LoadedResult load_result(const std::string& path) {
+    RGBD_CHECK_AS(IoError, fs::exists(path), path + ": no such file");
+    LoadedResult result;
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+    if (ext == ".off" || ext == ".obj") {
+        result.mesh = io::read_mesh(path);
+        return result;
+    }
+    if (ext != ".ply") {
+        result.views.push_back(io::read_point_cloud(path));
+        return result;
+    }
+    std::ifstream in(path, std::ios::binary);
+    RGBD_CHECK_AS(IoError, in.good(), path + ": cannot open for reading");
+    io::PlyStreamReader reader(in, path);
+    io::Document document;
+    while (reader.next(document)) {
+        if (document.kind == io::DocumentKind::kMesh) {
+            RGBD_CHECK(!result.mesh, path + ": more than one mesh document");
+            result.mesh = std::move(document.mesh);
+        } else {
+            result.views.push_back(std::move(document.cloud));
+        }
+        document = io::Document{};
+    }
+    RGBD_CHECK(reader.count() > 0, path + ": empty stream (no PLY document)");
+    RGBD_CHECK(!(result.mesh && !result.views.empty()),
+               path + ": holds both a mesh and point views; evaluate one of them");
+    return result;
+}
+
+Report evaluate_surface(const LoadedResult& result, const Mesh& reference,
+                        const evaluation::MetricOptions& options) {
+    if (result.mesh) {
+        return evaluation::compare_to_reference(&*result.mesh, nullptr, reference, options)
+            .to_json();
+    }
+    std::vector<PointCloud> views;
+    for (const auto& v : result.views) {
+        PointCloud copy;
+        copy.points = v.points;
+        copy.view = v.view;
+        to_world_frame(copy);
+        views.push_back(std::move(copy));
+    }
+    const PointCloud merged = sampling::merge_views(std::move(views));
+    return evaluation::compare_to_reference(nullptr, &merged, reference, options).to_json();
+}
+
+std::map<std::string, Pose> read_gt_poses(const std::string& path) {
+    std::ifstream in(path);
+    RGBD_CHECK_AS(IoError, in.good(), path + ": cannot open for reading");
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    RGBD_CHECK(j.is_object(), path + ": expected an object of sensor ids");
+    auto matrix = [&](const nlohmann::json& m, const std::string& key) {
+        RGBD_CHECK(m.is_array() && m.size() == 4, path + ": " + key + " is not a 4x4 matrix");
+        std::array<double, 16> v{};
+        for (int r = 0; r < 4; ++r) {
+            RGBD_CHECK(m[r].is_array() && m[r].size() == 4,
+                       path + ": " + key + " is not a 4x4 matrix");
+            for (int c = 0; c < 4; ++c) {
+                RGBD_CHECK(m[r][c].is_number(), path + ": " + key + " has a non-number");
+                v[r * 4 + c] = m[r][c].get<double>();
+            }
+        }
+        try {
+            return pose_from_4x4(v);
+        } catch (const InputError& e) {
+            throw InputError(path + ": " + key + ": " + e.what());
+        }
+    };
+    std::map<std::string, Pose> poses;
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        if (it->is_object()) {
+            for (auto f = it->begin(); f != it->end(); ++f)
+                poses[it.key() + "/" + f.key()] = matrix(*f, it.key() + "/" + f.key());
+        } else {
+            poses[it.key()] = matrix(*it, it.key());
+        }
+    }
+    return poses;
+}
+
+Report evaluate_poses(const std::vector<PointCloud>& views, const std::string& gt_path,
+                      bool remove_gauge) {
+    const auto truth = read_gt_poses(gt_path);
+    std::map<std::string, Pose> estimated;
+    for (const auto& v : views) {
+        RGBD_CHECK(v.view.world_from_sensor.has_value(),
+                   "view " + std::to_string(v.view.id) + " has no pose to evaluate");
+        std::string key = v.view.sensor;
+        if (!truth.count(key) && v.view.frame_index)
+            key += "/" + std::to_string(*v.view.frame_index);
+        RGBD_CHECK(truth.count(key), gt_path + ": no true pose for view " +
+                                         std::to_string(v.view.id) + " (" + key + ")");
+        estimated[key] = *v.view.world_from_sensor;
+    }
+    std::map<std::string, Pose> truth_subset;
+    for (const auto& [key, pose] : estimated) truth_subset[key] = truth.at(key);
+    return evaluation::pose_errors(estimated, truth_subset, remove_gauge).to_json();
+}
+
+}  // namespace rgbd::pipeline

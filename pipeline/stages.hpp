@@ -1,0 +1,85 @@
+// The stages of the method as library calls, shared by the single-stage tools, rgbd-reconstruct
+// (through pipeline::reconstruct) and the examples, so that a chain of pipes and the
+// one-command run compute the same thing: views from frames, alignment with per-view normals,
+// meshing of a set of views, and evaluation against ground truth (docs/method.md).
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "algorithms/evaluation/metrics.hpp"
+#include "algorithms/frames/depth_to_cloud.hpp"
+#include "algorithms/reconstruction/reconstruct_surface.hpp"
+#include "algorithms/registration/icp.hpp"
+#include "io/capture_folder.hpp"
+#include "toolkit/mesh.hpp"
+#include "toolkit/point_cloud.hpp"
+#include "toolkit/progress.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::pipeline {
+
+/// Options of the object extraction shared by rgbd-cloud and rgbd-reconstruct.
+struct ExtractionOptions {
+    double crop_radius_m = 0.6;  ///< 0 = no world-space crop
+};
+
+/// The object centre of a selection of frames: where the optical axes of their (initial)
+/// poses converge, or nullopt when the poses do not tell (one view, parallel axes, no poses).
+std::optional<Eigen::Vector3d> object_centre(
+    const io::Capture& capture, const std::vector<std::pair<std::string, std::size_t>>& jobs);
+/// The same for the rig's sensor poses (nullopt when a sensor has none).
+std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig);
+
+/// One frame as a view: depth_to_cloud, then the world-space crop around `centre` when given.
+/// Fills view.id and view.frame_index; the report gets the counts. rgbd-cloud (through
+/// load_view), rgbd-capture's live stream and pipeline::reconstruct make their views here.
+PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
+                           const frames::CloudOptions& cloud_options,
+                           const std::optional<Eigen::Vector3d>& centre,
+                           const ExtractionOptions& extraction, Report& report);
+
+/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame).
+PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
+                     int view_id, const frames::CloudOptions& cloud_options,
+                     const std::optional<Eigen::Vector3d>& centre,
+                     const ExtractionOptions& extraction, Report& report);
+
+/// Registers views (sensor frame, initial pose in view.world_from_sensor) to each other:
+/// estimates normals oriented to the sensor where missing, refines the poses jointly, then
+/// brings every view into the world frame with its refined pose. Returns the report with one
+/// entry per view (verdict, fitness, RMSE, pose change).
+Report align_stage(std::vector<PointCloud>& views, const registration::MultiViewOptions& options,
+                   const Progress& progress = {});
+
+/// Merges views (any frame; normals estimated per view towards its sensor when missing) and
+/// reconstructs a coloured mesh.
+Mesh mesh_stage(std::vector<PointCloud>&& views,
+                const reconstruction::ReconstructionOptions& options, Report& report,
+                const Progress& progress = {});
+
+/// A result to evaluate: a mesh, or views.
+struct LoadedResult {
+    std::optional<Mesh> mesh;
+    std::vector<PointCloud> views;
+};
+/// Reads a mesh (.ply stream with a mesh document, .off, .obj) or views (.ply stream, other
+/// point formats).
+LoadedResult load_result(const std::string& path);
+
+/// Surface metrics of a result against a reference mesh.
+Report evaluate_surface(const LoadedResult& result, const Mesh& reference,
+                        const evaluation::MetricOptions& options);
+
+/// True poses from gt/world_from_depth.json: keys "<sensor>" or, for per-frame poses,
+/// "<sensor>/<index>". Throws InputError naming the file.
+std::map<std::string, Pose> read_gt_poses(const std::string& path);
+
+/// Pose errors of the views' world_from_sensor against the truth.
+Report evaluate_poses(const std::vector<PointCloud>& views, const std::string& gt_path,
+                      bool remove_gauge);
+
+}  // namespace rgbd::pipeline

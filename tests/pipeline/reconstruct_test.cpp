@@ -1,0 +1,89 @@
+// pipeline::reconstruct, the chain rgbd-reconstruct runs, as a library call: on a synthetic
+// capture of a sphere seen from all sides (examples/example_data.hpp, exact depth, 8 cameras
+// above and below) the mesh is closed and on the sphere, the stage rows chain (each stage's points
+// in are the previous one's points out), timings() is the rows' times, --skip leaves rows out, and
+// bad options or frame sets are InputErrors.
+#include "pipeline/reconstruct.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "examples/example_data.hpp"
+#include "toolkit/error.hpp"
+
+namespace {
+
+const rgbd::io::Capture& capture() {
+    static const rgbd::io::Capture c = rgbd::io::open_capture(
+        examples::make_capture(std::filesystem::temp_directory_path() /
+                                   ("rgbd_pipeline_test_" + std::to_string(::getpid())),
+                               8, /*above_and_below=*/true));
+    return c;
+}
+
+TEST(Reconstruct, TheMeshMatchesTheSphereAndTheStagesChain) {
+    rgbd::pipeline::ReconstructOptions options;
+    const auto frames = rgbd::pipeline::frameset_frames(capture(), 0);
+    ASSERT_EQ(frames.size(), 8u);
+    const auto result = rgbd::pipeline::reconstruct(capture(), frames, options);
+    // Every mesh vertex lies on the sphere (closing patches included, within 5 mm).
+    std::size_t off = 0;
+    for (const auto v : result.mesh.vertices()) {
+        const auto& p = result.mesh.point(v);
+        off += std::abs(std::hypot(p.x(), p.y(), p.z()) - examples::kRadius) > 0.005;
+    }
+    EXPECT_GT(result.mesh.number_of_faces(), 1000u);
+    std::size_t border = 0;
+    for (const auto h : result.mesh.halfedges()) border += result.mesh.is_border(h);
+    EXPECT_EQ(border, 0u) << "the default (watertight) mesh is closed";
+    EXPECT_LT(off, result.mesh.number_of_vertices() / 50) << off << " vertices off the sphere";
+    // Rows: clouds, distance, (upsample: colour not finer, 0 views), align, density, fill, mesh.
+    std::vector<std::string> names;
+    for (const auto& row : result.stages) names.push_back(row.stage);
+    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "distance", "upsample", "align", "density",
+                                               "fill", "mesh"}));
+    for (std::size_t i = 1; i < result.stages.size(); ++i)
+        EXPECT_EQ(result.stages[i].points_in, result.stages[i - 1].points_out)
+            << result.stages[i].stage;
+    EXPECT_LE(result.stages[1].points_out, result.stages[1].points_in);  // cleaning removes
+    const rgbd::Report timings = result.timings();
+    ASSERT_EQ(timings.size(), result.stages.size());
+    for (const auto& row : result.stages) EXPECT_EQ(timings[row.stage].get<double>(), row.time_s);
+    EXPECT_EQ(result.stages_report().size(), result.stages.size());
+    EXPECT_EQ(result.poses.size(), 8u);
+    EXPECT_EQ(result.report["counts"]["mesh_faces"], result.mesh.number_of_faces());
+}
+
+TEST(Reconstruct, SkippedStagesLeaveNoRowAndHooksSeeEveryStage) {
+    rgbd::pipeline::ReconstructOptions options;
+    options.skip = {"distance", "upsample", "density", "fill"};
+    options.mesh.watertight = false;
+    std::vector<std::string> begun, saved;
+    rgbd::pipeline::ReconstructHooks hooks;
+    hooks.stage_begin = [&](const std::string& s) {
+        begun.push_back(s);
+        return rgbd::Progress{};
+    };
+    hooks.views_after = [&](int, const std::string& s, const std::vector<rgbd::PointCloud>&) {
+        saved.push_back(s);
+    };
+    const auto result = rgbd::pipeline::reconstruct(
+        capture(), rgbd::pipeline::frameset_frames(capture(), 0), options, hooks);
+    std::vector<std::string> names;
+    for (const auto& row : result.stages) names.push_back(row.stage);
+    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "align", "mesh"}));
+    EXPECT_EQ(begun, (std::vector<std::string>{"clouds", "align", "mesh"}));
+    EXPECT_EQ(saved, (std::vector<std::string>{"views", "align"}));
+    EXPECT_FALSE(result.report.contains("fill"));
+}
+
+TEST(Reconstruct, BadOptionsAndFrameSetsAreInputErrors) {
+    rgbd::pipeline::ReconstructOptions options;
+    options.skip = {"mesh"};
+    EXPECT_THROW(options.check(), rgbd::InputError);
+    EXPECT_THROW(rgbd::pipeline::frameset_frames(capture(), 1), rgbd::InputError);
+}
+
+}  // namespace
