@@ -43,8 +43,10 @@ struct Column {
 template <typename T>
 bool try_column(const PointSet& points, const std::string& name, PlyType type,
                 std::vector<Column>& out) {
-    auto [map, found] = points.property_map<T>(name);
-    if (!found) return false;
+    // Not a structured binding: clang 14 (the fuzz build) cannot capture one in a lambda.
+    const auto lookup = points.property_map<T>(name);
+    if (!lookup.second) return false;
+    const auto map = lookup.first;
     out.push_back({name, type, [map](PointSet::Index i, unsigned char* p) {
                        const T v = map[i];
                        std::memcpy(p, &v, sizeof(T));
