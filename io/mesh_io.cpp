@@ -106,7 +106,10 @@ internal::MeshSoup read_off_soup(const fs::path& path) {
     if (counts.size() < 2 || !parse_long(counts[0], nv) || !parse_long(counts[1], nf) || nv < 0 ||
         nf < 0)
         fail(path, "bad vertex and face counts");
-    if (lines.text.size() < line + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+    // Each count alone first: their sum can overflow.
+    if (static_cast<unsigned long long>(nv) > lines.text.size() ||
+        static_cast<unsigned long long>(nf) > lines.text.size() ||
+        lines.text.size() < line + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
         fail(path, "truncated: header announces " + std::to_string(nv) + " vertices and " +
                        std::to_string(nf) + " faces, the file has fewer lines");
     internal::MeshSoup soup;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -179,6 +180,27 @@ PointCloud read_pcd(const fs::path& path) {
     const PcdField* fny = find("normal_y");
     const PcdField* fnz = find("normal_z");
     const bool normals = fnx && fny && fnz;
+
+    // The header can claim any number of points: what the rest of the file can hold bounds
+    // them before anything is allocated (binary: stride bytes a point; ascii: at least one
+    // byte a value; LZF expands at most about 88 times, a 3-byte reference to 264 bytes).
+    std::size_t values_per_point = 0;
+    for (const PcdField& f : fields) values_per_point += f.count;
+    const std::streamoff here = in.tellg();
+    in.seekg(0, std::ios::end);
+    const std::streamoff end = in.tellg();
+    in.seekg(here);
+    const std::size_t remaining =
+        here >= 0 && end > here ? static_cast<std::size_t>(end - here) : 0;
+    if (points > 0 && stride > std::numeric_limits<std::size_t>::max() / 128 / points)
+        fail(path, "POINTS " + std::to_string(points) + " is too large");
+    const bool fits = data == "binary"              ? points * stride <= remaining
+                      : data == "ascii"             ? points * values_per_point <= remaining
+                      : data == "binary_compressed" ? points * stride <= 100 * remaining + 4096
+                                                    : true;
+    if (!fits)
+        fail(path, "truncated: the header announces " + std::to_string(points) + " points, the " +
+                       std::to_string(remaining) + " bytes of " + data + " data hold fewer");
 
     // Bring the data into the binary row layout (row-major, `stride` bytes per point).
     std::vector<unsigned char> rows(points * stride);

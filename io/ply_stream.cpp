@@ -139,6 +139,11 @@ public:
 
     void read_data(Header& header) {
         for (Element& e : header.elements) {
+            // Instances without properties would read nothing, so any count (up to 2^64)
+            // would "succeed": a loop without end on garbage.
+            if (e.count > 0 && e.props.empty())
+                fail("element '" + e.name + "' has " + std::to_string(e.count) +
+                     " instances but no properties");
             e.lists.assign(e.list_count, ListData{});
             if (header.format == Format::kAscii) {
                 read_ascii(e);
@@ -168,6 +173,10 @@ private:
 
     static void swap_bytes(unsigned char* p, std::size_t n) { std::reverse(p, p + n); }
 
+    /// Rows allocated before any data is read; the buffer doubles as data arrives, so a
+    /// bogus count in a short document cannot allocate much (the stride can be kilobytes).
+    static constexpr std::size_t kFirstRows = std::size_t{1} << 12;
+
     void read_binary(Element& e, bool big_endian) {
         const std::size_t list_props = e.list_count;
         if (list_props == 0) {
@@ -191,7 +200,7 @@ private:
                         swap_bytes(e.rows.data() + i * e.stride + p.offset, type_size(p.type));
             return;
         }
-        e.rows.resize(std::min<std::size_t>(e.count, std::size_t{1} << 24) * e.stride);
+        e.rows.resize(std::min<std::size_t>(e.count, kFirstRows) * e.stride);
         std::vector<unsigned char> buf;
         for (std::size_t i = 0; i < e.count; ++i) {
             if ((i + 1) * e.stride > e.rows.size()) e.rows.resize((i + 1) * e.stride * 2);
@@ -255,7 +264,7 @@ private:
     }
 
     void read_ascii(Element& e) {
-        e.rows.assign(std::min<std::size_t>(e.count, std::size_t{1} << 24) * e.stride, 0);
+        e.rows.assign(std::min<std::size_t>(e.count, kFirstRows) * e.stride, 0);
         for (std::size_t i = 0; i < e.count; ++i) {
             if ((i + 1) * e.stride > e.rows.size()) e.rows.resize((i + 1) * e.stride * 2);
             unsigned char* row = e.rows.data() + i * e.stride;
