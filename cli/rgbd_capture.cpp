@@ -3,6 +3,7 @@
 // four-timestamp probes on a separate control socket, maps every frame to hub time, groups
 // frames of all sensors into frame sets within a tolerance and records a capture folder v1
 // (atomic files, csv appended line by line) that io::open_capture and rgbd-cloud read back.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -307,6 +308,11 @@ void run_capture(cli::Context& ctx) {
     m["output"] = ctx.output_path();
     m["stop_reason"] = recorder.failed() ? "recording failed" : stop_reason;
     m["duration_s"] = 1e-9 * static_cast<double>(end - start);
+    // Peak resident memory of the hub process (getrusage; Linux reports KiB): a slow --live
+    // reader must not make it grow (issue 21).
+    rusage usage{};
+    if (::getrusage(RUSAGE_SELF, &usage) == 0)
+        m["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
     m["frames_received"] = received;
     m["frames_recorded"] = recorder.frames_written();
     m["framesets"] = recorder.recording() ? recorder.sets_written() : sets_formed;
