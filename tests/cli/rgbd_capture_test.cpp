@@ -28,137 +28,17 @@
 #include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
+#include "tests/support/capture_harness.hpp"
 #include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace {
 
+using namespace rgbd::test::capture;
 namespace fs = std::filesystem;
 using rgbd::test::Outcome;
 using rgbd::test::slurp;
 using json = nlohmann::json;
-
-fs::path temp_root() {
-    static const fs::path root = rgbd::test::scratch_dir("rgbd_capture_test");
-    return root;
-}
-Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(), command); }
-
-/// Starts `command` in the background in `dir`: name.pid (the tool's pid), name.rc (its exit
-/// code when it ends), name.out / name.err.
-void start(const fs::path& dir, const std::string& name, const std::string& command) {
-    fs::remove(dir / (name + ".rc"));
-    fs::remove(dir / (name + ".pid"));
-    const std::string line = "BIN=" + std::string(RGBD_BINARY_DIR) + "; cd " + dir.string() +
-                             " && ( ( " + command + " ) >" + name + ".out 2>" + name +
-                             ".err </dev/null & echo $! >" + name + ".pid.tmp; mv " + name +
-                             ".pid.tmp " + name + ".pid; wait $!; echo $? >" + name +
-                             ".rc.tmp; mv " + name + ".rc.tmp " + name + ".rc ) >/dev/null 2>&1 &";
-    ASSERT_EQ(std::system(("bash -c '" + line + "'").c_str()), 0);
-    for (int i = 0; i < 500 && !fs::exists(dir / (name + ".pid")); ++i)
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-}
-
-/// Exit code of a started command, waiting up to `timeout_s`; -1 on timeout.
-int wait_for(const fs::path& dir, const std::string& name, double timeout_s) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < until) {
-        if (fs::exists(dir / (name + ".rc"))) return std::stoi(slurp(dir / (name + ".rc")));
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    return -1;
-}
-
-pid_t pid_of(const fs::path& dir, const std::string& name) {
-    return static_cast<pid_t>(std::stol(slurp(dir / (name + ".pid"))));
-}
-
-/// A port pair per test process (frames on p, control on p + 1), below Linux's ephemeral
-/// port range (32768-60999) so that no outgoing connection holds it.
-int free_port() {
-    // 8 pairs per process; test processes run in parallel under ctest -j.
-    static int first = 12000 + static_cast<int>(::getpid() % 1100) * 16, used = 0;
-    return first + 2 * (used++ % 8);
-}
-
-struct Truth {
-    std::uint64_t session;
-    std::int64_t index, position, true_ns, node_ns;
-};
-std::vector<Truth> read_truth(const fs::path& path) {
-    std::ifstream in(path);
-    std::string line;
-    std::getline(in, line);
-    std::vector<Truth> out;
-    while (std::getline(in, line)) {
-        Truth t{};
-        char c;
-        std::istringstream ss(line);
-        ss >> t.session >> c >> t.index >> c >> t.position >> c >> t.true_ns >> c >> t.node_ns;
-        if (!ss) ADD_FAILURE() << path << ": bad line '" << line << "'";
-        out.push_back(t);
-    }
-    return out;
-}
-
-json read_json(const fs::path& p) { return json::parse(slurp(p)); }
-
-/// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
-/// test in its own process: the capture is rendered once per rgbd-synth build into a shared
-/// cache folder (rendered beside it, then renamed into place) and linked into the scratch
-/// folder.
-class RgbdCapture : public ::testing::Test {
-protected:
-    static void SetUpTestSuite() {
-        if (fs::exists(temp_root() / "synth" / "rig.json")) return;
-        const fs::path synth = fs::path(RGBD_BINARY_DIR) / "rgbd-synth";
-        std::error_code ec;
-        const auto stamp = fs::last_write_time(synth, ec).time_since_epoch().count();
-        const fs::path cache =
-            fs::temp_directory_path() /
-            ("rgbd_capture_test_synth_" +
-             std::to_string(std::hash<std::string>{}(synth.string() + std::to_string(stamp))));
-        if (!fs::exists(cache / "rig.json")) {
-            const fs::path work = fs::path(cache.string() + ".tmp" + std::to_string(::getpid()));
-            fs::remove_all(work);
-            fs::create_directories(work);
-            rgbd::test::write_ellipsoid_off(work / "blob.off", 48, 24, 0.3, 0.5, 0.25);
-            Outcome r = rgbd::test::run_in(
-                work, "$BIN/rgbd-synth blob.off -o synth --sensors 8 --frames 4 --seed 5 -q");
-            ASSERT_EQ(r.code, 0) << r.err;
-            fs::rename(work / "synth", cache, ec);  // fails harmlessly if another test won
-            fs::remove_all(work);
-        }
-        ASSERT_TRUE(fs::exists(cache / "rig.json")) << "no synthetic capture in " << cache;
-        fs::create_directory_symlink(cache, temp_root() / "synth", ec);
-    }
-    void SetUp() override {
-        ASSERT_TRUE(fs::exists(temp_root() / "synth" / "rig.json")) << "no synthetic capture";
-    }
-    /// rig.json with the first n sensors of the synthetic capture.
-    static std::string rig_of(int n) {
-        const std::string name = "rig" + std::to_string(n) + ".json";
-        rgbd::io::Rig rig = rgbd::io::read_rig(temp_root() / "synth" / "rig.json");
-        rig.sensors.resize(static_cast<std::size_t>(n));
-        rgbd::io::write_rig(temp_root() / name, rig);
-        return name;
-    }
-    static std::string id(int s) { return "k2-" + std::to_string(s); }
-};
-
-/// Source depth of sensor `sensor` at recording position `position` (cached).
-const cv::Mat& source_depth(const std::string& sensor, std::int64_t position) {
-    static std::map<std::pair<std::string, std::int64_t>, cv::Mat> cache;
-    auto& m = cache[{sensor, position}];
-    if (m.empty()) {
-        const rgbd::io::Capture cap = rgbd::io::open_capture(temp_root() / "synth");
-        m = cv::imread((temp_root() / "synth" / sensor /
-                        cap.frames.at(sensor)[static_cast<std::size_t>(position)].depth)
-                           .string(),
-                       cv::IMREAD_UNCHANGED);
-    }
-    return m;
-}
 
 TEST_F(RgbdCapture, HelpAndUsageErrors) {
     for (const char* tool : {"rgbd-capture", "rgbd-node"}) {

@@ -1,0 +1,260 @@
+// The PLY vocabulary shared by the stream reader (io/ply_stream.cpp), the comment metadata
+// (io/ply_stream_comments.cpp) and the writer (io/ply_stream_writer.cpp): text helpers, the
+// eight PLY scalar types with their byte loads and stores, and the parsed header / element
+// storage. PLY format: Turk, "The PLY Polygon File Format" (1994). See io/ply_stream.hpp.
+#pragma once
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/internal/text.hpp"
+#include "toolkit/error.hpp"
+#include "toolkit/point_cloud.hpp"
+
+namespace rgbd::io::internal::ply {
+
+// ---------------------------------------------------------------------------------------
+// Small text helpers
+
+inline std::string_view trim(std::string_view s) {
+    const auto not_space = [](char c) { return c != ' ' && c != '\t' && c != '\r' && c != '\n'; };
+    while (!s.empty() && !not_space(s.front())) s.remove_prefix(1);
+    while (!s.empty() && !not_space(s.back())) s.remove_suffix(1);
+    return s;
+}
+
+inline std::vector<std::string_view> split(std::string_view s) {
+    return internal::split_whitespace(s);
+}
+
+inline std::optional<double> parse_double(std::string_view s) {
+    double v = 0;
+    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || ptr != s.data() + s.size()) return std::nullopt;
+    return v;
+}
+
+template <typename Int>
+std::optional<Int> parse_int(std::string_view s) {
+    Int v = 0;
+    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || ptr != s.data() + s.size()) return std::nullopt;
+    return v;
+}
+
+inline std::string format_double(double v) {
+    char buf[64];
+    const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
+    return std::string(buf, ptr);
+}
+
+// ---------------------------------------------------------------------------------------
+// PLY types
+
+enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+
+inline std::optional<PlyType> parse_type(std::string_view s) {
+    if (s == "char" || s == "int8") return PlyType::kInt8;
+    if (s == "uchar" || s == "uint8") return PlyType::kUint8;
+    if (s == "short" || s == "int16") return PlyType::kInt16;
+    if (s == "ushort" || s == "uint16") return PlyType::kUint16;
+    if (s == "int" || s == "int32") return PlyType::kInt32;
+    if (s == "uint" || s == "uint32") return PlyType::kUint32;
+    if (s == "float" || s == "float32") return PlyType::kFloat32;
+    if (s == "double" || s == "float64") return PlyType::kFloat64;
+    return std::nullopt;
+}
+
+inline const char* type_name(PlyType t) {
+    switch (t) {
+        case PlyType::kInt8:
+            return "char";
+        case PlyType::kUint8:
+            return "uchar";
+        case PlyType::kInt16:
+            return "short";
+        case PlyType::kUint16:
+            return "ushort";
+        case PlyType::kInt32:
+            return "int";
+        case PlyType::kUint32:
+            return "uint";
+        case PlyType::kFloat32:
+            return "float";
+        case PlyType::kFloat64:
+            return "double";
+    }
+    return "?";
+}
+
+inline std::size_t type_size(PlyType t) {
+    switch (t) {
+        case PlyType::kInt8:
+        case PlyType::kUint8:
+            return 1;
+        case PlyType::kInt16:
+        case PlyType::kUint16:
+            return 2;
+        case PlyType::kInt32:
+        case PlyType::kUint32:
+        case PlyType::kFloat32:
+            return 4;
+        case PlyType::kFloat64:
+            return 8;
+    }
+    return 0;
+}
+
+inline bool is_integer(PlyType t) { return t != PlyType::kFloat32 && t != PlyType::kFloat64; }
+
+template <typename T>
+T load(const unsigned char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+}
+
+inline double read_value(const unsigned char* p, PlyType t) {
+    switch (t) {
+        case PlyType::kInt8:
+            return load<std::int8_t>(p);
+        case PlyType::kUint8:
+            return load<std::uint8_t>(p);
+        case PlyType::kInt16:
+            return load<std::int16_t>(p);
+        case PlyType::kUint16:
+            return load<std::uint16_t>(p);
+        case PlyType::kInt32:
+            return load<std::int32_t>(p);
+        case PlyType::kUint32:
+            return load<std::uint32_t>(p);
+        case PlyType::kFloat32:
+            return load<float>(p);
+        case PlyType::kFloat64:
+            return load<double>(p);
+    }
+    return 0;
+}
+
+template <typename T>
+void store(unsigned char* p, double v) {
+    const T t = static_cast<T>(v);
+    std::memcpy(p, &t, sizeof(T));
+}
+
+inline void write_value(unsigned char* p, PlyType t, double v) {
+    switch (t) {
+        case PlyType::kInt8:
+            store<std::int8_t>(p, v);
+            break;
+        case PlyType::kUint8:
+            store<std::uint8_t>(p, v);
+            break;
+        case PlyType::kInt16:
+            store<std::int16_t>(p, v);
+            break;
+        case PlyType::kUint16:
+            store<std::uint16_t>(p, v);
+            break;
+        case PlyType::kInt32:
+            store<std::int32_t>(p, v);
+            break;
+        case PlyType::kUint32:
+            store<std::uint32_t>(p, v);
+            break;
+        case PlyType::kFloat32:
+            store<float>(p, v);
+            break;
+        case PlyType::kFloat64:
+            store<double>(p, v);
+            break;
+    }
+}
+
+/// Range of an integer type, to reject out-of-range ASCII values.
+inline bool fits(PlyType t, double v) {
+    switch (t) {
+        case PlyType::kInt8:
+            return v >= -128 && v <= 127;
+        case PlyType::kUint8:
+            return v >= 0 && v <= 255;
+        case PlyType::kInt16:
+            return v >= -32768 && v <= 32767;
+        case PlyType::kUint16:
+            return v >= 0 && v <= 65535;
+        case PlyType::kInt32:
+            return v >= -2147483648.0 && v <= 2147483647.0;
+        case PlyType::kUint32:
+            return v >= 0 && v <= 4294967295.0;
+        default:
+            return true;
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Header and element storage
+
+enum class Format { kAscii, kBinaryLittle, kBinaryBig };
+
+struct Property {
+    std::string name;
+    PlyType type = PlyType::kFloat32;
+    bool is_list = false;
+    PlyType count_type = PlyType::kUint8;
+    std::size_t offset = 0;  ///< scalar: byte offset in the row; list: index into lists
+};
+
+struct ListData {
+    std::vector<std::size_t> offsets{0};
+    std::vector<double> values;
+};
+
+struct Element {
+    std::string name;
+    std::size_t count = 0;
+    std::vector<Property> props;
+    std::size_t stride = 0;  ///< bytes of the scalar properties of one instance
+    std::size_t list_count = 0;
+    std::vector<unsigned char> rows;  ///< count * stride, little-endian
+    std::vector<ListData> lists;
+
+    const Property* find(std::string_view n) const {
+        for (const Property& p : props)
+            if (p.name == n) return &p;
+        return nullptr;
+    }
+    double value(std::size_t i, const Property& p) const {
+        return read_value(rows.data() + i * stride + p.offset, p.type);
+    }
+};
+
+struct Header {
+    Format format = Format::kBinaryLittle;
+    std::vector<std::string> comments;
+    std::vector<Element> elements;
+};
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+inline std::string pose_text(const Pose& pose) {
+    std::string s;
+    for (double v : pose_to_3x4(pose)) s += " " + format_double(v);
+    return s;
+}
+
+inline std::string one_line(std::string s) {
+    for (char& c : s)
+        if (c == '\n' || c == '\r') c = ' ';
+    return s;
+}
+
+}  // namespace rgbd::io::internal::ply

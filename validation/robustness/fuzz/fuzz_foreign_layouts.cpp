@@ -1,0 +1,65 @@
+// libFuzzer target: the foreign capture layouts read by io::open_capture. The first input byte
+// picks the layout and file the rest replaces: TUM RGB-D (depth.txt, rgb.txt,
+// groundtruth.txt) or Open3D/Redwood (the intrinsic JSON, the .log trajectory). Each layout's
+// folder is made once, valid, with one 640x480 frame; open_capture and load_frame read it.
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "io/capture_folder.hpp"
+#include "validation/robustness/fuzz/fuzz_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Layout {
+    fs::path tum, redwood;
+};
+
+const Layout& layout() {
+    static const Layout l = [] {
+        Layout l;
+        l.tum = rgbd::fuzz::scratch() / "tum";
+        l.redwood = rgbd::fuzz::scratch() / "redwood";
+        fs::remove_all(l.tum);
+        fs::remove_all(l.redwood);
+        const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));
+        const cv::Mat color(480, 640, CV_8UC3, cv::Scalar(50, 100, 150));
+        fs::create_directories(l.tum / "depth");
+        fs::create_directories(l.tum / "rgb");
+        cv::imwrite((l.tum / "depth" / "1.0.png").string(), depth);
+        cv::imwrite((l.tum / "rgb" / "1.0.png").string(), color);
+        fs::create_directories(l.redwood / "depth");
+        fs::create_directories(l.redwood / "color");
+        cv::imwrite((l.redwood / "depth" / "000000.png").string(), depth);
+        cv::imwrite((l.redwood / "color" / "000000.jpg").string(), color);
+        return l;
+    }();
+    return l;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    if (size < 1) return 0;
+    const Layout& l = layout();
+    static const char* const kTum[] = {"depth.txt", "rgb.txt", "groundtruth.txt"};
+    static const char* const kRedwood[] = {"camera_intrinsic.json", "trajectory.log"};
+    const int role = data[0] % 5;
+    const fs::path root = role < 3 ? l.tum : l.redwood;
+    // The files the other roles would replace stay valid (or absent, also valid).
+    rgbd::fuzz::write_file(l.tum / "depth.txt", "# depth\n1.0 depth/1.0.png\n");
+    rgbd::fuzz::write_file(l.tum / "rgb.txt", "# rgb\n1.0 rgb/1.0.png\n");
+    fs::remove(l.tum / "groundtruth.txt");
+    fs::remove(l.redwood / kRedwood[0]);
+    fs::remove(l.redwood / kRedwood[1]);
+    const fs::path file = role < 3 ? l.tum / kTum[role] : l.redwood / kRedwood[role - 3];
+    rgbd::fuzz::write_file(file, data + 1, size - 1);
+    rgbd::fuzz::expect_clean([&] {
+        const rgbd::io::Capture capture = rgbd::io::open_capture(root);
+        for (const auto& entry : capture.frames)  // not a binding: clang 14 cannot capture one
+            if (!entry.second.empty())
+                rgbd::fuzz::expect_clean([&] { rgbd::io::load_frame(capture, entry.first, 0); });
+    });
+    return 0;
+}

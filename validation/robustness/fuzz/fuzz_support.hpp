@@ -1,0 +1,51 @@
+// Shared by the libFuzzer targets of validation/robustness/fuzz/ (issue 21): a scratch folder
+// per process, writing the fuzz input to a file, and the reader contract every target checks.
+// The contract: a reader given any bytes returns or throws rgbd::Error (InputError/IoError,
+// naming the file); any other exception escapes and libFuzzer reports it as a crash, as it
+// does for memory errors (ASan), undefined behaviour (UBSan), hangs and huge allocations.
+#pragma once
+
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::fuzz {
+
+/// A folder of this process under the temporary directory, created on first use.
+inline const std::filesystem::path& scratch() {
+    static const std::filesystem::path dir = [] {
+        const auto d =
+            std::filesystem::temp_directory_path() / ("rgbd-fuzz-" + std::to_string(::getpid()));
+        std::filesystem::create_directories(d);
+        return d;
+    }();
+    return dir;
+}
+
+/// Writes `size` bytes to `path` (replacing it).
+inline void write_file(const std::filesystem::path& path, const std::uint8_t* data,
+                       std::size_t size) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+}
+
+inline void write_file(const std::filesystem::path& path, const std::string& text) {
+    write_file(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+}
+
+/// Runs `read`; rgbd::Error (the readers' documented failure) is a correct answer.
+template <typename F>
+void expect_clean(F&& read) {
+    try {
+        read();
+    } catch (const rgbd::Error&) {
+    }
+}
+
+}  // namespace rgbd::fuzz
