@@ -56,7 +56,8 @@ void print_help(const po::options_description& options) {
            "(default 7 x 5 squares of 80 mm, 60 mm markers, DICT_5X5_100; --board FILE.json\n"
            "with squares_x, squares_y, square_m, marker_m, dictionary) printed on one side of a\n"
            "plate and carried through the ring in random poses (centre within --board-radius-m\n"
-           "of the ring centre, facing a random sensor), one pose per frame set (--frames,\n"
+           "of the ring centre, facing between two neighbouring sensors), one pose per frame set "
+           "(--frames,\n"
            "default 40), seen by the sensors in front of it. gt/ holds world_from_depth.json,\n"
            "board_poses.json (world_from_board per frame set) and board.json.\n\n"
         << options

@@ -77,10 +77,15 @@ Pose board_pose(const BoardMotion& m, const SynthOptions& o, int set, const Eige
         if (offset.squaredNorm() <= 1.0 || k == 1023) break;
     }
     const Eigen::Vector3d c = centre + m.radius_m * offset;
-    // Faces a random sensor, jittered in azimuth and elevation.
+    // Faces a random direction between two neighbouring sensors (so that both can see it),
+    // jittered in azimuth and elevation.
     const int n = static_cast<int>(sensor_positions.size());
-    const int target = std::min(n - 1, static_cast<int>(rng.uniform(4, set) * n));
-    Eigen::Vector3d d = (sensor_positions[target] - c).normalized();
+    const int k = std::min(n - 1, static_cast<int>(rng.uniform(4, set) * n));
+    const Eigen::Vector3d d0 = (sensor_positions[k] - c).normalized();
+    const Eigen::Vector3d d1 = (sensor_positions[(k + 1) % n] - c).normalized();
+    const double t = rng.uniform(8, set);
+    Eigen::Vector3d d = (d0 + t * (d1 - d0)).normalized();
+    if (!d.allFinite() || d.norm() < 0.5) d = d0;
     const double az = (2 * rng.uniform(5, set) - 1) * m.facing_jitter_deg * kDeg;
     const double el = (2 * rng.uniform(6, set) - 1) * m.facing_jitter_deg * kDeg;
     d = Eigen::AngleAxisd(az, Eigen::Vector3d::UnitZ()) * d;

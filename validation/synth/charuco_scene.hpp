@@ -20,7 +20,8 @@ struct BoardMotion {
     calibration::BoardSpec board;   ///< the printed board
     double margin_m = 0.02;         ///< white plate around the printed board
     double radius_m = 0.3;          ///< board centres uniform in this ball around the ring centre
-    double facing_jitter_deg = 20;  ///< the board faces a random sensor, off by up to this much
+    double facing_jitter_deg = 15;  ///< the board faces between two neighbouring sensors, off
+                                    ///< by up to this much in azimuth and elevation
     double roll_deg = 30;           ///< in-plane rotation, uniform in [-roll, roll]
     double blur_px = 0;             ///< Gaussian blur of the colour images (sigma, pixels)
     double texture_mm = 0.25;       ///< texel of the printed image, millimetres
