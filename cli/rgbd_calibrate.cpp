@@ -292,7 +292,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
         std::printf("%-12s %-7s  %7.3f  %7.2f  %10.3f  %9.1f\n", spec.id.c_str(),
                     registration::to_string(r.verdict), r.fitness, 1e3 * r.inlier_rmse, deg,
                     1e3 * m);
-        if (r.verdict == registration::Verdict::kFail)
+        if (r.verdict != registration::Verdict::kPass)
             failed += (failed.empty() ? "" : ", ") + spec.id + " (" + r.reason + ")";
         sensors.push_back({{"id", spec.id},
                            {"verdict", registration::to_string(r.verdict)},
@@ -303,7 +303,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     }
     std::cout << std::flush;
     if (!failed.empty())
-        throw AlgorithmError("refinement failed for " + failed + "; rig.json not written");
+        throw AlgorithmError("refinement not trusted for " + failed + "; rig.json not written");
     io::write_rig(ctx.output_path(), out);
     ctx.metrics()["mode"] = "refine";
     ctx.metrics()["sensors"] = sensors;
@@ -333,7 +333,8 @@ int main(int argc, char** argv) {
         "output) when no board is visible or naming the sensors it cannot connect.\n"
         "With --refine: starts from the capture's rig.json and refines the poses on whatever\n"
         "the sensors see in one frame set (a person, a bust) with the toolkit's multi-view\n"
-        "registration (rgbd-align's align_views); prints the change per sensor.\n"
+        "registration (rgbd-align's align_views); prints the change per sensor and writes\n"
+        "nothing (exit 1) unless every sensor's alignment verdict is PASS.\n"
         "Board file: {\"squares_x\": 7, \"squares_y\": 5, \"square_m\": 0.08, \"marker_m\": 0.06,\n"
         "\"dictionary\": \"DICT_5X5_100\"} (these are the defaults).";
     spec.example =

@@ -240,15 +240,19 @@ PlaneCheck check_board_plane(const cv::Mat& depth_m, const PinholeIntrinsics& in
         for (int c = 0; c < depth_m.cols; ++c) {
             const double z = row[c];
             if (!std::isfinite(z) || z <= 0) continue;
-            const Eigen::Vector3d p = intrinsics.unproject(c, r, z);
-            const Eigen::Vector3d b = board_from_depth * p;
+            // Where the pixel's ray meets the board plane: the pixels of the board are those
+            // whose ray meets it inside the outline (shrunk by the margin).
+            const Eigen::Vector3d ray = intrinsics.unproject(c, r, 1.0);  // z = 1
+            const double denom = normal.dot(ray);
+            if (std::abs(denom) < 1e-9) continue;
+            const double t = normal.dot(origin) / denom;  // depth (z) of the plane on this ray
+            if (t <= 0) continue;
+            const Eigen::Vector3d b = board_from_depth * (t * ray);
             if (b.x() < margin || b.y() < margin || b.x() > board.width_m() - margin ||
                 b.y() > board.height_m() - margin)
                 continue;
-            // Distance along the ray direction sign: positive when the point is behind the plane
-            // as seen from the camera.
-            const double d = (p - origin).dot(normal);
-            const double behind = normal.dot(origin) > 0 ? d : -d;
+            // Distance of the measured point to the plane, positive behind it.
+            const double behind = (z - t) * std::abs(denom);
             if (std::abs(behind) > gate_m) continue;
             signed_mm.push_back(1e3 * behind);
         }

@@ -86,8 +86,9 @@ struct DetectionOutcome {
 DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,
                               const BoardSpec& board, const DetectionOptions& options = {});
 
-/// Depth on the board: signed distances of the depth pixels that fall inside the board (its
-/// outline shrunk by half a square) to the board plane placed at `depth_from_board`.
+/// Depth on the board: signed distances to the board plane placed at `depth_from_board` of the
+/// depth pixels whose ray meets that plane inside the board (its outline shrunk by half a
+/// square).
 struct PlaneCheck {
     int pixels = 0;          ///< valid depth pixels inside the board
     double median_mm = 0.0;  ///< median signed distance (positive: depth behind the plane)
@@ -98,9 +99,10 @@ struct PlaneCheck {
 /// Compares the depth image (CV_32FC1 metres, NaN = invalid) of a camera with `intrinsics`
 /// to the board plane at `depth_from_board` (board frame -> depth camera frame).
 /// Distances are measured along the plane normal; pixels farther than `gate_m` from the plane
-/// (other objects, flying pixels) are left out. Thread-safe.
+/// (a hand in front, flying pixels) are left out: the gate is wide by default so that a board
+/// pose at the wrong scale (a board file that does not match the print) shows. Thread-safe.
 PlaneCheck check_board_plane(const cv::Mat& depth_m, const PinholeIntrinsics& intrinsics,
                              const BoardSpec& board, const Pose& depth_from_board,
-                             double gate_m = 0.1);
+                             double gate_m = 1.0);
 
 }  // namespace rgbd::calibration
