@@ -31,7 +31,7 @@ Outcome run(const std::string& command) { return rgbd::test::run_in(temp_root(),
 
 const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd-mesh",
                         "rgbd-eval",     "rgbd-reconstruct", "rgbd-info",  "rgbd-synth",
-                        "rgbd-upsample", "rgbd-render",      "rgbd-fill"};
+                        "rgbd-upsample", "rgbd-render",      "rgbd-fill",  "rgbd-calibrate"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {
