@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(build-essential cmake ninja-build pkg-config
-  libcgal-dev libgmp-dev libmpfr-dev libeigen3-dev libopencv-dev libtbb-dev
+  libcgal-dev libgmp-dev libmpfr-dev libeigen3-dev libopencv-dev libopencv-contrib-dev libtbb-dev
   libboost-dev libboost-program-options-dev libnanoflann-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libzmq3-dev cppzmq-dev zlib1g-dev libpng-dev libopenni2-dev iproute2

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -17,6 +18,7 @@
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/report.hpp"
+#include "validation/synth/charuco_scene.hpp"
 #include "validation/synth/synthesize.hpp"
 
 namespace po = boost::program_options;
@@ -35,7 +37,8 @@ struct UsageError : std::runtime_error {
 
 void print_help(const po::options_description& options) {
     std::cout
-        << "Usage: rgbd-synth MESH -o CAPTURE_DIR [options]\n\n"
+        << "Usage: rgbd-synth MESH -o CAPTURE_DIR [options]\n"
+           "       rgbd-synth --target charuco -o CAPTURE_DIR [--board FILE.json] [options]\n\n"
            "Renders a synthetic RGB-D capture of MESH (.off, .obj or .ply) with ground truth:\n"
            "a ring of Kinect v2 sensors (512x424 depth, 1920x1080 colour, 52 mm apart) looking\n"
            "at the object, or one SR300-like sensor in front of a turntable with 12 stops of\n"
@@ -49,17 +52,29 @@ void print_help(const po::options_description& options) {
            "true poses, the placed mesh (gt/mesh.ply), clean depth, per-pixel labels, clock\n"
            "offsets and scene parameters. CAPTURE_DIR must not exist or be empty; it appears\n"
            "only when complete.\n\n"
+           "--target charuco renders a calibration capture instead (no MESH): a ChArUco board\n"
+           "(default 7 x 5 squares of 80 mm, 60 mm markers, DICT_5X5_100; --board FILE.json\n"
+           "with squares_x, squares_y, square_m, marker_m, dictionary) printed on one side of a\n"
+           "plate and carried through the ring in random poses (centre within --board-radius-m\n"
+           "of the ring centre, facing between two neighbouring sensors), one pose per frame set "
+           "(--frames,\n"
+           "default 40), seen by the sensors in front of it. gt/ holds world_from_depth.json,\n"
+           "board_poses.json (world_from_board per frame set) and board.json.\n\n"
         << options
         << "\nExample:\n"
            "  rgbd-synth /tmp/cgaldata/data/meshes/bunny00.off -o cap --up y --height-m 0.45\n"
-           "  rgbd-cloud cap --frameset 0 | rgbd-clean --distance | rgbd-align ...\n";
+           "  rgbd-cloud cap --frameset 0 | rgbd-clean --distance | rgbd-align ...\n"
+           "  rgbd-synth --target charuco -o board --calib-error-deg 10 --calib-error-mm 100\n"
+           "  rgbd-calibrate board -o rig.json\n";
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
     rgbd::synth::SynthOptions options;
-    std::string mesh_path, out_dir, rig = "ring", up = "y", noise = "default";
+    std::string mesh_path, out_dir, rig = "ring", up = "y", noise = "default", target = "object";
+    std::string board_path;
+    rgbd::synth::BoardMotion motion;
     int verbosity = 0;
     bool quiet = false;
     po::options_description visible("Options");
@@ -85,6 +100,14 @@ int main(int argc, char** argv) {
          "frame sets (turntable: frames per stop); static scene, fresh noise each")
         ("seed", po::value(&options.seed)->default_value(1)->value_name("S"),
          "random seed (noise, calibration error, clock offsets, turntable truth)")
+        ("target", po::value(&target)->default_value("object")->value_name("object|charuco"),
+         "what the ring sees: MESH, or a moving ChArUco board (calibration capture)")
+        ("board", po::value(&board_path)->value_name("FILE.json"),
+         "charuco: the board (default 7x5 squares, 0.08 m, markers 0.06 m, DICT_5X5_100)")
+        ("board-radius-m", po::value(&motion.radius_m)->default_value(0.3, "0.3")
+             ->value_name("R"), "charuco: board centres within R m of the ring centre")
+        ("board-blur-px", po::value(&motion.blur_px)->default_value(0.0, "0")->value_name("S"),
+         "charuco: Gaussian blur of the colour images, sigma in pixels (motion blur, focus)")
         ("quiet,q", po::bool_switch(&quiet), "no summary line")
         ("verbose,v", po::value<std::vector<std::string>>()->zero_tokens()->composing(),
          "more messages on stderr (repeatable)");
@@ -116,7 +139,11 @@ int main(int argc, char** argv) {
             std::cout << kTool << " " << RGBD_VERSION << "\n";
             return 0;
         }
-        if (mesh_path.empty()) throw UsageError("missing MESH argument");
+        const bool charuco = target == "charuco";
+        if (!charuco && target != "object")
+            throw UsageError("unknown target '" + target + "' (expected object or charuco)");
+        if (!charuco && mesh_path.empty()) throw UsageError("missing MESH argument");
+        if (charuco && !mesh_path.empty()) throw UsageError("--target charuco takes no MESH");
         if (out_dir.empty()) throw UsageError("missing -o CAPTURE_DIR");
         try {
             options.rig = rgbd::synth::parse_rig_kind(rig);
@@ -126,16 +153,31 @@ int main(int argc, char** argv) {
             else if (noise != "default")
                 throw rgbd::InputError("unknown noise '" + noise + "' (expected default or none)");
             options.mesh_source = fs::path(mesh_path).filename().string();
+            if (charuco) {
+                if (vm["frames"].defaulted()) options.frames = 40;
+                if (options.rig != rgbd::synth::RigKind::kRing)
+                    throw rgbd::InputError("--target charuco needs --rig ring");
+                motion.check();
+            }
             options.check();
         } catch (const rgbd::InputError& e) {
             throw UsageError(e.what());
+        }
+        if (charuco && !board_path.empty()) {
+            std::ifstream in(board_path);
+            if (!in) throw rgbd::IoError("cannot read board file " + board_path);
+            try {
+                motion.board = rgbd::calibration::BoardSpec::from_json(nlohmann::json::parse(in));
+            } catch (const std::exception& e) {
+                throw rgbd::InputError(board_path + ": " + e.what());
+            }
         }
         if (fs::exists(out_dir) && !(fs::is_directory(out_dir) && fs::is_empty(out_dir)))
             throw rgbd::IoError("output folder exists and is not empty: " + out_dir);
 
         const rgbd::Stopwatch watch;
-        const rgbd::Mesh mesh = rgbd::io::read_mesh(mesh_path);
-        if (verbosity > 0)
+        const rgbd::Mesh mesh = charuco ? rgbd::Mesh() : rgbd::io::read_mesh(mesh_path);
+        if (verbosity > 0 && !charuco)
             std::cerr << kTool << ": read " << mesh_path << ": " << mesh.number_of_vertices()
                       << " vertices, " << mesh.number_of_faces() << " faces\n";
         rgbd::Progress progress;
@@ -146,7 +188,9 @@ int main(int argc, char** argv) {
                 return true;
             };
         }
-        const auto summary = rgbd::synth::synthesize_capture(mesh, out_dir, options, progress);
+        const auto summary =
+            charuco ? rgbd::synth::synthesize_charuco_capture(out_dir, options, motion, progress)
+                    : rgbd::synth::synthesize_capture(mesh, out_dir, options, progress);
         if (progress) std::fprintf(stderr, "\n");
         if (verbosity > 0) {
             std::ostringstream counts;

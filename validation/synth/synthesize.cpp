@@ -459,9 +459,8 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
 
 }  // namespace
 
-SynthSummary synthesize_capture(const Mesh& mesh, const fs::path& out_dir,
-                                const SynthOptions& options, const Progress& progress) {
-    options.check();
+void write_folder_atomically(const fs::path& out_dir,
+                             const std::function<void(const fs::path& folder)>& write) {
     RGBD_CHECK(!out_dir.empty(), "output folder name is empty");
     std::error_code ec;
     const bool exists = fs::exists(out_dir, ec);
@@ -479,9 +478,8 @@ SynthSummary synthesize_capture(const Mesh& mesh, const fs::path& out_dir,
     const fs::path tmp = parent / ("." + target.filename().string() + ".partial-" +
                                    std::to_string(static_cast<long>(::getpid())));
     fs::remove_all(tmp, ec);
-    SynthSummary summary;
     try {
-        write_capture(mesh, tmp, options, progress, summary);
+        write(tmp);
         if (exists) fs::remove(target);
         fs::rename(tmp, target);
     } catch (const fs::filesystem_error& e) {
@@ -491,6 +489,15 @@ SynthSummary synthesize_capture(const Mesh& mesh, const fs::path& out_dir,
         fs::remove_all(tmp, ec);
         throw;
     }
+}
+
+SynthSummary synthesize_capture(const Mesh& mesh, const fs::path& out_dir,
+                                const SynthOptions& options, const Progress& progress) {
+    options.check();
+    SynthSummary summary;
+    write_folder_atomically(out_dir, [&](const fs::path& folder) {
+        write_capture(mesh, folder, options, progress, summary);
+    });
     return summary;
 }
 

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -151,6 +152,12 @@ struct SynthSummary {
 /// options, non-empty folder) or IoError naming the file.
 SynthSummary synthesize_capture(const Mesh& mesh, const std::filesystem::path& out_dir,
                                 const SynthOptions& options, const Progress& progress = {});
+
+/// Calls `write` with a temporary sibling folder of `out_dir` (which must not exist or be
+/// empty) and renames it to `out_dir` when `write` returns, so a failure leaves nothing
+/// behind. Throws InputError (non-empty folder), IoError naming the folder.
+void write_folder_atomically(const std::filesystem::path& out_dir,
+                             const std::function<void(const std::filesystem::path& folder)>& write);
 
 /// 4x4 row-major JSON array of a pose.
 nlohmann::json pose_to_json(const Pose& pose);
