@@ -75,6 +75,7 @@ const Case kCases[] = {
     {"rgbd-capture --rig garbage.json -o out_capture", "garbage.json"},
     {"rgbd-capture --rig badcap/rig.json --live out.ply", "rig.json"},
     {"rgbd-node --sensor playback:badcap --hub tcp://127.0.0.1:9", "rig.json"},
+    {"rgbd-calibrate badcap -o out.json", "rig.json"},
 };
 
 }  // namespace
