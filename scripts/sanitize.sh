@@ -24,6 +24,7 @@ cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DRGBD_SANITIZE=address,undefined "${LAUNCHER[@]}" >/dev/null
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS="suppressions=$PWD/validation/robustness/lsan.supp:print_suppressions=0"
 cd "$BUILD"
 if [ "${1:-}" = "--all" ]; then
   ninja -j"$(nproc)"
