@@ -27,17 +27,7 @@ const Base& base() {
         Base b;
         b.root = rgbd::fuzz::scratch() / "capture";
         fs::remove_all(b.root);
-        rgbd::io::Rig rig;
-        rgbd::io::SensorSpec s;
-        s.id = "k0";
-        s.model = "kinect_v2";
-        s.depth.width = s.color.width = 8;
-        s.depth.height = s.color.height = 6;
-        s.depth.fx = s.depth.fy = s.color.fx = s.color.fy = 7;
-        s.depth.cx = s.color.cx = 3.5;
-        s.depth.cy = s.color.cy = 2.5;
-        rig.sensors.push_back(s);
-        rgbd::io::CaptureWriter writer(b.root, rig);
+        rgbd::io::CaptureWriter writer(b.root, rgbd::fuzz::small_rig());
         cv::Mat depth(6, 8, CV_32FC1, cv::Scalar(1.5f));
         cv::Mat color(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
         writer.add_frame("k0", 0, 1000, depth, color);

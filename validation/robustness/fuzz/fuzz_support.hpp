@@ -13,6 +13,7 @@
 #include <fstream>
 #include <string>
 
+#include "io/capture_folder.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::fuzz {
@@ -46,6 +47,22 @@ void expect_clean(F&& read) {
         read();
     } catch (const rgbd::Error&) {
     }
+}
+
+/// The one-sensor rig of the capture-folder seeds and target: 8x6 depth and colour images,
+/// focal length 7 px, principal point at the centre.
+inline io::Rig small_rig() {
+    io::Rig rig;
+    io::SensorSpec s;
+    s.id = "k0";
+    s.model = "kinect_v2";
+    s.depth.width = s.color.width = 8;
+    s.depth.height = s.color.height = 6;
+    s.depth.fx = s.depth.fy = s.color.fx = s.color.fy = 7;
+    s.depth.cx = s.color.cx = 3.5;
+    s.depth.cy = s.color.cy = 2.5;
+    rig.sensors.push_back(s);
+    return rig;
 }
 
 }  // namespace rgbd::fuzz

@@ -16,6 +16,7 @@
 #include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
+#include "validation/robustness/fuzz/fuzz_support.hpp"
 
 namespace {
 
@@ -112,24 +113,10 @@ void mesh_readers(const fs::path& out, const fs::path& tmp) {
     c.add(4, "0 0 1\n1 0 1 0 0 1\n0.5 0.5 1.5\n");
 }
 
-io::Rig small_rig() {
-    io::Rig rig;
-    io::SensorSpec s;
-    s.id = "k0";
-    s.model = "kinect_v2";
-    s.depth.width = s.color.width = 8;
-    s.depth.height = s.color.height = 6;
-    s.depth.fx = s.depth.fy = s.color.fx = s.color.fy = 7;
-    s.depth.cx = s.color.cx = 3.5;
-    s.depth.cy = s.color.cy = 2.5;
-    rig.sensors.push_back(s);
-    return rig;
-}
-
 void capture_folder(const fs::path& out, const fs::path& tmp) {
     Corpus c(out, "fuzz_capture_folder");
     const fs::path root = tmp / "capture";
-    io::CaptureWriter writer(root, small_rig());
+    io::CaptureWriter writer(root, fuzz::small_rig());
     cv::Mat depth(6, 8, CV_32FC1, cv::Scalar(1.5f));
     depth.at<float>(2, 3) = std::nanf("");
     const cv::Mat color(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
