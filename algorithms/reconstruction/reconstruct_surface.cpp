@@ -34,6 +34,68 @@
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::reconstruction::internal {
+
+/// A triangulation vertex or cell base with a time stamp: CGAL's Compact_container then orders
+/// handles by creation (the stamp) instead of by address. The triangulation's facet iterator
+/// reports each facet from the side of the smaller cell handle, and the advancing front caches
+/// a facet's Delaunay-sphere radius from the side it first sees (the two sides round
+/// differently in the last bit): ordered by address, the same points gave different meshes in
+/// different processes.
+template <typename Base>
+class Stamped : public Base {
+public:
+    using Has_timestamp = CGAL::Tag_true;
+    template <typename TDS2>
+    struct Rebind_TDS {
+        using Other = Stamped<typename Base::template Rebind_TDS<TDS2>::Other>;
+    };
+    using Base::Base;
+    std::size_t time_stamp() const { return stamp_; }
+    void set_time_stamp(const std::size_t& stamp) { stamp_ = stamp; }
+
+private:
+    std::size_t stamp_ = std::size_t(-1);
+};
+
+using FrontTds = CGAL::Triangulation_data_structure_3<
+    Stamped<CGAL::Advancing_front_surface_reconstruction_vertex_base_3<Kernel>>,
+    Stamped<CGAL::Advancing_front_surface_reconstruction_cell_base_3<Kernel>>>;
+using FrontDelaunay = CGAL::Delaunay_triangulation_3<Kernel, FrontTds>;
+/// (priority, border edge) entries of the front's queue (`std::set` in CGAL 5.5).
+using FrontQueueEntry = FrontTds::Vertex::Radius_ptr_type;
+
+/// Point indices {min, max} of the border edge a queue entry points at.
+inline std::pair<std::size_t, std::size_t> edge_ids(const FrontQueueEntry& e) {
+    const auto& edge = e.second->first.first;
+    const std::size_t a = edge.first->vertex(edge.second)->id();
+    const std::size_t b = edge.first->vertex(edge.third)->id();
+    return std::minmax(a, b);
+}
+
+}  // namespace rgbd::reconstruction::internal
+
+/// CGAL's advancing front keeps its border edges in a `std::set<std::pair<double, IO_edge*>>`
+/// and so breaks ties in priority (every "stand-by" candidate has the same value, 3) by the
+/// edges' heap addresses: the same points gave different meshes in different processes
+/// (44,632 vs 44,633 vertices from byte-identical points whose file headers differed). Ties
+/// are broken by the edge's point indices instead, which an entry keeps while it is queued
+/// (the border element of edge (a, b) always describes edge (a, b)); the address decides only
+/// between two entries of the same edge.
+template <>
+struct std::less<rgbd::reconstruction::internal::FrontQueueEntry> {
+    bool operator()(const rgbd::reconstruction::internal::FrontQueueEntry& x,
+                    const rgbd::reconstruction::internal::FrontQueueEntry& y) const {
+        if (x.first < y.first) return true;
+        if (y.first < x.first) return false;
+        if (x.second == y.second) return false;
+        const auto ix = rgbd::reconstruction::internal::edge_ids(x);
+        const auto iy = rgbd::reconstruction::internal::edge_ids(y);
+        if (ix != iy) return ix < iy;
+        return std::less<const void*>()(x.second, y.second);
+    }
+};
+
 namespace rgbd::reconstruction {
 
 namespace PMP = CGAL::Polygon_mesh_processing;
@@ -199,17 +261,24 @@ void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
     points.reserve(xyz.size());
     for (const auto& p : xyz) points.push_back(to_point(p));
     std::vector<std::array<std::size_t, 3>> triangles;
-    if (priority)
-        CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
-                                                     std::back_inserter(triangles), *priority,
-                                                     o.af_radius_ratio_bound, o.af_beta);
-    else
-        CGAL::advancing_front_surface_reconstruction(points.begin(), points.end(),
-                                                     std::back_inserter(triangles),
-                                                     o.af_radius_ratio_bound, o.af_beta);
-    // CGAL hands the triangles out in an order that follows the addresses of its handles, which
-    // differ between processes (heap layout): sort them, so that the same points always give
-    // the same mesh, face order included, and everything downstream (hole closing) with it.
+    // As CGAL::advancing_front_surface_reconstruction(), on a triangulation whose handles are
+    // ordered by creation (internal::Stamped) and whose front queue breaks ties by point index
+    // (the std::less above): the same points give the same triangles in every process.
+    std::vector<std::pair<Point_3, std::size_t>> indexed;
+    indexed.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) indexed.emplace_back(points[i], i);
+    internal::FrontDelaunay dt(indexed.begin(), indexed.end());
+    if (priority) {
+        CGAL::Advancing_front_surface_reconstruction<internal::FrontDelaunay, FrontPriority> r(
+            dt, *priority);
+        r.run(o.af_radius_ratio_bound, o.af_beta);
+        CGAL::write_triple_indices(std::back_inserter(triangles), r);
+    } else {
+        CGAL::Advancing_front_surface_reconstruction<internal::FrontDelaunay> r(dt);
+        r.run(o.af_radius_ratio_bound, o.af_beta);
+        CGAL::write_triple_indices(std::back_inserter(triangles), r);
+    }
+    // Sorted, so that the face order does not depend on the triangulation's storage either.
     for (auto& t : triangles) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
     std::sort(triangles.begin(), triangles.end());
     std::vector<std::vector<std::size_t>> polygons;
