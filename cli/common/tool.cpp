@@ -21,44 +21,71 @@ namespace fs = std::filesystem;
 
 // ---------------------------------------------------------------- ProgressBar
 
-ProgressBar::ProgressBar(std::string label, Mode mode) : label_(std::move(label)), mode_(mode) {}
+ProgressBar::ProgressBar(std::string label, Mode mode, double heartbeat_s)
+    : label_(std::move(label)),
+      mode_(mode),
+      heartbeat_s_(heartbeat_s),
+      unwinding_(std::uncaught_exceptions()) {
+    if (mode_ == Mode::kLog) beat_ = std::thread([this] { heartbeat(); });
+}
 
 ProgressBar::~ProgressBar() {
-    if (mode_ == Mode::kTerminal && last_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
-    if (mode_ == Mode::kLog && last_line_s_ >= 0) {
-        char line[64];
-        std::snprintf(line, sizeof line, ": done in %.1f s\n", elapsed_s());
-        std::cerr << label_ << line << std::flush;
+    if (mode_ == Mode::kTerminal && shown_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
+    if (mode_ != Mode::kLog) return;
+    {
+        std::lock_guard lock(mutex_);
+        stop_ = true;
     }
+    wake_.notify_all();
+    beat_.join();
+    if (!started_) return;  // a quick stage, or a run that failed early: no lines
+    char line[64];
+    if (std::uncaught_exceptions() > unwinding_)
+        std::snprintf(line, sizeof line, ": stopped after %.1f s\n", elapsed_s());
+    else
+        std::snprintf(line, sizeof line, ": done in %.1f s\n", elapsed_s());
+    std::cerr << label_ << line << std::flush;
 }
 
 double ProgressBar::elapsed_s() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
+void ProgressBar::heartbeat() {
+    using Clock = std::chrono::steady_clock;
+    const auto after = [](double s) {
+        return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+    };
+    std::unique_lock lock(mutex_);
+    // The first line after a second (quick stages print none), then one every heartbeat_s_.
+    auto next = start_ + after(1.0);
+    while (!wake_.wait_until(lock, next, [this] { return stop_; })) {
+        const int percent = std::max(0, percent_.load());
+        char line[96];
+        std::snprintf(line, sizeof line,
+                      started_ ? ": %d%% after %.1f s\n" : ": started, %d%% after %.1f s\n",
+                      percent, elapsed_s());
+        std::cerr << label_ << line << std::flush;
+        started_ = true;
+        next += after(heartbeat_s_);
+    }
+}
+
 bool ProgressBar::update(double fraction) {
     if (mode_ == Mode::kOff) return true;
     // Never backwards: a stage whose parts report their own fractions may restart at 0.
-    const int percent = std::max(
-        last_percent_, static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 100.0)));
-    if (mode_ == Mode::kLog) {
-        last_percent_ = percent;
-        const double t = elapsed_s();
-        if (last_line_s_ < 0 ? t < 1.0 : t - last_line_s_ < 10.0) return true;
-        char line[96];
-        if (last_line_s_ < 0)
-            std::snprintf(line, sizeof line, ": started, %d%% after %.1f s\n", percent, t);
-        else
-            std::snprintf(line, sizeof line, ": %d%% after %.1f s\n", percent, t);
-        std::cerr << label_ << line << std::flush;
-        last_line_s_ = t;
-        return true;
+    const int percent = static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 100.0));
+    int seen = percent_.load();
+    while (percent > seen && !percent_.compare_exchange_weak(seen, percent)) {
     }
-    if (percent == last_percent_) return true;
-    last_percent_ = percent;
-    const int width = 30, filled = percent * width / 100;
+    if (mode_ == Mode::kLog) return true;  // the heartbeat thread prints
+    std::lock_guard lock(mutex_);
+    const int shown = percent_.load();
+    if (shown == shown_percent_) return true;
+    shown_percent_ = shown;
+    const int width = 30, filled = shown * width / 100;
     std::cerr << "\r" << label_ << " [" << std::string(filled, '=')
-              << std::string(width - filled, ' ') << "] " << percent << "%" << std::flush;
+              << std::string(width - filled, ' ') << "] " << shown << "%" << std::flush;
     return true;
 }
 

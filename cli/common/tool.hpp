@@ -4,13 +4,17 @@
 // Modelled on PDAL's Kernel (parse, run, catch-all, exit codes).
 #pragma once
 
+#include <atomic>
 #include <boost/program_options.hpp>
 #include <chrono>
+#include <condition_variable>
 #include <functional>
 #include <iosfwd>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "io/ply_stream.hpp"
@@ -53,29 +57,39 @@ using ToolMain = std::function<void(Context&)>;
 int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body);
 
 /// Progress of one stage on stderr. On a terminal: a bar that never goes backwards. Elsewhere
-/// (a log file, a batch job): plain lines, for stages that run longer than a second: when the
-/// stage has run a second ("started"), at most every 10 s while it runs (percent and elapsed
-/// time) and when it ends ("done in N s"); quick stages and runs that fail early print none.
+/// (a log file, a batch job): plain lines from a background thread, so a stage whose algorithm
+/// reports rarely still shows it is alive: "started" once the stage has run a second (quick
+/// stages and runs that fail early print none), then percent and elapsed time every
+/// `heartbeat_s` (10 s by default) while it runs, and "done in N s" when it ends ("stopped
+/// after N s" when an exception ends it). Percentages never go backwards in either mode.
 /// Off with -q.
 class ProgressBar {
 public:
     enum class Mode { kOff, kTerminal, kLog };
-    ProgressBar(std::string label, Mode mode);
+    ProgressBar(std::string label, Mode mode, double heartbeat_s = 10.0);
     ~ProgressBar();
     ProgressBar(const ProgressBar&) = delete;
     ProgressBar& operator=(const ProgressBar&) = delete;
-    /// Updates the bar with the fraction done; always returns true (no cancel).
+    /// Updates the bar with the fraction done; always returns true (no cancel). Thread-safe.
     bool update(double fraction);
     /// A Progress callback bound to this bar.
     Progress callback();
 
 private:
     double elapsed_s() const;
+    void heartbeat();
     std::string label_;
     Mode mode_;
-    int last_percent_ = -1;
+    double heartbeat_s_;
+    std::atomic<int> percent_{-1};  ///< highest percentage reported so far (-1: none)
+    int shown_percent_ = -1;        ///< terminal: the percentage on screen
+    std::mutex mutex_;              ///< guards shown_percent_, stop_ and stderr writes
+    std::condition_variable wake_;
+    bool stop_ = false;
+    bool started_ = false;  ///< log mode: the "started" line was printed
+    int unwinding_;         ///< std::uncaught_exceptions() at construction
     std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-    double last_line_s_ = -1;  ///< elapsed time of the last log line (-1: none yet)
+    std::thread beat_;  ///< log mode: the heartbeat thread
 };
 
 /// State of one tool run, handed to the tool's body.
