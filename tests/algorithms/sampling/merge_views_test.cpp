@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "toolkit/error.hpp"
 
 namespace {
@@ -49,6 +51,61 @@ TEST(MergeViews, ConcatenatesWithViewIdsAndPropertyUnion) {
         EXPECT_EQ(colors.get(idx), first ? (rgbd::Rgb{200, 10, 10}) : (rgbd::Rgb{0, 0, 0}));
         EXPECT_EQ((*conf)[idx], first ? 0.0f : 0.5f);
         ++i;
+    }
+}
+
+// The merge copies column by column into a point set sized once (Point_set_3::join sorted
+// the growing result at every view): the same points, in the same order, with the same
+// properties as joining the views one after the other, also for views with removed points,
+// normals and a property only some views have.
+TEST(MergeViews, SameAsJoiningViewByView) {
+    std::vector<PointCloud> views, copies;
+    for (int v = 0; v < 5; ++v) {
+        PointCloud cloud = view_with(v + 1, 50 + 13 * v, /*colors=*/v % 2 == 0,
+                                     /*confidence=*/v == 3);
+        cloud.points.add_normal_map();
+        int i = 0;
+        for (auto idx : cloud.points) {
+            cloud.points.point(idx) = rgbd::Point_3(v, i * 0.01, std::sin(i + v));
+            cloud.points.normal(idx) = rgbd::Vector_3(0, std::cos(i), std::sin(i));
+            ++i;
+        }
+        // Remove every seventh point (marked removed, not collected).
+        std::vector<rgbd::PointSet::Index> doomed;
+        i = 0;
+        for (auto idx : cloud.points)
+            if (i++ % 7 == 3) doomed.push_back(idx);
+        for (auto it = doomed.rbegin(); it != doomed.rend(); ++it) cloud.points.remove(*it);
+        copies.push_back(cloud);
+        views.push_back(std::move(cloud));
+    }
+    rgbd::PointSet reference;
+    for (auto& c : copies) reference.copy_properties(c.points);
+    auto ref_view = reference.add_property_map<std::int32_t>("view", 0).first;
+    for (auto& c : copies) {
+        const std::size_t begin = reference.size();
+        reference.join(c.points);
+        for (std::size_t i = begin; i < reference.size(); ++i)
+            ref_view[rgbd::PointSet::Index(std::uint32_t(i))] = c.view.id;
+    }
+    const PointCloud merged = rgbd::sampling::merge_views(std::move(views));
+    ASSERT_EQ(merged.size(), reference.size());
+    ASSERT_TRUE(merged.points.has_normal_map());
+    const auto ids = merged.view_map();
+    ASSERT_TRUE(ids.has_value());
+    const auto colors = merged.colors();
+    const auto conf = merged.float_map(rgbd::prop::kConfidence);
+    ASSERT_TRUE(conf.has_value());
+    const auto ref_r = reference.property_map<std::uint8_t>(rgbd::prop::kRed).first;
+    const auto ref_conf = reference.property_map<float>(rgbd::prop::kConfidence).first;
+    auto a = merged.points.begin();
+    auto b = reference.begin();
+    for (; a != merged.points.end(); ++a, ++b) {
+        EXPECT_EQ(merged.points.point(*a), reference.point(*b));
+        EXPECT_EQ(merged.points.normal(*a), reference.normal(*b));
+        EXPECT_EQ((*ids)[*a], ref_view[*b]);
+        EXPECT_EQ(colors.get(*a).r, ref_r[*b]);
+        EXPECT_EQ((*conf)[*a], ref_conf[*b]);
     }
 }
 
