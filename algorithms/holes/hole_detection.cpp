@@ -145,57 +145,120 @@ SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
     return out;
 }
 
-Neighbourhood build_neighbourhood(const std::vector<Eigen::Vector3d>& points, double spacing_m,
-                                  const NeighbourhoodOptions& options) {
-    options.check();
-    const std::size_t n = points.size();
-    const std::size_t cap = static_cast<std::size_t>(options.max_neighbours);
-    internal::KdTree tree(points);
-    std::vector<std::uint32_t> directed(n * cap);
-    std::vector<std::uint32_t> count(n, 0);
-    const double radius = options.radius_factor * spacing_m;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
-        std::vector<std::uint32_t> idx(options.k + 1);
-        std::vector<double> d2(options.k + 1);
+namespace {
+
+/// Directed neighbour lists N(p) = kNN(k) union radius(radius_factor * spacing), sorted by
+/// (squared distance, index), capped, in compressed rows; before symmetrisation.
+struct Directed {
+    std::vector<std::uint32_t> offset;  ///< n + 1
+    std::vector<std::uint32_t> index;
+};
+
+/// The directed lists of several option sets over one tree, in one pass: one kNN query with
+/// the largest k and, when the sets share the radius, one radius query per point. A set with a
+/// smaller k takes the first k + 1 results of the larger query: the same set as its own query
+/// unless the (k+1)-th and (k+2)-th distances tie, and then its own query is run. Rows are
+/// built in chunks of fixed size (no n x cap array), in parallel; the result does not depend
+/// on the thread count.
+std::vector<Directed> directed_lists(const std::vector<Eigen::Vector3d>& points,
+                                     const internal::KdTree& tree, double spacing_m,
+                                     const std::vector<NeighbourhoodOptions>& sets) {
+    const std::size_t n = points.size(), m = sets.size();
+    std::size_t k_max = 0;
+    for (const auto& o : sets) k_max = std::max(k_max, std::size_t(o.k));
+    constexpr std::size_t kChunk = 1024;
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    // rows[chunk * m + set]: the chunk's neighbours of that set; count[set][i].
+    std::vector<std::vector<std::uint32_t>> rows(chunks * m);
+    std::vector<std::vector<std::uint32_t>> count(m, std::vector<std::uint32_t>(n, 0));
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
+        std::vector<std::uint32_t> idx(k_max + 2), own_idx(k_max + 2);
+        std::vector<double> d2(k_max + 2), own_d2(k_max + 2);
         std::vector<std::pair<std::uint32_t, double>> within;
         std::vector<std::pair<double, std::uint32_t>> merged;
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-            merged.clear();
-            const std::size_t found = tree.knn(points[i], options.k + 1, idx.data(), d2.data());
-            for (std::size_t j = 0; j < found; ++j)
-                if (idx[j] != i) merged.emplace_back(d2[j], idx[j]);
-            if (radius > 0) {
-                tree.radius(points[i], radius, within, /*sorted=*/false);
-                for (const auto& [j, dd] : within)
-                    if (j != i) merged.emplace_back(dd, j);
+        const std::size_t end = std::min(n, (chunk + 1) * kChunk);
+        for (std::size_t i = chunk * kChunk; i < end; ++i) {
+            const std::size_t found = tree.knn(points[i], k_max + 1, idx.data(), d2.data());
+            double shared_radius = -1;
+            for (std::size_t s = 0; s < m; ++s) {
+                const NeighbourhoodOptions& o = sets[s];
+                const std::size_t cap = static_cast<std::size_t>(o.max_neighbours);
+                const std::size_t want = std::size_t(o.k) + 1;
+                merged.clear();
+                const std::uint32_t* ki = idx.data();
+                const double* kd = d2.data();
+                std::size_t kn = std::min(found, want);
+                if (want < found && d2[want - 1] == d2[want]) {
+                    // A tie at the cut: which of the tied points a k-query keeps depends on
+                    // the traversal; ask the tree exactly as a query of its own would.
+                    kn = tree.knn(points[i], want, own_idx.data(), own_d2.data());
+                    ki = own_idx.data();
+                    kd = own_d2.data();
+                }
+                for (std::size_t j = 0; j < kn; ++j)
+                    if (ki[j] != i) merged.emplace_back(kd[j], ki[j]);
+                const double radius = o.radius_factor * spacing_m;
+                if (radius > 0) {
+                    if (radius != shared_radius) {
+                        tree.radius(points[i], radius, within, /*sorted=*/false);
+                        shared_radius = radius;
+                    }
+                    for (const auto& [j, dd] : within)
+                        if (j != i) merged.emplace_back(dd, j);
+                }
+                std::sort(merged.begin(), merged.end());
+                merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
+                std::vector<std::uint32_t>& row = rows[chunk * m + s];
+                std::uint32_t c = 0;
+                for (std::size_t j = 0; j < merged.size() && c < cap; ++j) {
+                    if (j > 0 && merged[j].second == merged[j - 1].second) continue;
+                    row.push_back(merged[j].second);
+                    ++c;
+                }
+                count[s][i] = c;
             }
-            std::sort(merged.begin(), merged.end());
-            merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
-            std::uint32_t c = 0;
-            for (std::size_t j = 0; j < merged.size() && c < cap; ++j) {
-                if (j > 0 && merged[j].second == merged[j - 1].second) continue;
-                directed[i * cap + c++] = merged[j].second;
-            }
-            count[i] = c;
         }
     });
+    std::vector<Directed> out(m);
+    for (std::size_t s = 0; s < m; ++s) {
+        Directed& d = out[s];
+        d.offset.assign(n + 1, 0);
+        for (std::size_t i = 0; i < n; ++i) d.offset[i + 1] = d.offset[i] + count[s][i];
+        d.index.resize(d.offset[n]);
+        tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
+            std::vector<std::uint32_t>& row = rows[chunk * m + s];
+            std::copy(row.begin(), row.end(), d.index.begin() + d.offset[chunk * kChunk]);
+            std::vector<std::uint32_t>().swap(row);
+        });
+    }
+    return out;
+}
+
+/// The neighbourhood graph of directed lists: as they are, or made symmetric (rows sorted,
+/// duplicates removed).
+Neighbourhood graph_from(const Directed& directed, bool symmetric) {
+    const std::size_t n = directed.offset.size() - 1;
     Neighbourhood graph;
+    if (!symmetric) {
+        graph.offset = directed.offset;
+        graph.index = directed.index;
+        return graph;
+    }
     graph.offset.assign(n + 1, 0);
     for (std::size_t i = 0; i < n; ++i) {
-        graph.offset[i + 1] += count[i];
-        if (options.symmetric)
-            for (std::uint32_t c = 0; c < count[i]; ++c) graph.offset[directed[i * cap + c] + 1]++;
+        graph.offset[i + 1] += directed.offset[i + 1] - directed.offset[i];
+        for (std::uint32_t e = directed.offset[i]; e < directed.offset[i + 1]; ++e)
+            graph.offset[directed.index[e] + 1]++;
     }
     for (std::size_t i = 0; i < n; ++i) graph.offset[i + 1] += graph.offset[i];
     graph.index.resize(graph.offset[n]);
     std::vector<std::uint32_t> fill(graph.offset.begin(), graph.offset.end() - 1);
     for (std::size_t i = 0; i < n; ++i)
-        for (std::uint32_t c = 0; c < count[i]; ++c) {
-            const std::uint32_t j = directed[i * cap + c];
+        for (std::uint32_t e = directed.offset[i]; e < directed.offset[i + 1]; ++e) {
+            const std::uint32_t j = directed.index[e];
             graph.index[fill[i]++] = j;
-            if (options.symmetric) graph.index[fill[j]++] = static_cast<std::uint32_t>(i);
+            graph.index[fill[j]++] = static_cast<std::uint32_t>(i);
         }
-    if (!options.symmetric) return graph;
     // Sort and deduplicate each row, then compact.
     std::vector<std::uint32_t> unique_count(n);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
@@ -217,17 +280,27 @@ Neighbourhood build_neighbourhood(const std::vector<Eigen::Vector3d>& points, do
     }
     graph.offset[n] = start;
     graph.index.resize(write);
+    graph.index.shrink_to_fit();
     return graph;
 }
 
-SurfaceGradient compute_surface_gradient(const SurfacePoints& points, double spacing_m,
-                                         const std::vector<SensorView>& sensors,
-                                         const GradientOptions& options) {
+}  // namespace
+
+Neighbourhood build_neighbourhood(const std::vector<Eigen::Vector3d>& points, double spacing_m,
+                                  const NeighbourhoodOptions& options) {
     options.check();
-    check_points(points);
+    const internal::KdTree tree(points);
+    return graph_from(directed_lists(points, tree, spacing_m, {options}).front(),
+                      options.symmetric);
+}
+
+namespace {
+
+/// compute_surface_gradient over a given neighbourhood graph.
+SurfaceGradient gradient_over(const SurfacePoints& points, const Neighbourhood& graph,
+                              const std::vector<SensorView>& sensors,
+                              const GradientOptions& options) {
     const std::size_t n = points.size();
-    const Neighbourhood graph =
-        build_neighbourhood(points.position, spacing_m, options.neighbourhood);
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (const auto& p : points.position) centroid += p;
     centroid /= static_cast<double>(n);
@@ -293,6 +366,18 @@ SurfaceGradient compute_surface_gradient(const SurfacePoints& points, double spa
         }
     });
     return g;
+}
+
+}  // namespace
+
+SurfaceGradient compute_surface_gradient(const SurfacePoints& points, double spacing_m,
+                                         const std::vector<SensorView>& sensors,
+                                         const GradientOptions& options) {
+    options.check();
+    check_points(points);
+    return gradient_over(points,
+                         build_neighbourhood(points.position, spacing_m, options.neighbourhood),
+                         sensors, options);
 }
 
 PointCriteria point_criteria(const Eigen::Vector3d& p, const Eigen::Vector3d& e1,
@@ -416,11 +501,23 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
     r.spacing_m =
         options.spacing_m > 0 ? options.spacing_m : sampling::robust_spacing(points.position);
     RGBD_CHECK(r.spacing_m > 0, "holes: the points have zero spacing (all duplicates?)");
-    GradientOptions gradient_options;
-    r.gradient = compute_surface_gradient(points, r.spacing_m, sensors, gradient_options);
-    if (!report_progress(progress, 0.3)) throw AlgorithmError("cancelled");
-    const Neighbourhood graph =
-        build_neighbourhood(points.position, r.spacing_m, options.neighbourhood);
+    // One kd-tree for everything below, and the gradient's and the criteria's neighbourhoods
+    // from one pass of queries (the same graphs as build_neighbourhood's, one per option set).
+    const GradientOptions gradient_options;
+    gradient_options.check();
+    const internal::KdTree tree(points.position);
+    Neighbourhood graph;
+    {
+        std::vector<Directed> directed =
+            directed_lists(points.position, tree, r.spacing_m,
+                           {gradient_options.neighbourhood, options.neighbourhood});
+        if (!report_progress(progress, 0.2)) throw AlgorithmError("cancelled");
+        r.gradient =
+            gradient_over(points, graph_from(directed[0], gradient_options.neighbourhood.symmetric),
+                          sensors, gradient_options);
+        if (!report_progress(progress, 0.3)) throw AlgorithmError("cancelled");
+        graph = graph_from(directed[1], options.neighbourhood.symmetric);
+    }
     if (!report_progress(progress, 0.5)) throw AlgorithmError("cancelled");
     r.p_angle.resize(n);
     r.p_halfdisk.resize(n);
@@ -472,38 +569,64 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
     r.boundary.assign(n, 0);
     std::vector<std::uint32_t> component(n, kNone);
     std::vector<std::uint32_t> stack;
-    internal::KdTree tree(points.position);
     std::vector<Eigen::Vector3d> rim_positions;
     std::vector<std::uint32_t> rim_index;
+    std::vector<std::uint32_t> rim_of(n, kNone);  ///< position of a candidate in rim_positions
     for (std::size_t i = 0; i < n; ++i)
         if (candidate[i]) {
+            rim_of[i] = static_cast<std::uint32_t>(rim_positions.size());
             rim_positions.push_back(points.position[i]);
             rim_index.push_back(static_cast<std::uint32_t>(i));
         }
-    internal::KdTree rim_tree(rim_positions);
-    std::vector<std::pair<std::uint32_t, double>> linked;
+    // The rim points linked to each rim point, queried in parallel before the (sequential)
+    // search; each list in the tree's order, as the search would have queried it.
+    const internal::KdTree rim_tree(rim_positions);
+    const std::size_t rims = rim_positions.size();
+    std::vector<std::uint32_t> link_offset(rims + 1, 0), link_index;
+    {
+        constexpr std::size_t kChunk = 1024;
+        const std::size_t chunks = (rims + kChunk - 1) / kChunk;
+        std::vector<std::vector<std::uint32_t>> rows(chunks);
+        tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
+            std::vector<std::pair<std::uint32_t, double>> linked;
+            const std::size_t end = std::min(rims, (chunk + 1) * kChunk);
+            for (std::size_t k = chunk * kChunk; k < end; ++k) {
+                rim_tree.radius(rim_positions[k], options.link_distance * r.spacing_m, linked,
+                                /*sorted=*/false);
+                for (const auto& [j, d2] : linked) rows[chunk].push_back(j);
+                link_offset[k + 1] = static_cast<std::uint32_t>(linked.size());
+            }
+        });
+        for (std::size_t k = 0; k < rims; ++k) link_offset[k + 1] += link_offset[k];
+        link_index.resize(link_offset[rims]);
+        tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
+            std::copy(rows[chunk].begin(), rows[chunk].end(),
+                      link_index.begin() + link_offset[chunk * kChunk]);
+        });
+    }
+    std::vector<BoundaryLoop> found;
     for (std::size_t seed = 0; seed < n; ++seed) {
         if (!candidate[seed] || component[seed] != kNone) continue;
         BoundaryLoop loop;
         stack.assign(1, static_cast<std::uint32_t>(seed));
-        component[seed] = static_cast<std::uint32_t>(r.loops.size());
+        const auto id = static_cast<std::uint32_t>(found.size());
+        component[seed] = id;
         while (!stack.empty()) {
             const std::uint32_t i = stack.back();
             stack.pop_back();
             loop.points.push_back(i);
-            rim_tree.radius(points.position[i], options.link_distance * r.spacing_m, linked,
-                            /*sorted=*/false);
-            for (const auto& [k, d2] : linked) {
-                const std::uint32_t j = rim_index[k];
+            const std::uint32_t k = rim_of[i];
+            for (std::uint32_t e = link_offset[k]; e < link_offset[k + 1]; ++e) {
+                const std::uint32_t j = rim_index[link_index[e]];
                 if (component[j] == kNone) {
-                    component[j] = component[seed];
+                    component[j] = id;
                     stack.push_back(j);
                 }
             }
             for (std::uint32_t e = graph.offset[i]; e < graph.offset[i + 1]; ++e) {
                 const std::uint32_t j = graph.index[e];
                 if (candidate[j] && component[j] == kNone) {
-                    component[j] = component[seed];
+                    component[j] = id;
                     stack.push_back(j);
                 }
             }
@@ -512,6 +635,11 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
             for (auto i : loop.points) component[i] = kNone - 1;  // noise, never revisited
             continue;
         }
+        found.push_back(std::move(loop));
+    }
+    // Each loop's plane, size and visibility, the loops in parallel (independent).
+    tbb::parallel_for(std::size_t(0), found.size(), [&](std::size_t l) {
+        BoundaryLoop& loop = found[l];
         std::sort(loop.points.begin(), loop.points.end());
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
         for (auto i : loop.points) mean += points.position[i];
@@ -550,6 +678,8 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
                         : 0;
             loop.kind = loop.seen_by > 0 ? HoleKind::kOpening : HoleKind::kOcclusion;
         }
+    });
+    for (auto& loop : found) {
         for (auto i : loop.points) r.boundary[i] = 1;
         r.loops.push_back(std::move(loop));
     }
