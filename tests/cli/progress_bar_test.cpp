@@ -43,27 +43,32 @@ std::vector<std::string> lines(const std::string& text) {
 void sleep_s(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
 
 TEST(ProgressBar, LogModeHeartbeatWhileTheAlgorithmIsSilent) {
+    // Times are checked loosely (the test machine may be loaded): a line at least every two
+    // heartbeats, in order, with the percentage that was reported.
+    constexpr double kBeat = 0.5;
     CaptureCerr capture;
     {
-        ProgressBar bar("tool: stage", Mode::kLog, /*heartbeat_s=*/0.25);
+        ProgressBar bar("tool: stage", Mode::kLog, kBeat);
         bar.update(0.9);
         sleep_s(0.2);
         bar.update(0.49);  // a part restarting its own fraction: must not show 49%
-        sleep_s(1.9);      // no report at all for almost two seconds
+        sleep_s(3.3);      // no report at all for over three seconds
     }
     const auto got = lines(capture.text());
-    ASSERT_GE(got.size(), 5u) << capture.text();
-    EXPECT_NE(got.front().find("tool: stage: started, 90% after 1.0 s"), std::string::npos)
-        << got.front();
-    EXPECT_NE(got.back().find("tool: stage: done in 2.1 s"), std::string::npos) << got.back();
+    ASSERT_GE(got.size(), 4u) << capture.text();
+    const std::regex started(R"(tool: stage: started, 90% after (1\.[0-9]) s)");
     const std::regex beat(R"(tool: stage: (?:started, )?(\d+)% after ([0-9.]+) s)");
+    const std::regex done(R"(tool: stage: done in ([0-9.]+) s)");
+    std::smatch m;
+    EXPECT_TRUE(std::regex_match(got.front(), m, started)) << got.front();
+    ASSERT_TRUE(std::regex_match(got.back(), m, done)) << got.back();
+    EXPECT_GE(std::stod(m[1]), 3.5);
     double last_t = 0;
     for (std::size_t i = 0; i + 1 < got.size(); ++i) {
-        std::smatch m;
         ASSERT_TRUE(std::regex_match(got[i], m, beat)) << got[i];
         EXPECT_EQ(std::stoi(m[1]), 90) << "percent went backwards: " << got[i];
         const double t = std::stod(m[2]);
-        if (i > 0) EXPECT_LE(t - last_t, 0.25 + 0.15) << "no line for too long: " << got[i];
+        if (i > 0) EXPECT_LE(t - last_t, 2 * kBeat) << "no line for too long: " << got[i];
         EXPECT_GT(t, last_t);
         last_t = t;
     }
@@ -83,14 +88,14 @@ TEST(ProgressBar, LogModeStageEndedByAnErrorSaysStopped) {
     CaptureCerr capture;
     try {
         ProgressBar bar("tool: failing", Mode::kLog, 10.0);
-        sleep_s(1.2);
+        sleep_s(1.5);
         throw std::runtime_error("boom");
     } catch (const std::runtime_error&) {
     }
     const auto got = lines(capture.text());
     ASSERT_EQ(got.size(), 2u) << capture.text();
-    EXPECT_NE(got[0].find("tool: failing: started, 0% after 1.0 s"), std::string::npos);
-    EXPECT_NE(got[1].find("tool: failing: stopped after 1."), std::string::npos) << got[1];
+    EXPECT_NE(got[0].find("tool: failing: started, 0% after 1."), std::string::npos);
+    EXPECT_NE(got[1].find("tool: failing: stopped after "), std::string::npos) << got[1];
 }
 
 TEST(ProgressBar, TerminalBarNeverGoesBackwards) {
