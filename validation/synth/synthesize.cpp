@@ -61,6 +61,18 @@ cv::Mat to_depth16(const cv::Mat& depth_m, double depth_scale) {
     return out;
 }
 
+/// Scales a camera's pixel grid by `f` per side (intrinsics in pixels alike, pixel centres
+/// kept: c' = (c + 0.5) f - 0.5).
+void scale_camera(PinholeIntrinsics& c, double f) {
+    if (f == 1.0) return;
+    c.width = std::max(1, static_cast<int>(std::lround(c.width * f)));
+    c.height = std::max(1, static_cast<int>(std::lround(c.height * f)));
+    c.fx *= f;
+    c.fy *= f;
+    c.cx = (c.cx + 0.5) * f - 0.5;
+    c.cy = (c.cy + 0.5) * f - 0.5;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------- options
@@ -84,6 +96,8 @@ void SynthOptions::check() const {
                "axis shift must be in [0, 1000] mm");
     RGBD_CHECK(std::isfinite(angle_noise_deg) && angle_noise_deg >= 0 && angle_noise_deg <= 45,
                "angle noise must be in [0, 45] deg");
+    RGBD_CHECK(std::isfinite(resolution_scale) && resolution_scale >= 0.1 && resolution_scale <= 4,
+               "resolution scale must be in [0.1, 4]");
     RGBD_CHECK(std::isfinite(height_m) && height_m > 0.001 && height_m <= 100,
                "object height must be in (0.001, 100] m");
     noise.check();
@@ -112,6 +126,7 @@ nlohmann::json SynthOptions::to_json() const {
             {"axis_tilt_deg", axis_tilt_deg},
             {"axis_shift_mm", axis_shift_mm},
             {"angle_noise_deg", angle_noise_deg},
+            {"resolution_scale", resolution_scale},
             {"height_m", height_m},
             {"up", up == UpAxis::kY ? "y" : "z"},
             {"calib_error_deg", calib_error_deg},
@@ -261,6 +276,8 @@ SyntheticRig make_rig(const SynthOptions& o) {
         for (int i = 0; i < o.sensors; ++i) {
             SyntheticSensor s;
             s.spec = kinect_v2_spec("k2-" + std::to_string(i));
+            scale_camera(s.spec.depth, o.resolution_scale);
+            scale_camera(s.spec.color, o.resolution_scale);
             s.traits = traits_of(s.spec);
             const double phi = 2.0 * std::numbers::pi * i / o.sensors;
             const Eigen::Vector3d pos(o.ring_radius_m * std::cos(phi),
@@ -287,6 +304,8 @@ SyntheticRig make_rig(const SynthOptions& o) {
     rig.frames_per_sensor = o.turntable_stops * o.frames;
     SyntheticSensor s;
     s.spec = sr300_spec("sr300-0");
+    scale_camera(s.spec.depth, o.resolution_scale);
+    scale_camera(s.spec.color, o.resolution_scale);
     s.traits = traits_of(s.spec);
     const double d = o.turntable_distance_m;
     const Pose camera =

@@ -46,6 +46,8 @@ struct SynthOptions {
     double axis_tilt_deg = 1.5;          ///< turntable truth: tilt of the true rotation axis
     double axis_shift_mm = 15.0;         ///< turntable truth: horizontal shift of the axis
     double angle_noise_deg = 0.2;        ///< turntable truth: std of each stop's angle error
+    double resolution_scale = 1.0;       ///< multiplies the sensors' pixel counts per side
+                                         ///< (intrinsics scaled alike; < 1 for fast tests)
     double height_m = 0.45;              ///< the mesh is scaled to this height (bbox, up axis)
     UpAxis up = UpAxis::kY;              ///< up axis of the input mesh
     NoiseOptions noise;                  ///< sensor noise (NoiseOptions::none() = clean)
