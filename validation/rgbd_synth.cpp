@@ -107,6 +107,8 @@ int main(int argc, char** argv) {
              ->value_name("M"), "turntable truth: horizontal offset of the true axis, mm")
         ("angle-noise-deg", po::value(&options.angle_noise_deg)->default_value(0.2)
              ->value_name("D"), "turntable truth: std of each stop's angle error, degrees")
+        ("stand", po::bool_switch(&options.stand),
+         "turntable: render the platter the object stands on (dark disc, not in gt/mesh.ply)")
         ("resolution-scale", po::value(&options.resolution_scale)->default_value(1.0, "1")
              ->value_name("F"), "multiply the depth and colour pixel counts per side by F "
          "(0.1-4; e.g. 0.5 for fast tests)")
