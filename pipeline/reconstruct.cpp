@@ -97,6 +97,7 @@ void ReconstructOptions::check() const {
                        optional_stages().end(),
                    "unknown stage '" + s + "' (valid: distance, upsample, density, fill)");
     RGBD_CHECK(extraction.crop_radius_m >= 0, "crop_radius_m must be >= 0");
+    stand_options.check();
     upsample.check();
     mesh.check();
 }
@@ -212,6 +213,36 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
             hooks.warn("view " + std::to_string(v["view"].get<int>()) + " (" +
                        v["sensor"].get<std::string>() + "): registration " +
                        v["verdict"].get<std::string>());
+
+    // 4b. the stand the object stands on (turntable captures: one sensor, many views).
+    bool one_sensor = views.size() >= 3;
+    for (const auto& v : views) one_sensor = one_sensor && v.view.sensor == views[0].view.sensor;
+    const bool stand = options.stand == ReconstructOptions::Stand::kRemove ||
+                       (options.stand == ReconstructOptions::Stand::kAuto && one_sensor);
+    if (stand) {
+        watch = Stopwatch();
+        const std::size_t in = count_points(views);
+        {
+            StageScope scope(hooks, "stand");
+            report["stand"] = segment::remove_stand(views, options.stand_options, scope.progress());
+        }
+        if (report["stand"].contains("note") && hooks.info)
+            hooks.info(report["stand"]["note"].get<std::string>());
+        add_stage("stand", watch.seconds(), in, count_points(views));
+    }
+    // The views (stops) used, with their registration verdicts.
+    {
+        Report used = Report::array();
+        const Report& align_views = report["align"]["views"];
+        for (std::size_t i = 0; i < views.size(); ++i) {
+            Report u = {{"view", views[i].view.id}, {"sensor", views[i].view.sensor}};
+            if (views[i].view.frame_index) u["frame_index"] = *views[i].view.frame_index;
+            if (i < align_views.size() && align_views[i].contains("verdict"))
+                u["verdict"] = align_views[i]["verdict"];
+            used.push_back(std::move(u));
+        }
+        report["views_used"] = used;
+    }
 
     // 5. density-based cleaning over the aligned views.
     if (!skip.count("density")) {
