@@ -71,6 +71,10 @@ TEST(Turntable, PlatterRemovedAxisCorrectedClosedAndAccurate) {
     for (auto v : result.vertices()) result_min = std::min(result_min, result.point(v).z());
     EXPECT_GT(result_min, truth_min - 0.002) << "mesh reaches below the platter's top";
 
+    // Close-up pictures of the fine detail in the report.
+    for (const char* pic : {"result_closeup.png", "result_closeup_error.png"})
+        EXPECT_TRUE(fs::exists(work_dir() / "tt_report" / pic)) << pic;
+
     // The stops used: all 12, in frame order, with their registration verdicts.
     ASSERT_EQ(m["views_used"].size(), 12u);
     for (std::size_t i = 0; i < 12; ++i) {
