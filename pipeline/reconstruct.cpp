@@ -219,12 +219,14 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
     for (const auto& v : views) one_sensor = one_sensor && v.view.sensor == views[0].view.sensor;
     const bool stand = options.stand == ReconstructOptions::Stand::kRemove ||
                        (options.stand == ReconstructOptions::Stand::kAuto && one_sensor);
+    std::optional<segment::SupportPlane> stand_plane;
     if (stand) {
         watch = Stopwatch();
         const std::size_t in = count_points(views);
         {
             StageScope scope(hooks, "stand");
-            report["stand"] = segment::remove_stand(views, options.stand_options, scope.progress());
+            report["stand"] =
+                segment::remove_stand(views, options.stand_options, scope.progress(), &stand_plane);
         }
         if (report["stand"].contains("note") && hooks.info)
             hooks.info(report["stand"]["note"].get<std::string>());
@@ -283,6 +285,14 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
         report["fill"] = fill_report;
         add_stage("fill", watch.seconds(), in, in + count, {{"points_added", count}});
         views_after(4, "fill", views);
+    }
+
+    // The object's walls carried down to the stand's plane (cut margin_m above it), so that the
+    // closed mesh's flat base lies where the object stood.
+    if (stand_plane) {
+        PointCloud contact = segment::contact_points(views, *stand_plane, options.stand_options);
+        report["stand"]["contact_points"] = contact.size();
+        if (!contact.empty()) views.push_back(std::move(contact));
     }
 
     // The aligned points, for the mesh quality and pictures.

@@ -69,6 +69,8 @@ void StandOptions::check() const {
                "stand: min support must be in (0, 1)");
     RGBD_CHECK(std::isfinite(min_above) && min_above >= 0 && min_above < 1,
                "stand: min above must be in [0, 1)");
+    RGBD_CHECK(std::isfinite(contact_band_m) && contact_band_m >= 0 && contact_band_m < 1,
+               "stand: contact band must be in [0, 1) m");
     RGBD_CHECK(iterations >= 1 && max_samples >= 3, "stand: iterations >= 1, samples >= 3");
 }
 
@@ -162,9 +164,52 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     return best;
 }
 
+PointCloud contact_points(const std::vector<PointCloud>& views, const SupportPlane& plane,
+                          const StandOptions& options) {
+    options.check();
+    PointCloud out;
+    int max_id = -1;
+    for (const auto& v : views) max_id = std::max(max_id, v.view.id);
+    out.view.id = max_id + 1;
+    out.view.sensor = "rgbd-stand";
+    out.view.frame = ViewFrame::kWorld;
+    out.points.add_normal_map();
+    const auto colors = out.add_colors();
+    const auto synthetic = out.add_flag(prop::kSynthetic);
+    const double cos60 = 0.5;
+    for (const auto& v : views) {
+        const auto g = denoise::detail::gather(v);
+        const auto pts = world_points(v, g);
+        const bool has_normals = v.points.has_normal_map();
+        const bool has_colors = v.has_colors();
+        Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
+        if (v.view.frame == ViewFrame::kSensor) rot = v.view.world_from_sensor->linear();
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            const double h = plane.normal.dot(pts[i]) + plane.offset;
+            if (h < options.margin_m || h >= options.margin_m + options.contact_band_m) continue;
+            Eigen::Vector3d n = Eigen::Vector3d::Zero();
+            if (has_normals) {
+                const Vector_3 nv = v.points.normal(g.ids[i]);
+                n = rot * Eigen::Vector3d(nv.x(), nv.y(), nv.z());
+                if (n.norm() > 0) n.normalize();
+                if (std::abs(n.dot(plane.normal)) > cos60) continue;  // not a wall
+            }
+            for (const double f : {0.0, 1.0 / 3.0, 2.0 / 3.0}) {
+                const Eigen::Vector3d q = pts[i] - (h - f * options.margin_m) * plane.normal;
+                const auto idx = *out.points.insert(to_point(q));
+                out.points.normal(idx) = Vector_3(n.x(), n.y(), n.z());
+                if (has_colors) colors.set(idx, v.colors().get(g.ids[i]));
+                synthetic[idx] = 1;
+            }
+        }
+    }
+    return out;
+}
+
 Report remove_stand(std::vector<PointCloud>& views, const StandOptions& options,
-                    const Progress& progress) {
+                    const Progress& progress, std::optional<SupportPlane>* plane_out) {
     const Stopwatch watch;
+    if (plane_out) plane_out->reset();
     Report report = {{"found", false}, {"removed", 0}};
     const auto up = cameras_up(views);
     if (!up) {
@@ -181,6 +226,7 @@ Report remove_stand(std::vector<PointCloud>& views, const StandOptions& options,
         return report;
     }
     report["found"] = true;
+    if (plane_out) *plane_out = plane;
     report["plane"] = {{"normal", {plane->normal.x(), plane->normal.y(), plane->normal.z()}},
                        {"offset_m", plane->offset},
                        {"inliers", plane->inliers}};
