@@ -108,7 +108,8 @@ int main(int argc, char** argv) {
         "noise removal per view (rgbd-clean --distance), colour-guided super-resolution "
         "(rgbd-upsample, 8 neighbours; only for sensors whose colour camera has more pixels than "
         "the depth camera), multi-view registration from the rig's poses (rgbd-align), adaptive "
-        "density-based noise removal over the aligned views (rgbd-clean --density), hole "
+        "density-based noise removal over the aligned views (rgbd-clean --density; before it, on "
+        "turntable captures, the stand the object stands on is removed: --stand), hole "
         "filling (rgbd-fill: small holes, head top, large holes, only where no sensor saw the "
         "surface) and surface reconstruction (rgbd-mesh --watertight: a closed coloured mesh; "
         "--open keeps unseen holes). The same options through the pipe give the same mesh. "
@@ -142,6 +143,9 @@ int main(int argc, char** argv) {
             "object extraction radius around the sensors' common centre (0 = no crop)")(
             "method", cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
             "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
+            "stand", cli::po::value<std::string>()->default_value("auto")->value_name("MODE"),
+            "the stand (turntable platter) below the object, after the alignment: auto (remove "
+            "it on single-sensor captures of several views: turntable), remove or keep")(
             "open",
             "keep the holes no sensor saw open (default: closed, as rgbd-mesh "
             "--watertight)")(
@@ -184,6 +188,13 @@ int main(int argc, char** argv) {
                 throw cli::UsageError(std::string("--noise-model: ") + e.what());
             }
         }
+        const std::string stand = ctx.get<std::string>("stand");
+        if (stand == "remove")
+            options.stand = pipeline::ReconstructOptions::Stand::kRemove;
+        else if (stand == "keep")
+            options.stand = pipeline::ReconstructOptions::Stand::kKeep;
+        else if (stand != "auto")
+            throw cli::UsageError("--stand must be auto, remove or keep, not '" + stand + "'");
         options.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
         if (!(options.extraction.crop_radius_m >= 0))
             throw cli::UsageError("--crop-radius-m must be >= 0");

@@ -97,6 +97,7 @@ void ReconstructOptions::check() const {
                        optional_stages().end(),
                    "unknown stage '" + s + "' (valid: distance, upsample, density, fill)");
     RGBD_CHECK(extraction.crop_radius_m >= 0, "crop_radius_m must be >= 0");
+    stand_options.check();
     upsample.check();
     mesh.check();
 }
@@ -213,6 +214,38 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
                        v["sensor"].get<std::string>() + "): registration " +
                        v["verdict"].get<std::string>());
 
+    // 4b. the stand the object stands on (turntable captures: one sensor, many views).
+    bool one_sensor = views.size() >= 3;
+    for (const auto& v : views) one_sensor = one_sensor && v.view.sensor == views[0].view.sensor;
+    const bool stand = options.stand == ReconstructOptions::Stand::kRemove ||
+                       (options.stand == ReconstructOptions::Stand::kAuto && one_sensor);
+    std::optional<segment::SupportPlane> stand_plane;
+    if (stand) {
+        watch = Stopwatch();
+        const std::size_t in = count_points(views);
+        {
+            StageScope scope(hooks, "stand");
+            report["stand"] =
+                segment::remove_stand(views, options.stand_options, scope.progress(), &stand_plane);
+        }
+        if (report["stand"].contains("note") && hooks.info)
+            hooks.info(report["stand"]["note"].get<std::string>());
+        add_stage("stand", watch.seconds(), in, count_points(views));
+    }
+    // The views (stops) used, with their registration verdicts.
+    {
+        Report used = Report::array();
+        const Report& align_views = report["align"]["views"];
+        for (std::size_t i = 0; i < views.size(); ++i) {
+            Report u = {{"view", views[i].view.id}, {"sensor", views[i].view.sensor}};
+            if (views[i].view.frame_index) u["frame_index"] = *views[i].view.frame_index;
+            if (i < align_views.size() && align_views[i].contains("verdict"))
+                u["verdict"] = align_views[i]["verdict"];
+            used.push_back(std::move(u));
+        }
+        report["views_used"] = used;
+    }
+
     // 5. density-based cleaning over the aligned views.
     if (!skip.count("density")) {
         watch = Stopwatch();
@@ -252,6 +285,14 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
         report["fill"] = fill_report;
         add_stage("fill", watch.seconds(), in, in + count, {{"points_added", count}});
         views_after(4, "fill", views);
+    }
+
+    // The object's walls carried down to the stand's plane (cut margin_m above it), so that the
+    // closed mesh's flat base lies where the object stood.
+    if (stand_plane) {
+        PointCloud contact = segment::contact_points(views, *stand_plane, options.stand_options);
+        report["stand"]["contact_points"] = contact.size();
+        if (!contact.empty()) views.push_back(std::move(contact));
     }
 
     // The aligned points, for the mesh quality and pictures.

@@ -18,6 +18,7 @@
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 #include "algorithms/registration/icp.hpp"
 #include "algorithms/render/picture.hpp"
+#include "algorithms/segment/stand_removal.hpp"
 #include "algorithms/upsample/upsample_view.hpp"
 #include "io/capture_folder.hpp"
 #include "pipeline/fill_stage.hpp"
@@ -54,6 +55,11 @@ struct ReconstructOptions {
     upsample::UpsampleOptions upsample;
     registration::MultiViewOptions align;
     denoise::DensityOptions density;  ///< noise_model is set from `noise_model`
+    /// The stand (turntable platter) below the object, removed after the alignment:
+    /// auto = on single-sensor captures of several views (turntable), remove = always,
+    /// keep = never (algorithms/segment/stand_removal.hpp).
+    enum class Stand { kAuto, kRemove, kKeep } stand = Stand::kAuto;
+    segment::StandOptions stand_options;
     FillStageOptions fill;
     reconstruction::ReconstructionOptions mesh;  ///< default: watertight as rgbd-mesh --watertight
     std::uint64_t seed = 0;                      ///< density cleaning's sampling seed

@@ -42,7 +42,9 @@ void print_help(const po::options_description& options) {
            "Renders a synthetic RGB-D capture of MESH (.off, .obj or .ply) with ground truth:\n"
            "a ring of Kinect v2 sensors (512x424 depth, 1920x1080 colour, 52 mm apart) looking\n"
            "at the object, or one SR300-like sensor in front of a turntable with 12 stops of\n"
-           "30 degrees. Depth is rasterised exactly, colour comes from a procedural solid\n"
+           "30 degrees (--stops N), whose true axis is tilted and shifted from the nominal one\n"
+           "that frames.csv's poses assume (--axis-tilt-deg, --axis-shift-mm). Depth is rasterised "
+           "exactly, colour comes from a procedural solid\n"
            "texture seen by the colour camera itself. Noise (default): Kinect v2 axial\n"
            "sigma_z(z, theta), 0.8 px edge jitter, 50% flying pixels at discontinuities,\n"
            "grazing dropouts 70-85 deg, 0.5% dropouts, 0.5% outliers, 1 mm quantisation,\n"
@@ -64,6 +66,7 @@ void print_help(const po::options_description& options) {
         << "\nExample:\n"
            "  rgbd-synth /tmp/cgaldata/data/meshes/bunny00.off -o cap --up y --height-m 0.45\n"
            "  rgbd-cloud cap --frameset 0 | rgbd-clean --distance | rgbd-align ...\n"
+           "  rgbd-synth max-planck.obj -o tt --rig turntable --stops 24 --height-m 0.25\n"
            "  rgbd-synth --target charuco -o board --calib-error-deg 10 --calib-error-mm 100\n"
            "  rgbd-calibrate board -o rig.json\n";
 }
@@ -75,7 +78,7 @@ int main(int argc, char** argv) {
     std::string mesh_path, out_dir, rig = "ring", up = "y", noise = "default", target = "object";
     std::string board_path;
     rgbd::synth::BoardMotion motion;
-    int verbosity = 0;
+    int verbosity = 0, stops = 12;
     bool quiet = false;
     po::options_description visible("Options");
     // clang-format off
@@ -96,6 +99,19 @@ int main(int argc, char** argv) {
              ->value_name("D"), "rotation error of every rig.json pose but sensor 0, degrees")
         ("calib-error-mm", po::value(&options.calib_error_mm)->default_value(15.0, "15")
              ->value_name("M"), "translation error of every rig.json pose but sensor 0, mm")
+        ("stops", po::value(&stops)->value_name("N"),
+         "turntable: number of stops, 360/N degrees apart (default 12)")
+        ("axis-tilt-deg", po::value(&options.axis_tilt_deg)->default_value(1.5)->value_name("D"),
+         "turntable truth: tilt of the true rotation axis from the nominal one, degrees")
+        ("axis-shift-mm", po::value(&options.axis_shift_mm)->default_value(15.0, "15")
+             ->value_name("M"), "turntable truth: horizontal offset of the true axis, mm")
+        ("angle-noise-deg", po::value(&options.angle_noise_deg)->default_value(0.2)
+             ->value_name("D"), "turntable truth: std of each stop's angle error, degrees")
+        ("stand", po::bool_switch(&options.stand),
+         "turntable: render the platter the object stands on (dark disc, not in gt/mesh.ply)")
+        ("resolution-scale", po::value(&options.resolution_scale)->default_value(1.0, "1")
+             ->value_name("F"), "multiply the depth and colour pixel counts per side by F "
+         "(0.1-4; e.g. 0.5 for fast tests)")
         ("frames", po::value(&options.frames)->default_value(1)->value_name("N"),
          "frame sets (turntable: frames per stop); static scene, fresh noise each")
         ("seed", po::value(&options.seed)->default_value(1)->value_name("S"),
@@ -158,6 +174,14 @@ int main(int argc, char** argv) {
                 if (options.rig != rgbd::synth::RigKind::kRing)
                     throw rgbd::InputError("--target charuco needs --rig ring");
                 motion.check();
+            }
+            if (vm.count("stops")) {
+                if (options.rig != rgbd::synth::RigKind::kTurntable)
+                    throw rgbd::InputError("--stops needs --rig turntable");
+                if (stops < 1 || stops > 3600)
+                    throw rgbd::InputError("--stops must be in [1, 3600]");
+                options.turntable_stops = stops;
+                options.turntable_step_deg = 360.0 / stops;
             }
             options.check();
         } catch (const rgbd::InputError& e) {

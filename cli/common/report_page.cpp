@@ -235,6 +235,24 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     if (baseline)
         images.push_back({"baseline_error.png", in.baseline_name + ": " + against + " (mm)",
                           render::render_picture(*baseline, camera, heat).image});
+    // Close-ups of the result's top quarter along up (a head, a face: the fine detail users
+    // judge), same colours and heat range, camera fitted to those vertices only.
+    if (result && result->vertices.size() >= 100) {
+        std::vector<double> heights;
+        heights.reserve(result->vertices.size());
+        for (const auto& v : result->vertices) heights.push_back(v.dot(orientation.up));
+        std::vector<double> sorted = heights;
+        const auto k = static_cast<std::ptrdiff_t>(0.75 * (sorted.size() - 1));
+        std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+        std::vector<Eigen::Vector3d> top;
+        for (std::size_t i = 0; i < heights.size(); ++i)
+            if (heights[i] >= sorted[k]) top.push_back(result->vertices[i]);
+        const render::Camera close = render::fit_camera(top, orientation, in.camera);
+        images.push_back({"result_closeup.png", "result, close-up of the top quarter",
+                          render::render_picture(*result, close, plain).image});
+        images.push_back({"result_closeup_error.png", "result, close-up: " + against + " (mm)",
+                          render::render_picture(*result, close, heat).image});
+    }
     return against;
 }
 

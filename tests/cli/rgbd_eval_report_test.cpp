@@ -160,7 +160,8 @@ TEST(RgbdEvalReport, PageWithPicturesOpensInChromium) {
             "--report rep --report-size 320x240 -o e.json" +
             std::string(baseline ? " --baseline screened-poisson --baseline-depths 6" : ""));
     ASSERT_EQ(r.code, 0) << r.err;
-    std::vector<std::string> pictures = {"input.png", "result.png", "result_error.png"};
+    std::vector<std::string> pictures = {"input.png", "result.png", "result_error.png",
+                                         "result_closeup.png", "result_closeup_error.png"};
     if (baseline) {
         pictures.push_back("baseline.png");
         pictures.push_back("baseline_error.png");

@@ -61,6 +61,27 @@ cv::Mat to_depth16(const cv::Mat& depth_m, double depth_scale) {
     return out;
 }
 
+/// The turntable platter's colour (dark grey rubber).
+constexpr Rgb kPlatterColor{38, 38, 42};
+
+/// Triangles of `scene` that belong to the object (the first ones; the platter follows).
+int scene_object_triangles(const RenderScene& scene, const PlacedMesh& placed) {
+    return placed.object_triangles >= 0 ? placed.object_triangles
+                                        : static_cast<int>(scene.triangles().size());
+}
+
+/// Scales a camera's pixel grid by `f` per side (intrinsics in pixels alike, pixel centres
+/// kept: c' = (c + 0.5) f - 0.5).
+void scale_camera(PinholeIntrinsics& c, double f) {
+    if (f == 1.0) return;
+    c.width = std::max(1, static_cast<int>(std::lround(c.width * f)));
+    c.height = std::max(1, static_cast<int>(std::lround(c.height * f)));
+    c.fx *= f;
+    c.fy *= f;
+    c.cx = (c.cx + 0.5) * f - 0.5;
+    c.cy = (c.cy + 0.5) * f - 0.5;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------- options
@@ -84,6 +105,9 @@ void SynthOptions::check() const {
                "axis shift must be in [0, 1000] mm");
     RGBD_CHECK(std::isfinite(angle_noise_deg) && angle_noise_deg >= 0 && angle_noise_deg <= 45,
                "angle noise must be in [0, 45] deg");
+    RGBD_CHECK(!stand || rig == RigKind::kTurntable, "a stand needs the turntable rig");
+    RGBD_CHECK(std::isfinite(resolution_scale) && resolution_scale >= 0.1 && resolution_scale <= 4,
+               "resolution scale must be in [0.1, 4]");
     RGBD_CHECK(std::isfinite(height_m) && height_m > 0.001 && height_m <= 100,
                "object height must be in (0.001, 100] m");
     noise.check();
@@ -112,6 +136,8 @@ nlohmann::json SynthOptions::to_json() const {
             {"axis_tilt_deg", axis_tilt_deg},
             {"axis_shift_mm", axis_shift_mm},
             {"angle_noise_deg", angle_noise_deg},
+            {"resolution_scale", resolution_scale},
+            {"stand", stand},
             {"height_m", height_m},
             {"up", up == UpAxis::kY ? "y" : "z"},
             {"calib_error_deg", calib_error_deg},
@@ -261,6 +287,8 @@ SyntheticRig make_rig(const SynthOptions& o) {
         for (int i = 0; i < o.sensors; ++i) {
             SyntheticSensor s;
             s.spec = kinect_v2_spec("k2-" + std::to_string(i));
+            scale_camera(s.spec.depth, o.resolution_scale);
+            scale_camera(s.spec.color, o.resolution_scale);
             s.traits = traits_of(s.spec);
             const double phi = 2.0 * std::numbers::pi * i / o.sensors;
             const Eigen::Vector3d pos(o.ring_radius_m * std::cos(phi),
@@ -287,6 +315,8 @@ SyntheticRig make_rig(const SynthOptions& o) {
     rig.frames_per_sensor = o.turntable_stops * o.frames;
     SyntheticSensor s;
     s.spec = sr300_spec("sr300-0");
+    scale_camera(s.spec.depth, o.resolution_scale);
+    scale_camera(s.spec.color, o.resolution_scale);
     s.traits = traits_of(s.spec);
     const double d = o.turntable_distance_m;
     const Pose camera =
@@ -331,7 +361,9 @@ RenderedView render_view(const RenderScene& scene, const PlacedMesh& placed,
     const TextureOptions texture = options.texture;
     v.color = render_color(
         scene, spec.color, world_from_color,
-        [&placed, texture](const Eigen::Vector3d& p_world, int) {
+        [&placed, texture, object_triangles = scene_object_triangles(scene, placed)](
+            const Eigen::Vector3d& p_world, int triangle) {
+            if (triangle >= object_triangles) return kPlatterColor;
             return texture_color(placed.object_from_world(p_world), texture);
         },
         options.background);
@@ -348,14 +380,46 @@ nlohmann::json pose_to_json(const Pose& pose) {
 
 // ---------------------------------------------------------------- capture
 
+RenderScene scene_with_platter(PlacedMesh& placed) {
+    const RenderScene object(placed.mesh);
+    std::vector<Eigen::Vector3d> v = object.vertices();
+    std::vector<std::array<int, 3>> t = object.triangles();
+    placed.object_triangles = static_cast<int>(t.size());
+    double z_min = std::numeric_limits<double>::infinity(), r_max = 0;
+    for (const auto& p : v) {
+        z_min = std::min(z_min, p.z());
+        r_max = std::max(r_max, (p - placed.centre).head<2>().norm());
+    }
+    const double radius = 1.25 * r_max + 0.01, thickness = 0.02;
+    constexpr int kSides = 96;
+    const int base = static_cast<int>(v.size());
+    const Eigen::Vector3d c(placed.centre.x(), placed.centre.y(), z_min);
+    v.push_back(c);                                     // top centre
+    v.push_back(c - Eigen::Vector3d(0, 0, thickness));  // bottom centre
+    for (int k = 0; k < kSides; ++k) {
+        const double a = 2.0 * std::numbers::pi * k / kSides;
+        const Eigen::Vector3d r(radius * std::cos(a), radius * std::sin(a), 0);
+        v.push_back(c + r);
+        v.push_back(c + r - Eigen::Vector3d(0, 0, thickness));
+    }
+    const auto top = [&](int k) { return base + 2 + 2 * (k % kSides); };
+    for (int k = 0; k < kSides; ++k) {
+        t.push_back({base, top(k), top(k + 1)});              // top face, normal +z
+        t.push_back({base + 1, top(k + 1) + 1, top(k) + 1});  // bottom face
+        t.push_back({top(k), top(k) + 1, top(k + 1) + 1});    // rim
+        t.push_back({top(k), top(k + 1) + 1, top(k + 1)});
+    }
+    return RenderScene(std::move(v), std::move(t));
+}
+
 namespace {
 
 void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o,
                    const Progress& progress, SynthSummary& summary) {
     const Stopwatch total;
     const SyntheticRig rig = make_rig(o);
-    const PlacedMesh placed = place_mesh(mesh, o.height_m, o.up, rig.object_centre);
-    const RenderScene scene(placed.mesh);
+    PlacedMesh placed = place_mesh(mesh, o.height_m, o.up, rig.object_centre);
+    const RenderScene scene = o.stand ? scene_with_platter(placed) : RenderScene(placed.mesh);
 
     io::Rig rig_json;
     for (const auto& s : rig.sensors) rig_json.sensors.push_back(s.spec);

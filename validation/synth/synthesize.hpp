@@ -46,6 +46,10 @@ struct SynthOptions {
     double axis_tilt_deg = 1.5;          ///< turntable truth: tilt of the true rotation axis
     double axis_shift_mm = 15.0;         ///< turntable truth: horizontal shift of the axis
     double angle_noise_deg = 0.2;        ///< turntable truth: std of each stop's angle error
+    bool stand = false;                  ///< turntable: render the platter the object stands on
+                                         ///< (a dark disc, not in gt/mesh.ply)
+    double resolution_scale = 1.0;       ///< multiplies the sensors' pixel counts per side
+                                         ///< (intrinsics scaled alike; < 1 for fast tests)
     double height_m = 0.45;              ///< the mesh is scaled to this height (bbox, up axis)
     UpAxis up = UpAxis::kY;              ///< up axis of the input mesh
     NoiseOptions noise;                  ///< sensor noise (NoiseOptions::none() = clean)
@@ -89,6 +93,8 @@ struct PlacedMesh {
     Eigen::Vector3d input_centre;               ///< bbox centre of the input mesh (input units)
     Eigen::Vector3d centre;                     ///< bbox centre in the world = object-frame origin
     Eigen::Matrix3d world_from_input_rotation;  ///< up-axis rotation
+    /// Triangles of the render scene that are the object's (the platter's follow); -1: all.
+    int object_triangles = -1;
     /// Object frame (texture frame): world translated so that the centre is the origin.
     Eigen::Vector3d object_from_world(const Eigen::Vector3d& p_world) const {
         return p_world - centre;
@@ -119,6 +125,12 @@ struct SyntheticRig {
     int frames_per_sensor = 1;
 };
 SyntheticRig make_rig(const SynthOptions& options);
+
+/// The render scene of `placed` standing on a turntable platter: a dark disc 20 mm thick,
+/// 1.25 times the object's horizontal radius + 10 mm, its top at the object's lowest point,
+/// centred below the object; it turns with the object and is not part of the ground truth.
+/// Sets placed.object_triangles.
+RenderScene scene_with_platter(PlacedMesh& placed);
 
 /// One rendered view.
 struct RenderedView {

@@ -1,0 +1,256 @@
+#include "algorithms/segment/stand_removal.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "algorithms/denoise/outlier_common.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::segment {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// World coordinates of a view's live points (same order as detail::gather's ids).
+std::vector<Eigen::Vector3d> world_points(const PointCloud& view,
+                                          const denoise::detail::Gathered& g) {
+    std::vector<Eigen::Vector3d> out = g.xyz;
+    if (view.view.frame == ViewFrame::kSensor) {
+        RGBD_CHECK(view.view.world_from_sensor.has_value(),
+                   denoise::detail::view_name(view) + " is in its sensor frame without a pose");
+        const Pose& pose = *view.view.world_from_sensor;
+        for (auto& p : out) p = pose * p;
+    }
+    return out;
+}
+
+/// splitmix64: the deterministic sample stream of the RANSAC.
+std::uint64_t next(std::uint64_t& state) {
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+/// Least-squares plane through `points` (normal = smallest principal axis), oriented along
+/// `up`. Returns false for fewer than 3 points.
+bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
+               SupportPlane& plane) {
+    if (points.size() < 3) return false;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : points) mean += p;
+    mean /= static_cast<double>(points.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    Eigen::Vector3d n = eig.eigenvectors().col(0).normalized();
+    if (n.dot(up) < 0) n = -n;
+    plane.normal = n;
+    plane.offset = -n.dot(mean);
+    return true;
+}
+
+}  // namespace
+
+void StandOptions::check() const {
+    RGBD_CHECK(std::isfinite(max_tilt_deg) && max_tilt_deg > 0 && max_tilt_deg < 90,
+               "stand: max tilt must be in (0, 90) deg");
+    RGBD_CHECK(std::isfinite(inlier_m) && inlier_m > 0 && inlier_m < 1,
+               "stand: inlier distance must be in (0, 1) m");
+    RGBD_CHECK(std::isfinite(margin_m) && margin_m >= 0 && margin_m < 1,
+               "stand: margin must be in [0, 1) m");
+    RGBD_CHECK(std::isfinite(search_fraction) && search_fraction > 0 && search_fraction <= 1,
+               "stand: search fraction must be in (0, 1]");
+    RGBD_CHECK(std::isfinite(min_support) && min_support > 0 && min_support < 1,
+               "stand: min support must be in (0, 1)");
+    RGBD_CHECK(std::isfinite(min_above) && min_above >= 0 && min_above < 1,
+               "stand: min above must be in [0, 1)");
+    RGBD_CHECK(std::isfinite(contact_band_m) && contact_band_m >= 0 && contact_band_m < 1,
+               "stand: contact band must be in [0, 1) m");
+    RGBD_CHECK(iterations >= 1 && max_samples >= 3, "stand: iterations >= 1, samples >= 3");
+}
+
+std::optional<Eigen::Vector3d> cameras_up(const std::vector<PointCloud>& views) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const auto& v : views) {
+        if (!v.view.world_from_sensor) continue;
+        sum -= v.view.world_from_sensor->linear().col(1);
+        ++n;
+    }
+    if (n == 0 || sum.norm() < 1e-6 * n) return std::nullopt;
+    return sum.normalized();
+}
+
+std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& views,
+                                               const Eigen::Vector3d& up_in,
+                                               const StandOptions& options) {
+    options.check();
+    RGBD_CHECK(up_in.allFinite() && up_in.norm() > 0, "stand: up direction must be non-zero");
+    const Eigen::Vector3d up = up_in.normalized();
+    std::vector<Eigen::Vector3d> all;
+    for (const auto& v : views) {
+        const auto pts = world_points(v, denoise::detail::gather(v));
+        all.insert(all.end(), pts.begin(), pts.end());
+    }
+    if (all.size() < 100) return std::nullopt;
+    // Heights along up; the search band is the lowest part of the robust height range.
+    std::vector<double> h(all.size());
+    tbb::parallel_for(std::size_t(0), all.size(), [&](std::size_t i) { h[i] = all[i].dot(up); });
+    std::vector<double> sorted = h;
+    const auto pct = [&](double q) {
+        auto it = sorted.begin() + static_cast<std::ptrdiff_t>(q * (sorted.size() - 1));
+        std::nth_element(sorted.begin(), it, sorted.end());
+        return *it;
+    };
+    const double lo = pct(0.02), hi = pct(0.98);
+    const double band = lo + options.search_fraction * (hi - lo);
+    std::vector<Eigen::Vector3d> low;
+    const std::size_t stride =
+        std::max<std::size_t>(1, all.size() / static_cast<std::size_t>(options.max_samples));
+    for (std::size_t i = 0; i < all.size(); i += stride)
+        if (h[i] <= band) low.push_back(all[i]);
+    if (low.size() < 3) return std::nullopt;
+
+    // RANSAC: planes through 3 low points whose normal is within max_tilt of up; the score is
+    // the number of low samples within inlier_m.
+    const double cos_tilt = std::cos(options.max_tilt_deg * kDeg);
+    std::uint64_t state = options.seed;
+    SupportPlane best;
+    std::size_t best_score = 0;
+    for (int it = 0; it < options.iterations; ++it) {
+        const auto& a = low[next(state) % low.size()];
+        const auto& b = low[next(state) % low.size()];
+        const auto& c = low[next(state) % low.size()];
+        Eigen::Vector3d n = (b - a).cross(c - a);
+        if (n.norm() < 1e-12) continue;
+        n.normalize();
+        if (n.dot(up) < 0) n = -n;
+        if (n.dot(up) < cos_tilt) continue;
+        const double d = -n.dot(a);
+        std::size_t score = 0;
+        for (const auto& p : low) score += std::abs(n.dot(p) + d) <= options.inlier_m;
+        if (score > best_score) {
+            best_score = score;
+            best.normal = n;
+            best.offset = d;
+        }
+    }
+    if (best_score < 3) return std::nullopt;
+    // Refine twice by least squares on the inliers of all points.
+    for (int round = 0; round < 2; ++round) {
+        std::vector<Eigen::Vector3d> in;
+        for (const auto& p : all)
+            if (std::abs(best.normal.dot(p) + best.offset) <= options.inlier_m) in.push_back(p);
+        SupportPlane refined;
+        if (!fit_plane(in, up, refined) || refined.normal.dot(up) < cos_tilt) break;
+        best.normal = refined.normal;
+        best.offset = refined.offset;
+    }
+    std::size_t inliers = 0, above = 0;
+    const double above_m = 10.0 * std::max(options.margin_m, options.inlier_m);
+    for (const auto& p : all) {
+        const double s = best.normal.dot(p) + best.offset;
+        inliers += std::abs(s) <= options.inlier_m;
+        above += s > above_m;
+    }
+    best.inliers = inliers;
+    const double n = static_cast<double>(all.size());
+    if (inliers < options.min_support * n || above < options.min_above * n) return std::nullopt;
+    return best;
+}
+
+PointCloud contact_points(const std::vector<PointCloud>& views, const SupportPlane& plane,
+                          const StandOptions& options) {
+    options.check();
+    PointCloud out;
+    int max_id = -1;
+    for (const auto& v : views) max_id = std::max(max_id, v.view.id);
+    out.view.id = max_id + 1;
+    out.view.sensor = "rgbd-stand";
+    out.view.frame = ViewFrame::kWorld;
+    out.points.add_normal_map();
+    const auto colors = out.add_colors();
+    const auto synthetic = out.add_flag(prop::kSynthetic);
+    const double cos60 = 0.5;
+    for (const auto& v : views) {
+        const auto g = denoise::detail::gather(v);
+        const auto pts = world_points(v, g);
+        const bool has_normals = v.points.has_normal_map();
+        const bool has_colors = v.has_colors();
+        Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
+        if (v.view.frame == ViewFrame::kSensor) rot = v.view.world_from_sensor->linear();
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            const double h = plane.normal.dot(pts[i]) + plane.offset;
+            if (h < options.margin_m || h >= options.margin_m + options.contact_band_m) continue;
+            Eigen::Vector3d n = Eigen::Vector3d::Zero();
+            if (has_normals) {
+                const Vector_3 nv = v.points.normal(g.ids[i]);
+                n = rot * Eigen::Vector3d(nv.x(), nv.y(), nv.z());
+                if (n.norm() > 0) n.normalize();
+                if (std::abs(n.dot(plane.normal)) > cos60) continue;  // not a wall
+            }
+            for (const double f : {0.0, 1.0 / 3.0, 2.0 / 3.0}) {
+                const Eigen::Vector3d q = pts[i] - (h - f * options.margin_m) * plane.normal;
+                const auto idx = *out.points.insert(to_point(q));
+                out.points.normal(idx) = Vector_3(n.x(), n.y(), n.z());
+                if (has_colors) colors.set(idx, v.colors().get(g.ids[i]));
+                synthetic[idx] = 1;
+            }
+        }
+    }
+    return out;
+}
+
+Report remove_stand(std::vector<PointCloud>& views, const StandOptions& options,
+                    const Progress& progress, std::optional<SupportPlane>* plane_out) {
+    const Stopwatch watch;
+    if (plane_out) plane_out->reset();
+    Report report = {{"found", false}, {"removed", 0}};
+    const auto up = cameras_up(views);
+    if (!up) {
+        report["note"] = "stand: no view has a pose; nothing removed";
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+    report["cameras_up"] = {up->x(), up->y(), up->z()};
+    const auto plane = find_support_plane(views, *up, options);
+    report_progress(progress, 0.5);
+    if (!plane) {
+        report["note"] = "stand: no support plane below the object; nothing removed";
+        report["time_s"] = watch.seconds();
+        return report;
+    }
+    report["found"] = true;
+    if (plane_out) *plane_out = plane;
+    report["plane"] = {{"normal", {plane->normal.x(), plane->normal.y(), plane->normal.z()}},
+                       {"offset_m", plane->offset},
+                       {"inliers", plane->inliers}};
+    report["tilt_deg"] = std::acos(std::clamp(plane->normal.dot(*up), -1.0, 1.0)) / kDeg;
+    std::vector<std::size_t> removed(views.size(), 0);
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const auto g = denoise::detail::gather(views[v]);
+        const auto pts = world_points(views[v], g);
+        std::vector<std::uint8_t> out(pts.size(), 0);
+        for (std::size_t i = 0; i < pts.size(); ++i)
+            out[i] = plane->normal.dot(pts[i]) + plane->offset < options.margin_m;
+        removed[v] = denoise::detail::apply(views[v], g, out, false);
+    });
+    std::size_t total = 0;
+    Report per_view = Report::array();
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        total += removed[v];
+        per_view.push_back({{"view", views[v].view.id}, {"removed", removed[v]}});
+    }
+    report["removed"] = total;
+    report["views"] = per_view;
+    report_progress(progress, 1.0);
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
+}  // namespace rgbd::segment
