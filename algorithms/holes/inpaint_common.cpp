@@ -52,6 +52,7 @@ void InpaintOptions::check() const {
                "inpaint: the biharmonic slope limit must not be negative");
     RGBD_CHECK(std::isfinite(max_open_rim) && max_open_rim >= 0 && max_open_rim <= 1,
                "inpaint: the open rim share must be in [0, 1]");
+    RGBD_CHECK(max_step_rms > 0, "inpaint: the step test's RMS limit must be positive");
     RGBD_CHECK(std::isfinite(max_contradicted) && max_contradicted >= 0 && max_contradicted <= 1,
                "inpaint: the contradicted share must be in [0, 1]");
     free_space.check();

@@ -85,6 +85,10 @@ struct InpaintOptions {
     /// no hole, and the surface beyond the lowest observed ring is not predicted by a rim
     /// (left to the mesher). 1 = no test.
     double max_open_rim = 1.0;
+    /// Step test [M]: the largest RMS mismatch, in spacings, between the two sides of a hole
+    /// (the radius below and above it, each continued across by its own slope) for the hole to
+    /// be filled; infinity = no test (see fill_large_holes).
+    double max_step_rms = 3.0;
     double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
     /// §13 [M]: head-top hole components smaller than this share of the largest one are
     /// sampling gaps among seen pixels, not the crown (left to §11).
