@@ -65,12 +65,13 @@ void ProgressBar::heartbeat() {
         std::snprintf(line, sizeof line,
                       started_ ? ": %d%% after %.1f s\n" : ": started, %d%% after %.1f s\n",
                       percent, elapsed_s());
-        // Through C stdio, not std::cerr: std::cerr is tied to std::cout, so writing to it
-        // from this thread would flush std::cout while the tool's thread writes its stream to
-        // it (a data race that corrupted the PLY stream of rgbd-cloud in a pipe).
+        // Straight into std::cerr's buffer, not through `std::cerr <<`: std::cerr is tied to
+        // std::cout, and its sentry would flush std::cout from this thread while the tool's
+        // thread writes its stream to it (a data race that corrupted rgbd-cloud's PLY stream
+        // in a pipe).
         const std::string text = label_ + line;
-        std::fwrite(text.data(), 1, text.size(), stderr);
-        std::fflush(stderr);
+        std::cerr.rdbuf()->sputn(text.data(), static_cast<std::streamsize>(text.size()));
+        std::cerr.rdbuf()->pubsync();
         started_ = true;
         next += after(heartbeat_s_);
     }
