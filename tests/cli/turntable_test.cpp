@@ -6,15 +6,13 @@
 // alignment, the stops used listed, accuracy within bounds (the benchmark's full-resolution
 // targets with margins). Skips without ../shared/data.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "io/mesh_io.hpp"
+#include "tests/support/tool_runner.hpp"
 #include "toolkit/mesh.hpp"
 
 namespace fs = std::filesystem;
@@ -22,22 +20,7 @@ namespace fs = std::filesystem;
 namespace {
 
 const fs::path kData = RGBD_SHARED_DATA;
-const std::string kBin = RGBD_BINARY_DIR;
-
-fs::path work_dir() {
-    static const fs::path p = [] {
-        fs::path d =
-            fs::temp_directory_path() / ("rgbd_turntable_test_" + std::to_string(::getpid()));
-        fs::create_directories(d);
-        return d;
-    }();
-    return p;
-}
-
-int sh(const std::string& command) {
-    const int status = std::system(("cd " + work_dir().string() + " && " + command).c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+RGBD_TOOL_TEST_SCRATCH("rgbd_turntable_test")
 
 nlohmann::json read_json(const fs::path& p) {
     std::ifstream in(p);
@@ -49,23 +32,24 @@ nlohmann::json read_json(const fs::path& p) {
 TEST(Turntable, PlatterRemovedAxisCorrectedClosedAndAccurate) {
     const fs::path mesh = kData / "meshes/max_planck/max-planck.obj";
     if (!fs::exists(mesh)) GTEST_SKIP() << "needs " << mesh << " (../shared/data is absent)";
-    ASSERT_EQ(sh(kBin + "/rgbd-synth " + mesh.string() +
-                 " -o tt --rig turntable --stops 12 --height-m 0.25 --stand --resolution-scale 0.5"
-                 " --axis-tilt-deg 2 --axis-shift-mm 10 --angle-noise-deg 0.5 --seed 3 -q"),
+    ASSERT_EQ(run("$BIN/rgbd-synth " + mesh.string() +
+                  " -o tt --rig turntable --stops 12 --height-m 0.25 --stand --resolution-scale 0.5"
+                  " --axis-tilt-deg 2 --axis-shift-mm 10 --angle-noise-deg 0.5 --seed 3 -q")
+                  .code,
               0);
-    ASSERT_EQ(sh(kBin + "/rgbd-reconstruct tt -o tt.ply --report tt_report -q"), 0);
-    const auto m = read_json(work_dir() / "tt_report" / "metrics.json");
+    ASSERT_EQ(run("$BIN/rgbd-reconstruct tt -o tt.ply --report tt_report -q").code, 0);
+    const auto m = read_json(temp_root() / "tt_report" / "metrics.json");
 
     // Closed and coloured.
     EXPECT_TRUE(m["mesh"]["reconstruction"]["closed"].get<bool>());
-    const rgbd::Mesh result = rgbd::io::read_mesh(work_dir() / "tt.ply");
+    const rgbd::Mesh result = rgbd::io::read_mesh(temp_root() / "tt.ply");
     EXPECT_TRUE(rgbd::vertex_colors(result).has_value());
 
     // The platter: found, removed, nothing of it left in the mesh. The truth's lowest point is
     // the platter's top (the world is the object frame at stop 0, z up).
     ASSERT_TRUE(m["stand"]["found"].get<bool>()) << m["stand"].dump();
     EXPECT_GT(m["stand"]["removed"].get<double>(), 10000);
-    const rgbd::Mesh truth = rgbd::io::read_mesh(work_dir() / "tt/gt/mesh.ply");
+    const rgbd::Mesh truth = rgbd::io::read_mesh(temp_root() / "tt/gt/mesh.ply");
     double truth_min = 1e9, result_min = 1e9;
     for (auto v : truth.vertices()) truth_min = std::min(truth_min, truth.point(v).z());
     for (auto v : result.vertices()) result_min = std::min(result_min, result.point(v).z());
@@ -73,7 +57,7 @@ TEST(Turntable, PlatterRemovedAxisCorrectedClosedAndAccurate) {
 
     // Close-up pictures of the fine detail in the report.
     for (const char* pic : {"result_closeup.png", "result_closeup_error.png"})
-        EXPECT_TRUE(fs::exists(work_dir() / "tt_report" / pic)) << pic;
+        EXPECT_TRUE(fs::exists(temp_root() / "tt_report" / pic)) << pic;
 
     // The stops used: all 12, in frame order, with their registration verdicts.
     ASSERT_EQ(m["views_used"].size(), 12u);
