@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "algorithms/calibration/charuco_board.hpp"
+#include "algorithms/calibration/rig_refinement.hpp"
 #include "algorithms/calibration/rig_solver.hpp"
 #include "algorithms/denoise/distance_outliers.hpp"
 #include "algorithms/registration/icp.hpp"
@@ -239,7 +240,24 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
     ctx.metrics()["left_out_off_plane"] = off_plane;
 }
 
-/// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of one frame set.
+/// Depth images of `sensor` (index s) in up to `count` frame sets from `first` on (the frames
+/// those sets name; sets that miss the sensor are skipped), as positions in its frame list.
+std::vector<std::size_t> sensor_positions(const io::Capture& capture, std::size_t s,
+                                          std::size_t first_position, long long first, int count) {
+    std::vector<std::size_t> out{first_position};
+    const std::string& id = capture.rig.sensors[s].id;
+    for (long long k = first + 1; k < static_cast<long long>(capture.framesets.size()) &&
+                                  static_cast<int>(out.size()) < count;
+         ++k) {
+        const io::FrameSet& set = capture.framesets[k];
+        if (s >= set.frames.size() || set.frames[s] < 0) continue;
+        if (const auto position = capture.find_frame(id, set.frames[s])) out.push_back(*position);
+    }
+    return out;
+}
+
+/// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of the sensors' views,
+/// each the per-pixel median depth of up to --sets frame sets (docs/algorithms.md §6.4).
 void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor) {
     const io::Rig& rig = capture.rig;
     for (const auto& s : rig.sensors)
@@ -247,8 +265,10 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
                    capture.root.string() + "/rig.json: sensor " + s.id +
                        " has no world_from_depth (--refine starts from the rig's poses)");
     RGBD_CHECK(rig.sensors.size() >= 2, capture.root.string() + ": --refine needs 2+ sensors");
-    const auto jobs =
-        cli::select_frames(capture, ctx.get<long long>("frameset"), std::string(), {}, &ctx);
+    const int sets = ctx.get<int>("sets");
+    if (sets < 1 || sets > 1000) throw cli::UsageError("--sets must be in [1, 1000]");
+    const long long frameset = ctx.get<long long>("frameset");
+    const auto jobs = cli::select_frames(capture, frameset, std::string(), {}, &ctx);
     const auto centre = cli::object_centre(capture, jobs);
     frames::CloudOptions cloud_options;
     cli::ExtractionOptions extraction;
@@ -256,16 +276,29 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     std::vector<PointCloud> views;
     std::vector<int> view_sensor;
     int fixed = -1;
+    std::size_t most_sets = 0;
     for (const auto& [id, position] : jobs) {
         Report report;
-        PointCloud view = cli::load_view(capture, id, position, static_cast<int>(views.size()),
-                                         cloud_options, centre, extraction, report);
+        const int s = sensor_index(rig, id);
+        const std::vector<std::size_t> positions =
+            capture.framesets.empty()
+                ? std::vector<std::size_t>{position}
+                : sensor_positions(capture, static_cast<std::size_t>(s), position, frameset, sets);
+        most_sets = std::max(most_sets, positions.size());
+        RgbdFrame frame = io::load_frame(capture, id, position);
+        if (positions.size() > 1) {
+            std::vector<cv::Mat> depths{frame.depth};
+            for (std::size_t k = 1; k < positions.size(); ++k)
+                depths.push_back(io::load_frame(capture, id, positions[k]).depth);
+            frame.depth = calibration::median_depth(depths);
+        }
+        PointCloud view = cli::view_from_frame(frame, static_cast<int>(views.size()), cloud_options,
+                                               centre, extraction, report);
         denoise::remove_distance_outliers(view, distance);
         if (view.empty()) {
             ctx.warn(id + ": no points on the object; its pose is kept");
             continue;
         }
-        const int s = sensor_index(rig, id);
         if (s == anchor) fixed = static_cast<int>(views.size());
         view_sensor.push_back(s);
         views.push_back(std::move(view));
@@ -273,9 +306,10 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     RGBD_CHECK_AS(AlgorithmError, fixed >= 0,
                   "the anchor " + rig.sensors[anchor].id + " sees nothing in this frame set");
     RGBD_CHECK_AS(AlgorithmError, views.size() >= 2, "fewer than 2 sensors see the object");
-    registration::MultiViewOptions options;
-    options.fixed_view = static_cast<std::size_t>(fixed);
-    options.seed = ctx.seed();
+    ctx.note("depth: per-pixel median of " + std::to_string(most_sets) + " frame set" +
+             (most_sets == 1 ? "" : "s") + " from frame set " + std::to_string(frameset));
+    const registration::MultiViewOptions options =
+        calibration::rig_refinement_options(static_cast<std::size_t>(fixed), ctx.seed());
     auto bar = ctx.progress("refine");
     const auto result = registration::align_views(views, options, bar.callback());
     io::Rig out = rig;
@@ -306,6 +340,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
         throw AlgorithmError("refinement not trusted for " + failed + "; rig.json not written");
     io::write_rig(ctx.output_path(), out);
     ctx.metrics()["mode"] = "refine";
+    ctx.metrics()["framesets_combined"] = most_sets;
     ctx.metrics()["sensors"] = sensors;
     ctx.metrics()["alignment"] = result.to_json();
 }
@@ -317,7 +352,7 @@ int main(int argc, char** argv) {
     spec.name = "rgbd-calibrate";
     spec.usage =
         "rgbd-calibrate CAPTURE -o rig.json [--board FILE.json] [--anchor ID]\n"
-        "       rgbd-calibrate CAPTURE --refine -o rig.json [--frameset N]";
+        "       rgbd-calibrate CAPTURE --refine -o rig.json [--frameset N] [--sets N]";
     spec.description =
         "Calibrates the extrinsics of a sensor network and writes rig.json (every other field\n"
         "kept from the capture's rig.json; the anchor sensor keeps its pose).\n"
@@ -332,9 +367,11 @@ int main(int argc, char** argv) {
         "and the change from the capture's rig.json at the ring centre. Fails (exit 1, no\n"
         "output) when no board is visible or naming the sensors it cannot connect.\n"
         "With --refine: starts from the capture's rig.json and refines the poses on whatever\n"
-        "the sensors see in one frame set (a person, a bust) with the toolkit's multi-view\n"
-        "registration (rgbd-align's align_views); prints the change per sensor and writes\n"
-        "nothing (exit 1) unless every sensor's alignment verdict is PASS.\n"
+        "the sensors see (a person standing still, a bust) with the toolkit's multi-view\n"
+        "registration (rgbd-align's align_views, joint rounds from the rig's poses); each\n"
+        "sensor's depth is the per-pixel median of --sets frame sets (one frame's noise leaves\n"
+        "~0.3 deg on a rounded object). Prints the change per sensor and writes nothing (exit 1)\n"
+        "unless every sensor's alignment verdict is PASS.\n"
         "Board file: {\"squares_x\": 7, \"squares_y\": 5, \"square_m\": 0.08, \"marker_m\": 0.06,\n"
         "\"dictionary\": \"DICT_5X5_100\"} (these are the defaults).";
     spec.example =
@@ -351,7 +388,10 @@ int main(int argc, char** argv) {
             "sensor whose pose is fixed (default: the first in rig.json)")(
             "refine", "refine the capture's rig.json on the object instead of a board")(
             "frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
-            "--refine: the frame set to register")(
+            "--refine: the first frame set to register")(
+            "sets", cli::po::value<int>()->default_value(8)->value_name("N"),
+            "--refine: frame sets (from --frameset on) whose depth is combined by a per-pixel "
+            "median; the scene must stand still (pixels that change are left out)")(
             "min-corners", cli::po::value<int>()->default_value(6)->value_name("N"),
             "board views with fewer corners are not used")(
             "max-rms-px", cli::po::value<double>()->default_value(2.0, "2")->value_name("PX"),
