@@ -1,7 +1,8 @@
 // rgbd-calibrate: the sensor network's extrinsics (rig.json) from a capture of a ChArUco board
-// carried through the ring, or refined on whatever the sensors see (--refine). DESIGN.md §2,
-// ALGORITHMS.md §6.3, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint solve:
-// algorithms/calibration/rig_solver.hpp; refinement: registration::align_views.
+// carried through the ring, or refined on whatever the sensors see (--refine).
+// docs/algorithms.md §6b, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint
+// solve: algorithms/calibration/rig_solver.hpp; refinement: algorithms/calibration/
+// rig_refinement.hpp and registration::align_views.
 #include <malloc.h>
 #include <tbb/parallel_for.h>
 
@@ -297,7 +298,7 @@ std::vector<std::size_t> sensor_positions(const io::Capture& capture, std::size_
 }
 
 /// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of the sensors' views,
-/// each the per-pixel median depth of up to --sets frame sets (docs/algorithms.md §6.4).
+/// each the per-pixel median depth of up to --sets frame sets (docs/algorithms.md §6b).
 void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor) {
     const io::Rig& rig = capture.rig;
     for (const auto& s : rig.sensors)

@@ -1,7 +1,7 @@
 // Refining a sensor network's extrinsics on what the sensors see (rgbd-calibrate --refine,
-// issue 19; docs/algorithms.md §6.4): the depth of a still scene combined over several frame
+// issue 19; docs/algorithms.md §6b): the depth of a still scene combined over several frame
 // sets (per-pixel median), and the settings of the toolkit's multi-view registration
-// (registration::align_views, docs/algorithms.md §6.3) for a rig that is roughly right.
+// (registration::align_views, docs/algorithms.md §6) for a rig that is roughly right.
 // Why (measured on synthetic bust captures with truth, validation/quality/calibration): on a
 // rounded object the surface hardly pins a sensor's rotation about the object's centre (0.2 deg
 // moves a bust's surface by ~0.5 mm), so with one frame set the per-pixel depth noise (Kinect v2

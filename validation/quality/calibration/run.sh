@@ -86,7 +86,7 @@ if [ -f "$data/max_planck/max-planck.obj" ] && [ -f "$data/danish_statues/BustMa
     echo
     echo "## --refine on the busts: rig.json 3 deg / 30 mm off, 8 frame sets"
     echo
-    echo "\\`rgbd-synth MESH --sensors N --frames 8 --seed S --calib-error-deg 3 --calib-error-mm 30\\` (Max Planck 0.45 m, wreath bust 0.605 m tall, up y), then \\`rgbd-calibrate CAP --refine -o rig.json\\` (default --sets 8). Worst sensor of each capture; surface = RMS displacement of the bust's vertices (gt/mesh.ply)."
+    echo "\`rgbd-synth MESH --sensors N --frames 8 --seed S --calib-error-deg 3 --calib-error-mm 30\` (Max Planck 0.45 m, wreath bust 0.605 m tall, up y), then \`rgbd-calibrate CAP --refine -o rig.json\` (default --sets 8). Worst sensor of each capture; surface = RMS displacement of the bust's vertices (gt/mesh.ply)."
     echo
     echo '| bust | sensors | seed | sets | worst rotation (deg) | worst surface RMS (mm) | worst ball RMS (mm) | wall (s) | CPU (s) |'
     echo '| --- | --- | --- | --- | --- | --- | --- | --- | --- |'
