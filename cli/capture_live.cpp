@@ -21,8 +21,7 @@ namespace fs = std::filesystem;
 FrameHistory::FrameHistory(std::size_t sensors, std::int64_t window_ns)
     : window_ns_(window_ns), frames_(sensors) {}
 
-void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
-                         const cv::Mat& depth, const std::uint8_t* jpeg, std::size_t jpeg_bytes) {
+LiveFrame& FrameHistory::slot(std::size_t sensor, std::int64_t index, std::int64_t hub_ns) {
     auto& list = frames_.at(sensor);
     while (!list.empty() && list.front()->hub_ns < hub_ns - window_ns_) {
         free_.push_back(std::move(list.front()));
@@ -37,9 +36,24 @@ void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hu
     }
     frame->index = index;
     frame->hub_ns = hub_ns;
-    depth.copyTo(frame->depth);  // same size and type: the buffer is reused
-    frame->jpeg.assign(jpeg, jpeg + jpeg_bytes);
     list.push_back(std::move(frame));
+    return *list.back();
+}
+
+void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                         const cv::Mat& depth, const std::uint8_t* jpeg, std::size_t jpeg_bytes) {
+    LiveFrame& frame = slot(sensor, index, hub_ns);
+    frame.is_view = false;
+    depth.copyTo(frame.depth);  // same size and type: the buffer is reused
+    frame.jpeg.assign(jpeg, jpeg + jpeg_bytes);
+}
+
+void FrameHistory::store_view(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                              const io::ColoredPoints& points) {
+    LiveFrame& frame = slot(sensor, index, hub_ns);
+    frame.is_view = true;
+    frame.points.xyz.assign(points.xyz.begin(), points.xyz.end());
+    frame.points.rgb.assign(points.rgb.begin(), points.rgb.end());
 }
 
 const LiveFrame* FrameHistory::find(std::size_t sensor, std::int64_t index) const {
@@ -55,14 +69,18 @@ const LiveFrame* FrameHistory::find(std::size_t sensor, std::int64_t index) cons
 
 // ------------------------------------------------------------------------------ LiveStream
 
-namespace {
-
 void copy_frame(const LiveFrame& from, LiveFrame& to) {
     to.index = from.index;
     to.hub_ns = from.hub_ns;
     from.depth.copyTo(to.depth);
     to.jpeg.assign(from.jpeg.begin(), from.jpeg.end());
+    to.is_view = from.is_view;
+    to.points.xyz.assign(from.points.xyz.begin(), from.points.xyz.end());
+    to.points.rgb.assign(from.points.rgb.begin(), from.points.rgb.end());
 }
+
+namespace {
+
 
 /// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
 bool is_special(const std::string& path) {
