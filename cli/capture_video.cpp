@@ -119,7 +119,8 @@ void VideoStream::run() {
 void VideoStream::fuse(LiveSet& live) {
     const std::int64_t wall0 = sensors::monotonic_ns();
     const double cpu0 = thread_cpu_ms();
-    std::vector<PointCloud> views;
+    std::vector<pipeline::FusionView> views;
+    hub_views_.resize(rig_.sensors.size());
     int sensors_used = 0;
     for (std::size_t s = 0; s < rig_.sensors.size(); ++s) {
         const LiveFrame& frame = live.frames[s];
@@ -129,13 +130,8 @@ void VideoStream::fuse(LiveSet& live) {
         }
         const io::SensorSpec& spec = rig_.sensors[s];
         try {
-            if (frame.is_view) {
-                PointCloud view = io::to_point_cloud(frame.points);
-                view.view.id = static_cast<int>(s);
-                view.view.sensor = spec.id;
-                view.view.world_from_sensor = spec.world_from_depth;
-                views.push_back(std::move(view));
-            } else {
+            const io::ColoredPoints* points = &frame.points;
+            if (!frame.is_view) {  // --fuse-on hub: the per-view work here
                 const std::string what =
                     "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
                 color_.release();
@@ -146,9 +142,11 @@ void VideoStream::fuse(LiveSet& live) {
                 RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color_, what);
                 rgbd.frame_index = frame.index;
                 rgbd.timestamp_ns = frame.hub_ns;
-                views.push_back(
+                hub_views_[s] = io::to_colored_points(
                     pipeline::fusion_view(rgbd, static_cast<int>(s), options_.fusion, centre_));
+                points = &hub_views_[s];
             }
+            views.push_back({points, spec.world_from_depth.translation()});
             ++sensors_used;
         } catch (const Error& e) {
             context_.warn(std::string("video: ") + e.what() + "; view left out");
@@ -160,8 +158,7 @@ void VideoStream::fuse(LiveSet& live) {
     }
     views_fused_ += sensors_used;
     if (sensors_used < static_cast<int>(rig_.sensors.size())) ++thinned_;
-    const PointCloud fused = pipeline::fuse_views(std::move(views), voxel_m_, options_.fusion);
-    fused_frame_.points = io::to_colored_points(fused);
+    fused_frame_.points = pipeline::fuse_points(views, voxel_m_, options_.fusion);
     io::VideoFrame info;
     info.set = live.set.set;
     info.time_ns = live.set.time_ns;
@@ -191,7 +188,7 @@ void VideoStream::fuse(LiveSet& live) {
     fused_frame_.frame = fused_frame_.info.frame;
     {
         std::lock_guard<std::mutex> lock(mutex_);
-        cpu_ms_ += cpu_ms;
+        cpu_ms_ += thread_cpu_ms() - cpu0;  // with the index rewrites
         wall_ms_ += wall_ms;
         max_wall_ms_ = std::max(max_wall_ms_, wall_ms);
         latency_ms_.push_back(latency_ms);

@@ -88,6 +88,7 @@ private:
     double cpu_ms_ = 0, wall_ms_ = 0, max_wall_ms_ = 0;  ///< fusion thread (guarded by mutex_)
     std::vector<double> latency_ms_;                     ///< guarded by mutex_
     FusedFrame fused_frame_;
+    std::vector<io::ColoredPoints> hub_views_;  ///< --fuse-on hub: the views made here
     cv::Mat color_;
     std::thread thread_;
 };

@@ -140,6 +140,10 @@ void run_capture(cli::Context& ctx) {
     if (!(start_wait_s >= 0 && start_wait_s <= 3600))
         throw cli::UsageError("--start-wait-s must be in [0, 3600]");
     options.start_wait_ns = static_cast<std::int64_t>(start_wait_s * 1e9);
+    const double start_lead_ms = ctx.get<double>("start-lead-ms");
+    if (!(start_lead_ms >= 10 && start_lead_ms <= 600000))
+        throw cli::UsageError("--start-lead-ms must be in [10, 600000]");
+    options.start_lead_ns = static_cast<std::int64_t>(start_lead_ms * 1e6);
     const int png = ctx.get<int>("png-compression");
     if (!(tolerance_ms >= 0 && tolerance_ms <= 1000))
         throw cli::UsageError("--tolerance-ms must be in [0, 1000]");
@@ -212,7 +216,7 @@ void run_capture(cli::Context& ctx) {
     const std::size_t n = rig.sensors.size();
     const auto tolerance_ns = static_cast<std::int64_t>(std::llround(tolerance_ms * 1e6));
     const auto latency_ns = static_cast<std::int64_t>(std::llround(latency_ms * 1e6));
-    net::FrameGrouper grouper(n, tolerance_ns);
+    net::FrameGrouper grouper(n, tolerance_ns, /*complete_early=*/video);
     // Live stream: frames are kept as long as a set can still be formed from them.
     std::unique_ptr<cli::FrameHistory> history;
     std::unique_ptr<cli::LiveStream> stream;
@@ -530,6 +534,8 @@ int main(int argc, char** argv) {
             "duration-s", cli::po::value<double>()->default_value(0.0),
             "stop after S seconds (0 = until a signal)")(
             "exit-after-bye", "stop when every node that joined has finished")(
+            "start-lead-ms", cli::po::value<double>()->default_value(300.0),
+            "the common start instant lies this far ahead of the moment it is fixed")(
             "start-wait-s", cli::po::value<double>()->default_value(10.0),
             "every rig node starts on one common instant once all have joined; after this "
             "long the ones that joined start without the others (latecomers join the frame "
@@ -557,11 +563,11 @@ int main(int argc, char** argv) {
             "crop-radius-m", cli::po::value<double>()->default_value(0.6),
             "keep points within this distance of the rig's object centre (0 = no crop)")(
             "no-clean", "skip the per-view distance-based clean")(
-            "draco-quantum-mm", cli::po::value<double>()->default_value(1.0),
+            "draco-quantum-mm", cli::po::value<double>()->default_value(2.0),
             "Draco position grid of the video frames")(
             "draco-color-bits", cli::po::value<int>()->default_value(6),
             "colour bits per channel kept in the video frames (1-8)")(
-            "draco-speed", cli::po::value<int>()->default_value(6),
+            "draco-speed", cli::po::value<int>()->default_value(10),
             "Draco encoding speed (0 = smallest, 10 = fastest)")(
             "serve", cli::po::value<int>()->value_name("PORT"),
             "with --video: serve the live fused stream as a web page on PORT")(

@@ -262,21 +262,9 @@ void run_node(cli::Context& ctx) {
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
 
-    // The hub's common start instant (node clock) -> this machine's monotonic clock; an
-    // instant already past (a start message sent again after a reconnect) moves along the
-    // frame grid to the next one ahead.
     std::int64_t start_node_ns = 0, period_ns = 0;
     std::string start_json;
     channel->start(start_node_ns, period_ns, start_json);
-    bool start_honoured = false;
-    std::int64_t start_monotonic = 0;
-    if (start_node_ns != 0) {
-        start_monotonic = clock.monotonic_at(start_node_ns);
-        const std::int64_t now = sensors::monotonic_ns() + 5'000'000;
-        if (start_monotonic < now && period_ns > 0)
-            start_monotonic += (now - start_monotonic + period_ns - 1) / period_ns * period_ns;
-        start_honoured = sensor->start_at(start_monotonic);
-    }
 
     // The hub may ask for fused-ready views instead of frames (rgbd-capture --video
     // --fuse-on nodes): the per-view work then runs here, on the node's own CPU.
@@ -290,17 +278,64 @@ void run_node(cli::Context& ctx) {
         fusion.clean = views->clean;
         ctx.info("the hub asks for views: per-view work on this node");
     }
+    const bool send_color = !ctx.has("no-color");
     cv::Mat decoded;
     std::int64_t view_points = 0, views_made = 0;
-    // --cache-views (benchmarks): a looping playback sends the view of each recording position
-    // made once, so that many nodes on one machine load the hub, not the machine.
+    // One frame -> the view payloads (points in `xyz`, colours in `rgb`).
+    const auto make_view = [&](const sensors::SensorFrame& f, std::vector<std::uint8_t>& xyz,
+                               std::vector<std::uint8_t>& rgb) {
+        const cv::Mat* bgr = &f.color;
+        if (f.color.empty() && !f.color_jpeg.empty()) {
+            decoded = cv::imdecode(f.color_jpeg, cv::IMREAD_COLOR);
+            if (decoded.empty())
+                throw InputError("cannot decode the colour of frame " + std::to_string(f.index));
+            bgr = &decoded;
+        }
+        RgbdFrame rgbd =
+            io::frame_from_stored(view_spec, f.depth, send_color ? *bgr : cv::Mat(),
+                                  "frame " + std::to_string(f.index) + " of sensor " + spec.id);
+        rgbd.frame_index = f.index;
+        const PointCloud view = pipeline::fusion_view(rgbd, 0, fusion, views->centre);
+        cli::encode_view_payload(view, xyz, rgb);
+        ++views_made;
+    };
+    // --cache-views (benchmarks): the view of every recording position is made once, before
+    // the start (give the hub a long --start-lead-ms), and sent again on every loop, so that
+    // many nodes on one machine load the hub, not the machine.
     const bool cache_views = views && ctx.has("cache-views");
     std::map<std::int64_t, std::pair<std::vector<std::uint8_t>, std::vector<std::uint8_t>>> cache;
+    if (cache_views) {
+        sensors::OpenOptions all = open;
+        all.max_frames = 0;
+        all.playback.realtime = false;
+        all.playback.loop = false;
+        auto copy = sensors::open_sensor(ctx.get<std::string>("sensor"), all);
+        sensors::SensorFrame f;
+        while (!g_stop && copy->next(f)) {
+            if (f.source_position < 0)
+                throw cli::UsageError("--cache-views needs a playback sensor");
+            auto& entry = cache[f.source_position];
+            make_view(f, entry.first, entry.second);
+        }
+        ctx.info("made the views of " + std::to_string(cache.size()) + " recording positions");
+    }
+
+    // The hub's common start instant (node clock) -> this machine's monotonic clock; an
+    // instant already past (a start message sent again after a reconnect, a slow cache)
+    // moves along the frame grid to the next one ahead.
+    bool start_honoured = false;
+    std::int64_t start_monotonic = 0;
+    if (start_node_ns != 0) {
+        start_monotonic = clock.monotonic_at(start_node_ns);
+        const std::int64_t now = sensors::monotonic_ns() + 5'000'000;
+        if (start_monotonic < now && period_ns > 0)
+            start_monotonic += (now - start_monotonic + period_ns - 1) / period_ns * period_ns;
+        start_honoured = sensor->start_at(start_monotonic);
+    }
 
     sensors::SensorFrame frame;
     std::vector<std::uint8_t> rvl, jpeg, message;
     const std::vector<int> jpeg_params = {cv::IMWRITE_JPEG_QUALITY, quality};
-    const bool send_color = !ctx.has("no-color");
     std::int64_t sent = 0, raw_bytes = 0, rvl_bytes = 0, color_bytes = 0;
     double encode_s = 0;
     const std::int64_t run_start = sensors::monotonic_ns();
@@ -322,25 +357,9 @@ void run_node(cli::Context& ctx) {
             color = &jpeg;
             view_points += static_cast<std::int64_t>(rvl.size() / 12);
         } else if (views) {
-            const cv::Mat* bgr = &frame.color;
-            if (frame.color.empty() && !frame.color_jpeg.empty()) {
-                decoded = cv::imdecode(frame.color_jpeg, cv::IMREAD_COLOR);
-                if (decoded.empty())
-                    throw InputError("cannot decode the colour of frame " +
-                                     std::to_string(frame.index));
-                bgr = &decoded;
-            }
-            RgbdFrame rgbd = io::frame_from_stored(
-                view_spec, frame.depth, send_color ? *bgr : cv::Mat(),
-                "frame " + std::to_string(frame.index) + " of sensor " + spec.id);
-            rgbd.frame_index = frame.index;
-            const PointCloud view = pipeline::fusion_view(rgbd, 0, fusion, views->centre);
-            cli::encode_view_payload(view, rvl, jpeg);
+            make_view(frame, rvl, jpeg);
             color = &jpeg;
-            view_points += static_cast<std::int64_t>(view.size());
-            ++views_made;
-            if (cache_views && frame.source_position >= 0)
-                cache[frame.source_position] = {rvl, jpeg};
+            view_points += static_cast<std::int64_t>(rvl.size() / 12);
         } else {
             io::rvl_compress(frame.depth.ptr<std::uint16_t>(), pixels, rvl);
             if (!send_color) {
@@ -378,7 +397,8 @@ void run_node(cli::Context& ctx) {
         }
         if (truth)
             *truth << session << ',' << frame.index << ',' << frame.source_position << ','
-                   << frame.capture_ns << ',' << header.node_ns << '\n';
+                   << frame.capture_ns << ',' << header.node_ns << '\n'
+                   << std::flush;  // tests read it while the node runs
         ++sent;
         raw_bytes += static_cast<std::int64_t>(pixels * 2);
         rvl_bytes += static_cast<std::int64_t>(rvl.size());
@@ -456,8 +476,8 @@ int main(int argc, char** argv) {
             "prepare for making views (rgbd-capture --video --fuse-on nodes): playback decodes "
             "its colour once when opening; the hub's start message decides what is sent")(
             "cache-views",
-            "benchmarks: with --views and a looping playback, make each recording position's "
-            "view once and send it again on later loops")(
+            "benchmarks: with --views and a playback, make the view of every recording position "
+            "before the start and send it again on every loop")(
             "no-align",
             "playback: do not put frame instants on the shared monotonic-clock grid (see "
             "sensors/playback/playback_sensor.hpp)")("no-color", "send depth only")(

@@ -51,6 +51,7 @@ function decode(buf) {
   return {n, frame, xyz: new Float32Array(buf, 16, 3 * n), rgb: new Uint8Array(buf, 16 + 12 * n, 3 * n)};
 }
 function show(f, timeS) {
+  geometry.dispose();  // frees the previous frame's GPU buffers
   geometry.setAttribute('position', new THREE.BufferAttribute(f.xyz, 3));
   geometry.setAttribute('color', new THREE.BufferAttribute(f.rgb, 3, true));
   geometry.computeBoundingSphere();

@@ -80,6 +80,7 @@ struct ViewServer::Impl {
     double live_time_s = 0;
     std::int64_t live_first_ns = -1;
     std::atomic<std::int64_t>* requests = nullptr;
+    std::atomic<std::int64_t> frames_served{0}, last_frame{-1};  // GET /api/stats
 
     using Response = http::response<http::string_body>;
 
@@ -109,6 +110,12 @@ struct ViewServer::Impl {
             return reply(req, http::status::ok, orbit_js, "application/javascript");
         if (target == "/favicon.ico") return reply(req, http::status::no_content, "", "text/plain");
         if (target == "/api/info") return info(req);
+        if (target == "/api/stats") {
+            const nlohmann::json j = {{"requests", requests->load()},
+                                      {"frames_served", frames_served.load()},
+                                      {"last_frame", last_frame.load()}};
+            return reply(req, http::status::ok, j.dump(), "application/json");
+        }
         if (target == "/api/live") {
             std::shared_ptr<const std::string> frame;
             double time_s = 0;
@@ -120,6 +127,7 @@ struct ViewServer::Impl {
             if (!frame) return reply(req, http::status::no_content, "", "text/plain");
             Response res = reply(req, http::status::ok, *frame, "application/octet-stream");
             res.set("X-Frame-Time-S", std::to_string(time_s));
+            ++frames_served;
             return res;
         }
         const std::string prefix = "/api/frame/";
@@ -140,6 +148,8 @@ struct ViewServer::Impl {
                     [&](const io::VideoFrame& f) { return f.frame == number; });
                 if (!known) video = cached_video(true);  // a growing video
                 const io::ColoredPoints points = io::read_video_frame(*video, number);
+                ++frames_served;
+                last_frame = number;
                 return reply(req, http::status::ok, encode_page_frame(number, points),
                              "application/octet-stream");
             } catch (const Error& e) {

@@ -4,7 +4,8 @@
 // (no network access needed). Frames are decoded from Draco here and sent to the page as
 // flat arrays (GET /api/frame/N, /api/live: "RGBDPTS1", uint32 points, uint32 frame number,
 // float32 x y z per point, then uint8 r g b per point). A frame file that does not decode is
-// answered 404 and the page skips it. Listens on 127.0.0.1 unless told another address.
+// answered 404 and the page skips it. GET /api/stats: requests, frames served, the last one.
+// Listens on 127.0.0.1 unless told another address.
 #pragma once
 
 #include <atomic>

@@ -7,7 +7,7 @@
 //                        frame, metres), each self-describing (its set, time and spread in the
 //                        Draco geometry metadata).
 // Frames are written atomically as they come and video.json is rewritten atomically at most
-// every `index_interval_s` and at the end, so a capture cut short keeps every frame before the
+// every `index_interval_s` (1 s) and at the end, so a capture cut short keeps every frame before the
 // cut: read_video() lists frame files that the index does not name yet from their metadata.
 // Draco (Debian libdraco-dev, Google's point cloud codec): positions quantised on an explicit
 // grid of `position_quantum_m`, colour as 8-bit RGB (optionally reduced to `color_bits`).
@@ -41,12 +41,12 @@ PointCloud to_point_cloud(const ColoredPoints& points);
 /// Draco settings of a video.
 struct DracoSettings {
     /// Position grid in metres (explicit quantisation: bits chosen from the cloud's extent).
-    double position_quantum_m = 0.001;
+    double position_quantum_m = 0.002;
     /// Bits kept per colour channel (1..8; the rest are dropped and restored as the centre of
     /// the dropped range when decoding).
-    int color_bits = 8;
+    int color_bits = 6;
     /// Draco encoding speed 0 (smallest) .. 10 (fastest).
-    int speed = 6;
+    int speed = 10;
     /// Throws InputError for out-of-range values.
     void check() const;
     nlohmann::json to_json() const;
@@ -112,7 +112,7 @@ public:
     /// `header` is merged into video.json (placement, voxel size, options...).
     VideoWriter(const std::filesystem::path& root, const Rig& rig, double frame_rate_hz,
                 const DracoSettings& draco, const nlohmann::json& header,
-                double index_interval_s = 0.25);
+                double index_interval_s = 1.0);
     ~VideoWriter();
     VideoWriter(const VideoWriter&) = delete;
     VideoWriter& operator=(const VideoWriter&) = delete;

@@ -80,7 +80,7 @@ TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
               " -o rec_late --exit-after-bye --start-wait-s 1 --listen tcp://127.0.0.1:" +
               std::to_string(port) + " --metrics hub_late.json");
     start(dir, "node_late_0",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(0) + " --loop --frames 150" + hub_at +
+          "$BIN/rgbd-node --sensor playback:synth#" + id(0) + " --loop --frames 300" + hub_at +
               " --clock-offset-ms 200 --truth truth_late_0.csv --metrics node_late_0.json");
     // The second node appears once the first one streams (its truth file fills up).
     std::error_code ec;

@@ -97,7 +97,7 @@ json run_video(const std::string& name, const std::string& placement) {
               std::to_string(port) + " --metrics hub_" + name + ".json");
     for (int s = 0; s < 8; ++s)
         start(dir, name + "_node" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:moving#" + id(s) +
+              "$BIN/rgbd-node --sensor playback:moving#k2-" + std::to_string(s) +
                   (placement == "nodes" ? " --views" : "") + " --loop --frames " +
                   (s == 7 ? "6" : "24") + hub_at);
     for (int s = 0; s < 8; ++s)
@@ -108,7 +108,8 @@ json run_video(const std::string& name, const std::string& placement) {
 }
 
 /// Checks the video folder: counters add up, every frame decodes and is a snapshot of the
-/// truth at one frame set; returns the mean number of points per frame.
+/// truth at one frame set; returns the mean number of points of the frames fused from all 8
+/// views (on a loaded machine the nodes lag and many sets are thinned: counted, not compared).
 double check_video(const fs::path& video_dir, const json& hub) {
     const json& v = hub["video"];
     EXPECT_EQ(v["sets_offered"], v["sets_fused"].get<int>() + v["sets_skipped"].get<int>() +
@@ -122,14 +123,17 @@ double check_video(const fs::path& video_dir, const json& hub) {
     EXPECT_GE(video.frames.size(), 3u);
     const auto truths = truth_meshes(moving_capture());
     double points = 0;
-    int checked = 0;
+    int checked = 0, complete = 0;
     for (const rgbd::io::VideoFrame& f : video.frames) {
         EXPECT_TRUE(f.problem.empty()) << f.file << ": " << f.problem;
         EXPECT_GT(f.latency_ms, 0.0);
         const rgbd::io::ColoredPoints p = rgbd::io::read_video_frame(video, f.frame);
         EXPECT_EQ(p.size(), f.points);
         EXPECT_GT(p.size(), 2000u);
-        points += static_cast<double>(p.size());
+        if (f.sensors == 8) {
+            points += static_cast<double>(p.size());
+            ++complete;
+        }
         if (checked++ >= 3) continue;  // the distance check on the first frames only
         std::vector<Eigen::Vector3d> xyz;
         for (const auto& q : p.xyz) xyz.push_back(q.cast<double>());
@@ -145,7 +149,8 @@ double check_video(const fs::path& video_dir, const json& hub) {
         }
         EXPECT_GE(best, 0.95) << f.file << ": points within 5 mm of the best-fitting truth";
     }
-    return points / static_cast<double>(std::max<std::size_t>(1, video.frames.size()));
+    EXPECT_GE(complete, 1) << "the first set is complete (common start)";
+    return points / std::max(1, complete);
 }
 
 TEST_F(RgbdCapture, VideoFusedOnNodesOrOnTheHubIsASnapshotOfTheMovingObject) {
@@ -155,7 +160,7 @@ TEST_F(RgbdCapture, VideoFusedOnNodesOrOnTheHubIsASnapshotOfTheMovingObject) {
     EXPECT_EQ(nodes["video"]["placement"], "nodes");
     const json hub = run_video("vid_hub", "hub");
     const double on_hub = check_video(dir / "vid_hub", hub);
-    // The same per-view work in both places: about the same clouds.
+    // The same per-view work in both places: about the same clouds from complete sets.
     EXPECT_NEAR(on_hub / on_nodes, 1.0, 0.15);
 
     // rgbd-info names the folder's frames and exports one as a view.

@@ -23,7 +23,7 @@ rgbd::io::SensorSpec kinect(const Pose& world_from_depth) {
 
 /// Depth camera at the origin looking along +z at a fronto-parallel wall at z = 1.5 m, 0.6 m
 /// wide, grey-green; elsewhere nothing.
-rgbd::RgbdFrame wall_frame(const Pose& world_from_depth) {
+rgbd::RgbdFrame wall_frame(const Pose& world_from_depth, cv::Vec3b bgr = {90, 160, 120}) {
     const auto spec = kinect(world_from_depth);
     cv::Mat depth(424, 512, CV_16UC1, cv::Scalar(0));
     cv::Mat color(424, 512, CV_8UC3, cv::Scalar(0, 0, 0));
@@ -32,7 +32,7 @@ rgbd::RgbdFrame wall_frame(const Pose& world_from_depth) {
             const double x = (u - 256) / 365.5 * 1.5, y = (v - 212) / 365.5 * 1.5;
             if (std::abs(x) < 0.3 && std::abs(y) < 0.3) {
                 depth.at<std::uint16_t>(v, u) = 1500;
-                color.at<cv::Vec3b>(v, u) = cv::Vec3b(90, 160, 120);
+                color.at<cv::Vec3b>(v, u) = bgr;
             }
         }
     return rgbd::io::frame_from_stored(spec, depth, color, "wall");
@@ -90,6 +90,48 @@ TEST(VideoFusion, ViewsAtTheirPosesFuseIntoOneLayerOnTheSurface) {
     for (auto i : fused.points) {
         ASSERT_NEAR(fused.points.point(i).z(), 0.0, 1e-3);
         ASSERT_NEAR(cm.get(i).g, 160, 1);  // colour kept (BGR 90,160,120 -> RGB 120,160,90)
+    }
+
+    // The hub's one-pass fusion gives the same cloud as the general-purpose functions.
+    const auto pa = rgbd::io::to_colored_points(
+        rgbd::pipeline::fusion_view(wall_frame(a), 0, options, centre));
+    const auto pb = rgbd::io::to_colored_points(
+        rgbd::pipeline::fusion_view(wall_frame(b), 1, options, centre));
+    rgbd::Report fast_report;
+    const rgbd::io::ColoredPoints fast = rgbd::pipeline::fuse_points(
+        {{&pa, a.translation()}, {&pb, b.translation()}, {nullptr, {}}}, voxel, options,
+        &fast_report);
+    EXPECT_EQ(fast_report["views"], 2);
+    EXPECT_NEAR(static_cast<double>(fast.size()), static_cast<double>(fused.size()),
+                0.03 * static_cast<double>(fused.size()));
+    for (std::size_t i = 0; i < fast.size(); ++i) {
+        ASSERT_NEAR(fast.xyz[i].z(), 0.0, 1e-3);
+        ASSERT_EQ(fast.rgb[i], (rgbd::Rgb{120, 160, 90}));
+    }
+}
+
+TEST(VideoFusion, WhereColoursDisagreeTheBetterObservedViewWins) {
+    // Two sensors see the same wall in different colours (a specular highlight, a bad white
+    // balance): per voxel, the nearer sensor's colour is kept, never a mix.
+    Pose near = Pose::Identity(), far = Pose::Identity();
+    near.translation() = Eigen::Vector3d(0, 0, -1.5);
+    far.translation() = Eigen::Vector3d(0, 0, -1.5);
+    rgbd::pipeline::VideoFusionOptions options;
+    options.extraction.crop_radius_m = 0;
+    const auto green = rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(
+        wall_frame(near, {90, 160, 120}), 0, options, std::nullopt));
+    const auto red = rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(
+        wall_frame(far, {40, 40, 220}), 1, options, std::nullopt));
+    for (const Eigen::Vector3d red_sensor : {Eigen::Vector3d(0, 0, -3.0), Eigen::Vector3d(0, 0, -1.0)}) {
+        rgbd::Report report;
+        const auto fused = rgbd::pipeline::fuse_points(
+            {{&green, near.translation()}, {&red, red_sensor}}, 0.004, options, &report);
+        EXPECT_GT(report["replaced"].get<std::size_t>(), fused.size() * 9 / 10);
+        const rgbd::Rgb expected =
+            red_sensor.z() < -2 ? rgbd::Rgb{120, 160, 90} : rgbd::Rgb{220, 40, 40};
+        std::size_t kept = 0;
+        for (const rgbd::Rgb c : fused.rgb) kept += c == expected;
+        EXPECT_GT(kept, fused.size() * 99 / 100);
     }
 }
 

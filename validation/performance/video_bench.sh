@@ -42,8 +42,11 @@ wait
 
 for PLACEMENT in nodes hub; do
   PORT=$((20000 + RANDOM % 5000 * 2 + 2))
+  # Nodes placement: 30 s for the nodes to make their cached views before the common start.
+  LEAD=300
+  [ "$PLACEMENT" = nodes ] && LEAD=30000
   "$B/rgbd-capture" --rig "$OUT/synth/rig.json" --video "$OUT/video_$PLACEMENT" \
-    --fuse-on "$PLACEMENT" --latency-ms 50 --exit-after-bye --listen "tcp://127.0.0.1:$PORT" \
+    --fuse-on "$PLACEMENT" --latency-ms 50 --start-lead-ms $LEAD --exit-after-bye --listen "tcp://127.0.0.1:$PORT" \
     --metrics "$OUT/hub_$PLACEMENT.json" -q &
   HUB=$!
   for s in 0 1 2 3 4 5 6 7; do
