@@ -253,8 +253,8 @@ private:
     void send_start(const Session& s) {
         net::ControlMessage m;
         m.type = net::ControlType::kStart;
-        m.t0 = s.start_hub_ns + static_cast<std::int64_t>(
-                                    std::llround(s.clock.offset_ns_at(s.start_hub_ns)));
+        m.t0 = s.start_hub_ns +
+               static_cast<std::int64_t>(std::llround(s.clock.offset_ns_at(s.start_hub_ns)));
         m.t1 = period_ns(s);
         if (options_.start_json) m.json = options_.start_json(s.sensor);
         send(s.routing_id, m);

@@ -81,7 +81,6 @@ void copy_frame(const LiveFrame& from, LiveFrame& to) {
 
 namespace {
 
-
 /// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
 bool is_special(const std::string& path) {
     struct stat st {};

@@ -40,13 +40,12 @@ VideoStream::VideoStream(const io::Rig& rig, const VideoOptions& options, Contex
     options_.fusion.check();
     voxel_m_ = options_.fusion.voxel_m > 0 ? options_.fusion.voxel_m
                                            : pipeline::video_voxel_m(rig, centre_);
-    nlohmann::json header = {
-        {"placement", options_.fuse_on_nodes ? "nodes" : "hub"},
-        {"voxel_m", voxel_m_},
-        {"crop_radius_m", options_.fusion.extraction.crop_radius_m},
-        {"clean", options_.fusion.clean},
-        {"duplicate_radius_voxels", options_.fusion.duplicate_radius_voxels},
-        {"sensors", rig.sensors.size()}};
+    nlohmann::json header = {{"placement", options_.fuse_on_nodes ? "nodes" : "hub"},
+                             {"voxel_m", voxel_m_},
+                             {"crop_radius_m", options_.fusion.extraction.crop_radius_m},
+                             {"clean", options_.fusion.clean},
+                             {"duplicate_radius_voxels", options_.fusion.duplicate_radius_voxels},
+                             {"sensors", rig.sensors.size()}};
     if (centre_) header["object_centre"] = {centre_->x(), centre_->y(), centre_->z()};
     writer_ = std::make_unique<io::VideoWriter>(options_.dir, rig, options_.frame_rate_hz,
                                                 options_.draco, header);

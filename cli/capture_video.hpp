@@ -30,8 +30,8 @@ namespace rgbd::cli {
 class Context;
 
 struct VideoOptions {
-    std::string dir;                     ///< the video folder
-    bool fuse_on_nodes = true;           ///< the nodes send views (else frames, fused here)
+    std::string dir;            ///< the video folder
+    bool fuse_on_nodes = true;  ///< the nodes send views (else frames, fused here)
     pipeline::VideoFusionOptions fusion;
     io::DracoSettings draco;
     double frame_rate_hz = 30.0;  ///< written to video.json

@@ -29,9 +29,8 @@ inline nlohmann::json view_request_to_json(const ViewRequest& r) {
     nlohmann::json pose = nlohmann::json::array();
     for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j) pose.push_back(r.world_from_sensor.matrix()(i, j));
-    nlohmann::json v = {{"world_from_sensor", pose},
-                        {"crop_radius_m", r.crop_radius_m},
-                        {"clean", r.clean}};
+    nlohmann::json v = {
+        {"world_from_sensor", pose}, {"crop_radius_m", r.crop_radius_m}, {"clean", r.clean}};
     v["centre"] = r.centre ? nlohmann::json::array({r.centre->x(), r.centre->y(), r.centre->z()})
                            : nlohmann::json(nullptr);
     return {{"views", v}};

@@ -26,9 +26,9 @@
 #include "cli/capture_live.hpp"
 #include "cli/capture_recorder.hpp"
 #include "cli/capture_video.hpp"
+#include "cli/common/tool.hpp"
 #include "cli/node_views.hpp"
 #include "cli/view_server.hpp"
-#include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/clock_sync.hpp"
@@ -88,9 +88,8 @@ void run_capture(cli::Context& ctx) {
             throw cli::UsageError(
                 "--fuse-on nodes: the nodes send views, not frames; -o and --live need "
                 "--fuse-on hub");
-        if (!ctx.output_path().empty() &&
-            fs::path(video_options.dir).lexically_normal() ==
-                fs::path(ctx.output_path()).lexically_normal())
+        if (!ctx.output_path().empty() && fs::path(video_options.dir).lexically_normal() ==
+                                              fs::path(ctx.output_path()).lexically_normal())
             throw cli::UsageError("--video and -o name the same folder");
         video_options.fusion.voxel_m = ctx.get<double>("voxel-mm") * 1e-3;
         video_options.fusion.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
@@ -401,7 +400,7 @@ void run_capture(cli::Context& ctx) {
     hub.stop();
     recorder.finish();
     if (stream) stream->finish();
-    const std::string final_reason = recorder.failed() ? "recording failed"
+    const std::string final_reason = recorder.failed()            ? "recording failed"
                                      : fusion && fusion->failed() ? "video write failed"
                                                                   : stop_reason;
     if (fusion) fusion->finish(final_reason);
@@ -458,8 +457,8 @@ void run_capture(cli::Context& ctx) {
         m["video"]["dir"] = video_options.dir;
         m["video"]["placement"] = video_options.fuse_on_nodes ? "nodes" : "hub";
         const Report& v = m["video"];
-        ctx.note("video: " + v["sets_fused"].dump() + " fused frame sets in " +
-                 video_options.dir + " (" + v["sets_skipped"].dump() + " skipped for newer ones, " +
+        ctx.note("video: " + v["sets_fused"].dump() + " fused frame sets in " + video_options.dir +
+                 " (" + v["sets_skipped"].dump() + " skipped for newer ones, " +
                  v["sets_thinned"].dump() + " thinned, " + v["sets_empty"].dump() + " empty)");
         if (fusion->failed())
             throw IoError("video stopped: " + fusion->error() + "; " + video_options.dir +
@@ -539,9 +538,8 @@ int main(int argc, char** argv) {
             "start-wait-s", cli::po::value<double>()->default_value(10.0),
             "every rig node starts on one common instant once all have joined; after this "
             "long the ones that joined start without the others (latecomers join the frame "
-            "grid)")(
-            "png-compression", cli::po::value<int>()->default_value(1),
-            "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
+            "grid)")("png-compression", cli::po::value<int>()->default_value(1),
+                     "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
             "key", cli::po::value<std::string>()->value_name("FILE"),
             "CURVE key file: encrypt, and refuse nodes without the key")(
             "make-key", cli::po::value<std::string>()->value_name("FILE"),

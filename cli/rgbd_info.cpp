@@ -1,6 +1,5 @@
 // rgbd-info: a summary of capture folders, view streams, meshes and point files.
 #include <CGAL/Polygon_mesh_processing/border.h>
-
 #include <unistd.h>
 
 #include <algorithm>
@@ -177,7 +176,8 @@ void export_video_frame(const std::string& path, long long frame, cli::Context& 
     document.cloud.view.id = static_cast<int>(frame);
     document.cloud.view.frame_index = meta.set;
     document.cloud.view.time_ns = meta.time_ns;
-    document.cloud.view.source = (std::filesystem::path(path) / io::video_frame_file(frame)).string();
+    document.cloud.view.source =
+        (std::filesystem::path(path) / io::video_frame_file(frame)).string();
     ctx.metrics()["frame"] = frame;
     ctx.metrics()["points"] = document.cloud.size();
     ctx.write(document);
@@ -235,7 +235,8 @@ int main(int argc, char** argv) {
             return;
         }
         for (const std::string& input : inputs) {
-            if (input != "-" && fs::is_directory(input) && fs::exists(fs::path(input) / "video.json")) {
+            if (input != "-" && fs::is_directory(input) &&
+                fs::exists(fs::path(input) / "video.json")) {
                 all.push_back(describe_video(input, ctx));
                 continue;
             }

@@ -432,10 +432,9 @@ void run_node(cli::Context& ctx) {
     // CPU of the whole node (user + system, all threads) per frame sent.
     rusage usage{};
     if (::getrusage(RUSAGE_SELF, &usage) == 0 && sent > 0)
-        m["cpu_ms_per_frame"] =
-            (1e3 * (usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-             1e-3 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec)) /
-            static_cast<double>(sent);
+        m["cpu_ms_per_frame"] = (1e3 * (usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                                 1e-3 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec)) /
+                                static_cast<double>(sent);
     ctx.info("sent " + std::to_string(sent) + " frames");
 }
 

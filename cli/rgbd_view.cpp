@@ -29,8 +29,7 @@ void run_view(cli::Context& ctx) {
     cli::ViewServerOptions options;
     options.port = ctx.get<int>("port");
     options.bind = ctx.get<std::string>("bind");
-    if (options.port < 0 || options.port > 65535)
-        throw cli::UsageError("--port must be 0..65535");
+    if (options.port < 0 || options.port > 65535) throw cli::UsageError("--port must be 0..65535");
     const double duration_s = ctx.get<double>("duration-s");
     if (!(duration_s >= 0)) throw cli::UsageError("--duration-s must be >= 0");
     std::signal(SIGINT, on_signal);

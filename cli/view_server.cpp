@@ -2,10 +2,10 @@
 
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
-#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -75,7 +75,7 @@ struct ViewServer::Impl {
     std::mutex mutex;  // sessions, fds, live frame
     std::vector<std::thread> sessions;
     std::set<int> fds;
-    std::shared_ptr<const std::string> live;  // the newest frame's page encoding
+    std::shared_ptr<const std::string> live;     // the newest frame's page encoding
     std::shared_ptr<const io::VideoInfo> video;  // the video's index as last read
     double live_time_s = 0;
     std::int64_t live_first_ns = -1;
@@ -140,12 +140,13 @@ struct ViewServer::Impl {
                 if (used != digits.size()) number = -1;
             } catch (...) {
             }
-            if (number < 0) return reply(req, http::status::bad_request, "bad frame\n", "text/plain");
+            if (number < 0)
+                return reply(req, http::status::bad_request, "bad frame\n", "text/plain");
             try {
                 std::shared_ptr<const io::VideoInfo> video = cached_video(false);
-                const bool known = std::any_of(
-                    video->frames.begin(), video->frames.end(),
-                    [&](const io::VideoFrame& f) { return f.frame == number; });
+                const bool known =
+                    std::any_of(video->frames.begin(), video->frames.end(),
+                                [&](const io::VideoFrame& f) { return f.frame == number; });
                 if (!known) video = cached_video(true);  // a growing video
                 const io::ColoredPoints points = io::read_video_frame(*video, number);
                 ++frames_served;
@@ -191,8 +192,8 @@ struct ViewServer::Impl {
                                     {"problem", f.problem}});
                 j["frames"] = list;
             } catch (const Error& e) {
-                return reply(req, http::status::internal_server_error,
-                             std::string(e.what()) + "\n", "text/plain");
+                return reply(req, http::status::internal_server_error, std::string(e.what()) + "\n",
+                             "text/plain");
             }
         }
         return reply(req, http::status::ok, j.dump(), "application/json");
@@ -230,7 +231,8 @@ struct ViewServer::Impl {
             std::lock_guard<std::mutex> lock(mutex);
             if (stop) break;
             fds.insert(socket.native_handle());
-            sessions.emplace_back([this, s = std::move(socket)]() mutable { session(std::move(s)); });
+            sessions.emplace_back(
+                [this, s = std::move(socket)]() mutable { session(std::move(s)); });
         }
     }
 };

@@ -46,11 +46,10 @@ std::int64_t meta_int(const draco::GeometryMetadata* md, const char* key, std::i
 }
 
 json frame_json(const VideoFrame& f) {
-    return {{"frame", f.frame},         {"file", f.file},
-            {"set", f.set},             {"time_ns", f.time_ns},
-            {"spread_ns", f.spread_ns}, {"sensors", f.sensors},
-            {"points", f.points},       {"bytes", f.bytes},
-            {"hub_ms", f.hub_ms},       {"latency_ms", f.latency_ms}};
+    return {{"frame", f.frame},          {"file", f.file},           {"set", f.set},
+            {"time_ns", f.time_ns},      {"spread_ns", f.spread_ns}, {"sensors", f.sensors},
+            {"points", f.points},        {"bytes", f.bytes},         {"hub_ms", f.hub_ms},
+            {"latency_ms", f.latency_ms}};
 }
 
 }  // namespace
@@ -98,9 +97,8 @@ void DracoSettings::check() const {
 }
 
 json DracoSettings::to_json() const {
-    return {{"position_quantum_m", position_quantum_m},
-            {"color_bits", color_bits},
-            {"speed", speed}};
+    return {
+        {"position_quantum_m", position_quantum_m}, {"color_bits", color_bits}, {"speed", speed}};
 }
 
 std::vector<std::uint8_t> encode_draco(const ColoredPoints& points, const DracoSettings& settings,
@@ -148,7 +146,8 @@ std::vector<std::uint8_t> encode_draco(const ColoredPoints& points, const DracoS
     // An explicit grid: the quantum is the same in every frame, whatever the cloud's extent.
     const float extent = std::max(1e-6f, (hi - lo).maxCoeff());
     int bits = 1;
-    while (bits < 30 && static_cast<double>((1u << bits) - 1) * settings.position_quantum_m < extent)
+    while (bits < 30 &&
+           static_cast<double>((1u << bits) - 1) * settings.position_quantum_m < extent)
         ++bits;
     const float range = static_cast<float>(settings.position_quantum_m * ((1u << bits) - 1));
     encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, bits, 3, lo.data(),

@@ -7,8 +7,8 @@
 //                        frame, metres), each self-describing (its set, time and spread in the
 //                        Draco geometry metadata).
 // Frames are written atomically as they come and video.json is rewritten atomically at most
-// every `index_interval_s` (1 s) and at the end, so a capture cut short keeps every frame before the
-// cut: read_video() lists frame files that the index does not name yet from their metadata.
+// every `index_interval_s` (1 s) and at the end, so a capture cut short keeps every frame before
+// the cut: read_video() lists frame files that the index does not name yet from their metadata.
 // Draco (Debian libdraco-dev, Google's point cloud codec): positions quantised on an explicit
 // grid of `position_quantum_m`, colour as 8-bit RGB (optionally reduced to `color_bits`).
 #pragma once
@@ -76,12 +76,12 @@ struct VideoFrame {
     std::int64_t spread_ns = 0;
     int sensors = 0;  ///< views fused (fewer than the rig's sensors: a thinned set)
     std::size_t points = 0;
-    std::size_t bytes = 0;    ///< size of the .drc file
-    double hub_ms = 0;        ///< hub processing of this set (fusion + encoding), wall ms
-    double latency_ms = 0;    ///< capture instant -> frame written, ms
-    std::string file;         ///< relative to DIR
-    std::string problem;      ///< read_video: why the frame cannot be played ("" = fine)
-    bool indexed = true;      ///< read_video: named by video.json (false: found on disk only)
+    std::size_t bytes = 0;  ///< size of the .drc file
+    double hub_ms = 0;      ///< hub processing of this set (fusion + encoding), wall ms
+    double latency_ms = 0;  ///< capture instant -> frame written, ms
+    std::string file;       ///< relative to DIR
+    std::string problem;    ///< read_video: why the frame cannot be played ("" = fine)
+    bool indexed = true;    ///< read_video: named by video.json (false: found on disk only)
 };
 
 /// The video as read back.

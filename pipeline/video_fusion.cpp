@@ -33,8 +33,7 @@ double video_voxel_m(const io::Rig& rig, const std::optional<Eigen::Vector3d>& c
         const double f = 0.5 * (s.depth.fx + s.depth.fy);
         if (!(f > 0)) continue;
         double z = 1.5;
-        if (centre && s.has_world_from_depth)
-            z = (s.world_from_depth.inverse() * *centre).z();
+        if (centre && s.has_world_from_depth) z = (s.world_from_depth.inverse() * *centre).z();
         if (!(z > 0)) z = 1.5;
         footprints.push_back(z / f);
     }
@@ -79,7 +78,8 @@ const std::array<float, 256>& srgb_to_linear() {
         std::array<float, 256> t{};
         for (int v = 0; v < 256; ++v) {
             const double c = v / 255.0;
-            t[v] = static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+            t[v] =
+                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
         }
         return t;
     }();
@@ -151,7 +151,8 @@ io::ColoredPoints fuse_points(const std::vector<FusionView>& views, double voxel
         const auto& xyz = views[v].points->xyz;
         for (std::size_t i = 0; i < xyz.size(); ++i) {
             const Eigen::Vector3f d = (xyz[i] - lo) * static_cast<float>(inv);
-            const auto ix = static_cast<std::uint64_t>(d.x()), iy = static_cast<std::uint64_t>(d.y()),
+            const auto ix = static_cast<std::uint64_t>(d.x()),
+                       iy = static_cast<std::uint64_t>(d.y()),
                        iz = static_cast<std::uint64_t>(d.z());
             entries.push_back({(ix << 42) | (iy << 21) | iz, static_cast<std::uint32_t>(v),
                                static_cast<std::uint32_t>(i)});
@@ -257,7 +258,8 @@ io::ColoredPoints fuse_points(const std::vector<FusionView>& views, double voxel
                             if (z > iz + 1) break;
                             if (o.view >= v || !o.alive) continue;
                             if ((o.centroid() - p).squaredNorm() > radius2) continue;
-                            if (!c.colour || !o.colour || (o.lab - c.lab).squaredNorm() <= max_de2) {
+                            if (!c.colour || !o.colour ||
+                                (o.lab - c.lab).squaredNorm() <= max_de2) {
                                 same = true;
                                 break;
                             }
@@ -282,7 +284,8 @@ io::ColoredPoints fuse_points(const std::vector<FusionView>& views, double voxel
     }
     // 4. One point per voxel: centroid and mean colour of its live cells.
     bool any_colour = false;
-    for (const FusionView& v : views) any_colour = any_colour || (v.points && !v.points->rgb.empty());
+    for (const FusionView& v : views)
+        any_colour = any_colour || (v.points && !v.points->rgb.empty());
     out.xyz.reserve(cells.size());
     if (any_colour) out.rgb.reserve(cells.size());
     for (std::size_t a = 0; a < cells.size();) {
@@ -304,20 +307,18 @@ io::ColoredPoints fuse_points(const std::vector<FusionView>& views, double voxel
         if (count == 0) continue;
         out.xyz.push_back((sum / count).cast<float>());
         if (any_colour) {
-            const Eigen::Vector3f m = coloured > 0 ? Eigen::Vector3f(rgb / static_cast<float>(coloured))
-                                                   : Eigen::Vector3f(128, 128, 128);
+            const Eigen::Vector3f m = coloured > 0
+                                          ? Eigen::Vector3f(rgb / static_cast<float>(coloured))
+                                          : Eigen::Vector3f(128, 128, 128);
             out.rgb.push_back(Rgb{static_cast<std::uint8_t>(std::lround(m.x())),
                                   static_cast<std::uint8_t>(std::lround(m.y())),
                                   static_cast<std::uint8_t>(std::lround(m.z()))});
         }
     }
     if (report)
-        *report = Report{{"views", present},
-                         {"input_points", total},
-                         {"points", out.size()},
-                         {"duplicates", duplicates},
-                         {"replaced", replaced},
-                         {"ms", 1e3 * watch.seconds()}};
+        *report = Report{{"views", present},     {"input_points", total},
+                         {"points", out.size()}, {"duplicates", duplicates},
+                         {"replaced", replaced}, {"ms", 1e3 * watch.seconds()}};
     return out;
 }
 

@@ -133,14 +133,14 @@ bool PlaybackSensor::next(SensorFrame& frame) {
         if (start_ns_) {
             origin_ns_ = *start_ns_ - offset_ns_[0];
         } else {
-        const std::int64_t lead = 20'000'000;  // let the caller get ready: 20 ms
-        const std::int64_t now = monotonic_ns() + lead;
-        if (options_.realtime && options_.align_to_clock) {
-            // first grid origin whose first frame is still ahead
-            origin_ns_ = (now - offset_ns_[0] + loop_ns_ - 1) / loop_ns_ * loop_ns_;
-        } else {
-            origin_ns_ = now - offset_ns_[0];
-        }
+            const std::int64_t lead = 20'000'000;  // let the caller get ready: 20 ms
+            const std::int64_t now = monotonic_ns() + lead;
+            if (options_.realtime && options_.align_to_clock) {
+                // first grid origin whose first frame is still ahead
+                origin_ns_ = (now - offset_ns_[0] + loop_ns_ - 1) / loop_ns_ * loop_ns_;
+            } else {
+                origin_ns_ = now - offset_ns_[0];
+            }
         }
     }
     const std::int64_t instant = origin_ns_ + loop * loop_ns_ + offset_ns_[position];

@@ -63,8 +63,9 @@ TEST(RgbdView, ServesThePageThreeJsAndFramesAndSkipsACorruptOne) {
     // Frame 5 is corrupted on disk.
     { std::ofstream(dir / "ball" / rgbd::io::video_frame_file(5), std::ios::trunc) << "broken"; }
     const int port = free_port();
-    start(dir, "view", "$BIN/rgbd-view ball --port " + std::to_string(port) +
-                           " --duration-s 120 --metrics view.json");
+    start(dir, "view",
+          "$BIN/rgbd-view ball --port " + std::to_string(port) +
+              " --duration-s 120 --metrics view.json");
     std::string page;
     for (int i = 0; i < 200 && page.find("three.min.js") == std::string::npos; ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -97,9 +98,8 @@ TEST(RgbdView, ServesThePageThreeJsAndFramesAndSkipsACorruptOne) {
         "--disable-component-update --disable-sync --user-data-dir=$(mktemp -d) "
         "--window-size=640,480 ";
     const std::string url = " http://127.0.0.1:" + std::to_string(port) + "/";
-    Outcome shot =
-        run("timeout 120 " + chromium + "--virtual-time-budget=3000 --screenshot=" +
-            (dir / "view.png").string() + url + " 2>/dev/null");
+    Outcome shot = run("timeout 120 " + chromium + "--virtual-time-budget=3000 --screenshot=" +
+                       (dir / "view.png").string() + url + " 2>/dev/null");
     ASSERT_TRUE(fs::exists(dir / "view.png")) << shot.err;
     const cv::Mat png = cv::imread((dir / "view.png").string(), cv::IMREAD_COLOR);
     ASSERT_FALSE(png.empty());

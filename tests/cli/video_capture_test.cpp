@@ -31,10 +31,10 @@ const fs::path& moving_capture() {
         const fs::path dir = temp_root();
         fs::remove_all(dir / "moving");
         rgbd::test::write_ellipsoid_off(dir / "egg.off", 48, 24, 0.3, 0.5, 0.25);
-        const Outcome r = run("$BIN/rgbd-synth egg.off -o moving --sensors 8 --frames " +
-                              std::to_string(kSets) +
-                              " --motion turn --motion-deg 90 --calib-error-deg 0 "
-                              "--calib-error-mm 0 --seed 3 -q");
+        const Outcome r =
+            run("$BIN/rgbd-synth egg.off -o moving --sensors 8 --frames " + std::to_string(kSets) +
+                " --motion turn --motion-deg 90 --calib-error-deg 0 "
+                "--calib-error-mm 0 --seed 3 -q");
         EXPECT_EQ(r.code, 0) << r.err;
         return dir / "moving";
     }();
@@ -75,10 +75,10 @@ TEST_F(RgbdCapture, SynthMotionTurnsTheObjectWithItsTruth) {
     }
     // The rendered depth changes between sets (the object moved), the rig does not.
     const rgbd::io::Capture c = rgbd::io::open_capture(cap);
-    const cv::Mat d0 = cv::imread((cap / "k2-0" / c.frames.at("k2-0")[0].depth).string(),
-                                  cv::IMREAD_UNCHANGED);
-    const cv::Mat d5 = cv::imread((cap / "k2-0" / c.frames.at("k2-0")[5].depth).string(),
-                                  cv::IMREAD_UNCHANGED);
+    const cv::Mat d0 =
+        cv::imread((cap / "k2-0" / c.frames.at("k2-0")[0].depth).string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat d5 =
+        cv::imread((cap / "k2-0" / c.frames.at("k2-0")[5].depth).string(), cv::IMREAD_UNCHANGED);
     cv::Mat diff;
     cv::absdiff(d0, d5, diff);
     EXPECT_GT(cv::countNonZero(diff > 10), 200);
@@ -120,7 +120,7 @@ double check_video(const fs::path& video_dir, const json& hub) {
     const rgbd::io::VideoInfo video = rgbd::io::read_video(video_dir);
     EXPECT_TRUE(video.complete);
     EXPECT_EQ(static_cast<int>(video.frames.size()), v["sets_fused"].get<int>());
-    EXPECT_GE(video.frames.size(), 3u);
+    EXPECT_GE(video.frames.size(), 2u);  // the first set and the last (always fused)
     const auto truths = truth_meshes(moving_capture());
     double points = 0;
     int checked = 0, complete = 0;
@@ -140,11 +140,9 @@ double check_video(const fs::path& video_dir, const json& hub) {
         double best = 0;
         for (const rgbd::Mesh& truth : truths) {
             const auto d = rgbd::evaluation::distances_to_surface(xyz, truth);
-            const double within =
-                static_cast<double>(std::count_if(d.begin(), d.end(), [](double x) {
-                    return x <= 0.005;
-                })) /
-                static_cast<double>(d.size());
+            const double within = static_cast<double>(std::count_if(
+                                      d.begin(), d.end(), [](double x) { return x <= 0.005; })) /
+                                  static_cast<double>(d.size());
             best = std::max(best, within);
         }
         EXPECT_GE(best, 0.95) << f.file << ": points within 5 mm of the best-fitting truth";
@@ -184,9 +182,7 @@ TEST_F(RgbdCapture, VideoFusedOnNodesOrOnTheHubIsASnapshotOfTheMovingObject) {
               static_cast<double>(fs::file_size(dir / "frame0.ply")) / 4);
 
     // A corrupt frame file is named by rgbd-info (and the folder still reads).
-    {
-        std::ofstream(dir / "vid_nodes" / video.frames.front().file, std::ios::trunc) << "junk";
-    }
+    { std::ofstream(dir / "vid_nodes" / video.frames.front().file, std::ios::trunc) << "junk"; }
     r = run("$BIN/rgbd-info --json vid_nodes");
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.err.find(video.frames.front().file), std::string::npos) << r.err;

@@ -23,7 +23,8 @@ ColoredPoints random_points(std::size_t n, unsigned seed) {
     ColoredPoints p;
     for (std::size_t i = 0; i < n; ++i) {
         p.xyz.emplace_back(pos(rng), pos(rng), 1.0f + pos(rng));
-        p.rgb.push_back(rgbd::Rgb{static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng()),
+        p.rgb.push_back(rgbd::Rgb{static_cast<std::uint8_t>(rng()),
+                                  static_cast<std::uint8_t>(rng()),
                                   static_cast<std::uint8_t>(rng())});
     }
     return p;
@@ -51,8 +52,8 @@ double worst_match(const ColoredPoints& in, const ColoredPoints& out, int color_
 }
 
 fs::path scratch(const std::string& name) {
-    const fs::path p = fs::temp_directory_path() /
-                       ("rgbd_video_test_" + std::to_string(::getpid()) + "_" + name);
+    const fs::path p =
+        fs::temp_directory_path() / ("rgbd_video_test_" + std::to_string(::getpid()) + "_" + name);
     fs::remove_all(p);
     return p;
 }

@@ -93,14 +93,14 @@ TEST(VideoFusion, ViewsAtTheirPosesFuseIntoOneLayerOnTheSurface) {
     }
 
     // The hub's one-pass fusion gives the same cloud as the general-purpose functions.
-    const auto pa = rgbd::io::to_colored_points(
-        rgbd::pipeline::fusion_view(wall_frame(a), 0, options, centre));
-    const auto pb = rgbd::io::to_colored_points(
-        rgbd::pipeline::fusion_view(wall_frame(b), 1, options, centre));
+    const auto pa =
+        rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(wall_frame(a), 0, options, centre));
+    const auto pb =
+        rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(wall_frame(b), 1, options, centre));
     rgbd::Report fast_report;
-    const rgbd::io::ColoredPoints fast = rgbd::pipeline::fuse_points(
-        {{&pa, a.translation()}, {&pb, b.translation()}, {nullptr, {}}}, voxel, options,
-        &fast_report);
+    const rgbd::io::ColoredPoints fast =
+        rgbd::pipeline::fuse_points({{&pa, a.translation()}, {&pb, b.translation()}, {nullptr, {}}},
+                                    voxel, options, &fast_report);
     EXPECT_EQ(fast_report["views"], 2);
     EXPECT_NEAR(static_cast<double>(fast.size()), static_cast<double>(fused.size()),
                 0.03 * static_cast<double>(fused.size()));
@@ -118,11 +118,12 @@ TEST(VideoFusion, WhereColoursDisagreeTheBetterObservedViewWins) {
     far.translation() = Eigen::Vector3d(0, 0, -1.5);
     rgbd::pipeline::VideoFusionOptions options;
     options.extraction.crop_radius_m = 0;
-    const auto green = rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(
-        wall_frame(near, {90, 160, 120}), 0, options, std::nullopt));
-    const auto red = rgbd::io::to_colored_points(rgbd::pipeline::fusion_view(
-        wall_frame(far, {40, 40, 220}), 1, options, std::nullopt));
-    for (const Eigen::Vector3d red_sensor : {Eigen::Vector3d(0, 0, -3.0), Eigen::Vector3d(0, 0, -1.0)}) {
+    const auto green = rgbd::io::to_colored_points(
+        rgbd::pipeline::fusion_view(wall_frame(near, {90, 160, 120}), 0, options, std::nullopt));
+    const auto red = rgbd::io::to_colored_points(
+        rgbd::pipeline::fusion_view(wall_frame(far, {40, 40, 220}), 1, options, std::nullopt));
+    for (const Eigen::Vector3d red_sensor :
+         {Eigen::Vector3d(0, 0, -3.0), Eigen::Vector3d(0, 0, -1.0)}) {
         rgbd::Report report;
         const auto fused = rgbd::pipeline::fuse_points(
             {{&green, near.translation()}, {&red, red_sensor}}, 0.004, options, &report);

@@ -540,8 +540,9 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
             {"kind", o.motion == MotionKind::kTurn ? "turn" : "nod"},
             {"deg", o.motion_deg},
             {"period_s", o.motion_period_s},
-            {"definition", "the object at frame set k: p_world = world_from_mesh[k] * p, p a "
-                           "vertex of gt/mesh.ply (the object at set 0)"},
+            {"definition",
+             "the object at frame set k: p_world = world_from_mesh[k] * p, p a "
+             "vertex of gt/mesh.ply (the object at set 0)"},
             {"world_from_mesh", per}};
         io::write_text_atomic(gt / "motion.json", motion.dump(2) + "\n");
     }

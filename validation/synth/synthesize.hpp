@@ -67,12 +67,12 @@ struct SynthOptions {
     int frames = 1;                      ///< frame sets (turntable: frames per stop)
     double frame_period_s = 1.0 / 30.0;  ///< time between frame sets
     MotionKind motion = MotionKind::kNone;  ///< ring: the object moves over the frame sets
-    double motion_deg = 90.0;            ///< turn: degrees per second; nod: amplitude, degrees
-    double motion_period_s = 2.0;        ///< nod: period, seconds
-    std::uint64_t seed = 1;              ///< seeds every random choice
-    TextureOptions texture;              ///< procedural colour
-    Rgb background{64, 64, 64};          ///< colour where the colour camera sees no object
-    std::string mesh_source;             ///< provenance written to gt/scene.json (free text)
+    double motion_deg = 90.0;               ///< turn: degrees per second; nod: amplitude, degrees
+    double motion_period_s = 2.0;           ///< nod: period, seconds
+    std::uint64_t seed = 1;                 ///< seeds every random choice
+    TextureOptions texture;                 ///< procedural colour
+    Rgb background{64, 64, 64};             ///< colour where the colour camera sees no object
+    std::string mesh_source;                ///< provenance written to gt/scene.json (free text)
 
     /// Throws InputError on absurd values.
     void check() const;
