@@ -70,6 +70,9 @@ struct HubOptions {
 
 // ---------------------------------------------------------------------------------- control
 
+/// Probe bursts a node's clock gets before it may start.
+inline constexpr std::size_t kBurstsBeforeStart = 3;
+
 /// One node run (session): its clock estimate and the probe schedule.
 struct Session {
     std::string routing_id;
@@ -243,9 +246,14 @@ private:
         s.burst_count = 0;
         s.clock.end_burst();
         s.next_at = now + options_.probe_interval_ns;
-        if (!s.ready && s.clock.ready()) {
+        // Before its start a node gets kBurstsBeforeStart bursts back to back: the first frames
+        // are mapped through a fit of several bursts (weighted by round trip), not through one
+        // burst that may have met a busy moment.
+        if (!s.ready && s.clock.bursts() >= kBurstsBeforeStart) {
             s.ready = true;
             if (first_ready_ns_ == 0) first_ready_ns_ = now;
+        } else if (!s.ready) {
+            s.next_at = now;
         }
     }
 

@@ -345,6 +345,7 @@ void run_capture(cli::Context& ctx) {
     };
 
     std::string stop_reason = "signal";
+    std::int64_t last_formed = monotonic_ns();
     for (;;) {
         if (g_stop) break;
         if (recorder.failed()) break;
@@ -364,7 +365,8 @@ void run_capture(cli::Context& ctx) {
         }
         zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
         if (!poll_once(item)) continue;
-        for (int k = 0; k < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++k) {
+        int taken = 0;
+        for (; taken < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++taken) {
             if (message.more()) {
                 while (message.more() && pull.recv(message, zmq::recv_flags::none)) {
                 }
@@ -373,7 +375,14 @@ void run_capture(cli::Context& ctx) {
             }
             handle(message);
         }
-        form_sets(monotonic_ns() - latency_ns);
+        // Sets are formed once the socket is drained: a hub that falls behind (a loaded
+        // machine) reads the frames waiting for it before it closes their windows, so they are
+        // not late. It still forms them at least every latency / 2 when it never drains.
+        const std::int64_t now = monotonic_ns();
+        if (taken < 64 || now - last_formed > latency_ns / 2) {
+            form_sets(now - latency_ns);
+            last_formed = now;
+        }
     }
     if (!recorder.failed()) {
         // Drain: what the nodes already sent, until the socket is quiet for 300 ms.
