@@ -54,7 +54,10 @@ for placement in ("nodes", "hub"):
         "fused_sets_per_s": v["sets_fused"] / span_s if span_s else 0,
         "offered_sets_per_s": v["sets_offered"] / span_s if span_s else 0,
         "hub_fusion_cpu_ms_per_set": v["hub_cpu_ms_per_set"],
-        "hub_process_cpu_ms_per_set": 1e3 * hub["cpu_s"] / max(1, v["sets_fused"]),
+        # The rest of the hub (receiving, grouping, copying; other threads) per offered set,
+        # plus the fusion thread's CPU per fused set: the hub's CPU if it fused every set.
+        "hub_other_cpu_ms_per_set": (1e3 * hub["cpu_s"] - v["hub_cpu_ms_per_set"] * v["sets_fused"])
+                                    / max(1, v["sets_offered"]),
         "node_cpu_ms_per_frame": float(np.mean([n["cpu_ms_per_frame"] for n in nodes])),
         "latency_ms_p50": v["latency_ms_p50"], "latency_ms_p95": v["latency_ms_p95"],
         "points_per_frame": float(np.mean([f["points"] for f in frames])),
@@ -77,10 +80,13 @@ def verdict(name, ok, figure):
     print(f"  {'MET    ' if ok else 'NOT MET'} {name}: {figure}")
 print("== targets (per-view work on the nodes, the placement that keeps the hub at 30 sets/s)")
 verdict(">= 30 fused sets/s", n["fused_sets_per_s"] >= 29.5,
-        f"{n['fused_sets_per_s']:.1f} sets/s fused of {n['offered_sets_per_s']:.1f} offered")
+        f"{n['fused_sets_per_s']:.1f} sets/s fused of {n['offered_sets_per_s']:.1f} offered; the "
+        f"fusion thread's CPU allows {1000 / max(1e-9, n['hub_fusion_cpu_ms_per_set']):.0f} sets/s "
+        f"on a core of its own")
 verdict("hub work <= 33 ms per set on one core", n["hub_fusion_cpu_ms_per_set"] <= 33,
-        f"{n['hub_fusion_cpu_ms_per_set']:.1f} ms (fusion thread); whole hub process "
-        f"{n['hub_process_cpu_ms_per_set']:.1f} ms")
+        f"{n['hub_fusion_cpu_ms_per_set']:.1f} ms (fusion thread: fusion, Draco, writing); the "
+        f"other hub threads (receiving, grouping) {n['hub_other_cpu_ms_per_set']:.1f} ms per set "
+        f"on another core")
 verdict("latency p95 <= 100 ms", n["latency_ms_p95"] <= 100,
         f"p50 {n['latency_ms_p50']:.0f} ms, p95 {n['latency_ms_p95']:.0f} ms")
 verdict("no set lost without being counted", n["lost_uncounted"] == 0,
