@@ -97,7 +97,8 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
       context_(context),
       on_disk_(std::move(on_disk)),
       depth_file_(std::move(depth_file)),
-      centre_(object_centre(rig)) {
+      centre_(object_centre(rig)),
+      worker_([this](LiveSet& set) { take(set); }) {
     if (options_.path == "-") {
         out_ = &std::cout;
     } else {
@@ -115,17 +116,10 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
         if (!file_->good()) throw IoError("--live " + options_.path + ": cannot open for writing");
         out_ = file_.get();
     }
-    thread_ = std::thread([this] { run(); });
 }
 
 LiveStream::~LiveStream() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-        has_pending_ = false;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
+    worker_.stop(false);
     if (!temp_path_.empty()) {
         std::error_code ec;
         fs::remove(temp_path_, ec);  // finish() did not put it in place: no half-written file
@@ -139,39 +133,25 @@ void LiveStream::offer(const io::FrameSet& set, std::int64_t ordinal, const Fram
             ++incomplete_;
             return;
         }
-    staging_.frames.resize(rig_.sensors.size());
+    LiveSet& staging = worker_.staging();
+    staging.frames.resize(rig_.sensors.size());
     for (std::size_t s = 0; s < set.frames.size(); ++s) {
         const LiveFrame* frame = history.find(s, set.frames[s]);
         if (!frame) {  // older than the history window: cannot happen with matching latency
             ++incomplete_;
             return;
         }
-        copy_frame(*frame, staging_.frames[s]);
+        copy_frame(*frame, staging.frames[s]);
     }
-    staging_.set = set;
-    staging_.ordinal = ordinal;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (has_pending_) ++skipped_;
-        std::swap(staging_, pending_);
-        has_pending_ = true;
-    }
-    wake_.notify_one();
+    staging.set = set;
+    staging.ordinal = ordinal;
+    worker_.commit();
 }
 
-void LiveStream::run() {
-    for (;;) {
-        {
-            std::unique_lock<std::mutex> lock(mutex_);
-            wake_.wait(lock, [&] { return has_pending_ || stop_; });
-            if (!has_pending_) return;
-            std::swap(pending_, working_);
-            has_pending_ = false;
-        }
-        if (finished_) continue;
-        emit(working_);
-        if (options_.max_sets > 0 && emitted_ >= options_.max_sets) finished_ = true;
-    }
+void LiveStream::take(LiveSet& set) {
+    if (finished_) return;
+    emit(set);
+    if (options_.max_sets > 0 && emitted_ >= options_.max_sets) finished_ = true;
 }
 
 void LiveStream::emit(const LiveSet& live) {
@@ -230,12 +210,7 @@ void LiveStream::emit(const LiveSet& live) {
 }
 
 void LiveStream::finish() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
+    worker_.stop(true);
     if (file_) {
         file_->close();
         if (!temp_path_.empty()) {
@@ -253,7 +228,7 @@ void LiveStream::finish() {
 
 Report LiveStream::metrics() const {
     return Report{{"sets_emitted", emitted_.load()},
-                  {"sets_skipped", skipped_.load()},
+                  {"sets_skipped", worker_.skipped()},
                   {"sets_incomplete", incomplete_.load()},
                   {"views", views_.load()},
                   {"reader_closed", closed_.load()}};

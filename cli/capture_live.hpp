@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "cli/common/stages.hpp"
+#include "cli/newest_worker.hpp"
 #include "io/capture_folder.hpp"
 #include "io/video.hpp"
 #include "toolkit/report.hpp"
@@ -105,7 +106,7 @@ public:
     Report metrics() const;
 
 private:
-    void run();
+    void take(LiveSet& set);
     void emit(const LiveSet& set);
 
     const io::Rig& rig_;
@@ -118,14 +119,10 @@ private:
     std::unique_ptr<std::ofstream> file_;
     std::string temp_path_;  ///< non-empty when writing a regular file atomically
 
-    LiveSet staging_, pending_, working_;  ///< hub-owned, shared, stream-owned
-    bool has_pending_ = false, stop_ = false;
-    std::mutex mutex_;
-    std::condition_variable wake_;
     std::atomic<bool> finished_{false}, closed_{false};
-    std::atomic<std::int64_t> emitted_{0}, skipped_{0}, incomplete_{0}, views_{0};
-    cv::Mat color_;  ///< decoded colour, reused
-    std::thread thread_;
+    std::atomic<std::int64_t> emitted_{0}, incomplete_{0}, views_{0};
+    cv::Mat color_;                 ///< decoded colour, reused
+    NewestWorker<LiveSet> worker_;  ///< last: stopped before the members it uses go
 };
 
 }  // namespace rgbd::cli

@@ -1,6 +1,5 @@
 #include "cli/capture_video.hpp"
 
-#include <tbb/task_arena.h>
 #include <time.h>
 
 #include <algorithm>
@@ -36,7 +35,13 @@ VideoStream::VideoStream(const io::Rig& rig, const VideoOptions& options, Contex
       options_(options),
       context_(context),
       on_frame_(std::move(on_frame)),
-      centre_(pipeline::object_centre(rig)) {
+      centre_(pipeline::object_centre(rig)),
+      // The fusion runs on one core (a one-thread arena: parallel loops inside run serially),
+      // so its thread CPU time is the hub's work per set on one core.
+      arena_(std::make_unique<tbb::task_arena>(1)),
+      worker_([this](LiveSet& set) {
+          if (!failed_) arena_->execute([&] { fuse(set); });
+      }) {
     options_.fusion.check();
     voxel_m_ = options_.fusion.voxel_m > 0 ? options_.fusion.voxel_m
                                            : pipeline::video_voxel_m(rig, centre_);
@@ -49,18 +54,9 @@ VideoStream::VideoStream(const io::Rig& rig, const VideoOptions& options, Contex
     if (centre_) header["object_centre"] = {centre_->x(), centre_->y(), centre_->z()};
     writer_ = std::make_unique<io::VideoWriter>(options_.dir, rig, options_.frame_rate_hz,
                                                 options_.draco, header);
-    thread_ = std::thread([this] { run(); });
 }
 
-VideoStream::~VideoStream() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-        has_pending_ = false;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
-}
+VideoStream::~VideoStream() { worker_.stop(false); }
 
 std::string VideoStream::error() const {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -71,48 +67,26 @@ void VideoStream::offer(const io::FrameSet& set, const FrameHistory& history) {
     ++offered_;
     if (failed_) return;
     const std::size_t n = rig_.sensors.size();
-    staging_.frames.resize(n);
+    LiveSet& staging = worker_.staging();
+    staging.frames.resize(n);
     int present = 0;
     for (std::size_t s = 0; s < n; ++s) {
         const LiveFrame* frame =
             s < set.frames.size() && set.frames[s] >= 0 ? history.find(s, set.frames[s]) : nullptr;
         if (!frame) {
-            staging_.frames[s].index = -1;
+            staging.frames[s].index = -1;
             continue;
         }
-        copy_frame(*frame, staging_.frames[s]);
+        copy_frame(*frame, staging.frames[s]);
         ++present;
     }
     if (present == 0) {
         ++empty_;
         return;
     }
-    staging_.set = set;
-    staging_.ordinal = set.set;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (has_pending_) ++skipped_;
-        std::swap(staging_, pending_);
-        has_pending_ = true;
-    }
-    wake_.notify_one();
-}
-
-void VideoStream::run() {
-    // The fusion runs on one core (a one-thread arena: parallel loops inside run serially), so
-    // its thread CPU time is the hub's work per set on one core.
-    tbb::task_arena arena(1);
-    for (;;) {
-        {
-            std::unique_lock<std::mutex> lock(mutex_);
-            wake_.wait(lock, [&] { return has_pending_ || stop_; });
-            if (!has_pending_) return;
-            std::swap(pending_, working_);
-            has_pending_ = false;
-        }
-        if (failed_) continue;
-        arena.execute([&] { fuse(working_); });
-    }
+    staging.set = set;
+    staging.ordinal = set.set;
+    worker_.commit();
 }
 
 void VideoStream::fuse(LiveSet& live) {
@@ -197,12 +171,7 @@ void VideoStream::fuse(LiveSet& live) {
 }
 
 void VideoStream::finish(const std::string& stop_reason) {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
+    worker_.stop(true);
     if (failed_) {
         // Name what was kept: the index lists every frame written before the error.
         try {
@@ -219,7 +188,7 @@ Report VideoStream::metrics() const {
     const double fused = static_cast<double>(fused_.load());
     return Report{{"sets_offered", offered_.load()},
                   {"sets_fused", fused_.load()},
-                  {"sets_skipped", skipped_.load()},
+                  {"sets_skipped", worker_.skipped()},
                   {"sets_empty", empty_.load()},
                   {"sets_thinned", thinned_.load()},
                   {"views_fused", views_fused_.load()},

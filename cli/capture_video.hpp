@@ -9,6 +9,8 @@
 // fused thinned and counted. A write error (full disk) ends the video with what was written.
 #pragma once
 
+#include <tbb/task_arena.h>
+
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -21,6 +23,7 @@
 #include <vector>
 
 #include "cli/capture_live.hpp"
+#include "cli/newest_worker.hpp"
 #include "io/video.hpp"
 #include "pipeline/video_fusion.hpp"
 #include "toolkit/report.hpp"
@@ -66,7 +69,6 @@ public:
     Report metrics() const;
 
 private:
-    void run();
     void fuse(LiveSet& set);
 
     const io::Rig& rig_;
@@ -77,20 +79,18 @@ private:
     double voxel_m_ = 0;
     std::unique_ptr<io::VideoWriter> writer_;
 
-    LiveSet staging_, pending_, working_;  ///< hub-owned, shared, fusion-owned
-    bool has_pending_ = false, stop_ = false;
-    mutable std::mutex mutex_;
-    std::condition_variable wake_;
+    mutable std::mutex mutex_;  ///< guards error_ and the fusion thread's figures
     std::atomic<bool> failed_{false};
     std::string error_;
-    std::atomic<std::int64_t> offered_{0}, fused_{0}, skipped_{0}, empty_{0}, thinned_{0},
-        views_fused_{0}, views_missing_{0};
+    std::atomic<std::int64_t> offered_{0}, fused_{0}, empty_{0}, thinned_{0}, views_fused_{0},
+        views_missing_{0};
     double cpu_ms_ = 0, wall_ms_ = 0, max_wall_ms_ = 0;  ///< fusion thread (guarded by mutex_)
     std::vector<double> latency_ms_;                     ///< guarded by mutex_
     FusedFrame fused_frame_;
     std::vector<io::ColoredPoints> hub_views_;  ///< --fuse-on hub: the views made here
     cv::Mat color_;
-    std::thread thread_;
+    std::unique_ptr<tbb::task_arena> arena_;  ///< one thread: the fusion on one core
+    NewestWorker<LiveSet> worker_;            ///< last: stopped before the members it uses go
 };
 
 }  // namespace rgbd::cli
