@@ -79,6 +79,19 @@ void copy_frame(const LiveFrame& from, LiveFrame& to) {
     to.points.rgb.assign(from.points.rgb.begin(), from.points.rgb.end());
 }
 
+RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv::Mat& color) {
+    const std::string what = "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
+    color.release();
+    if (!frame.jpeg.empty()) {
+        color = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
+        if (color.empty()) throw InputError(what + ": cannot decode the colour JPEG");
+    }
+    RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color, what);
+    rgbd.frame_index = frame.index;
+    rgbd.timestamp_ns = frame.hub_ns;
+    return rgbd;
+}
+
 namespace {
 
 /// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
@@ -170,14 +183,7 @@ void LiveStream::emit(const LiveSet& live) {
         io::Document document;
         Report report;
         try {
-            color_.release();
-            if (!frame.jpeg.empty()) {
-                color_ = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
-                if (color_.empty()) throw InputError(what + ": cannot decode the colour JPEG");
-            }
-            RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color_, what);
-            rgbd.frame_index = frame.index;
-            rgbd.timestamp_ns = frame.hub_ns;
+            RgbdFrame rgbd = rgbd_from_live(spec, frame, color_);
             if (on_disk == 1) rgbd.source = depth_file_(spec.id, frame.index);
             document.cloud = view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
                                              options_.extraction, report);

@@ -64,6 +64,10 @@ private:
 /// Copies a frame (buffers of `to` reused).
 void copy_frame(const LiveFrame& from, LiveFrame& to);
 
+/// A received frame as an RgbdFrame of `spec` (colour JPEG decoded into `color`, reused),
+/// frame index and hub time set. Throws InputError naming the frame and sensor.
+RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv::Mat& color);
+
 /// A frame set with copies of its frames (in Rig::sensors order).
 struct LiveSet {
     std::int64_t ordinal = -1;  ///< position of the set in the recording's framesets.csv

@@ -105,16 +105,7 @@ void VideoStream::fuse(LiveSet& live) {
         try {
             const io::ColoredPoints* points = &frame.points;
             if (!frame.is_view) {  // --fuse-on hub: the per-view work here
-                const std::string what =
-                    "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
-                color_.release();
-                if (!frame.jpeg.empty()) {
-                    color_ = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
-                    if (color_.empty()) throw InputError(what + ": cannot decode the colour JPEG");
-                }
-                RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color_, what);
-                rgbd.frame_index = frame.index;
-                rgbd.timestamp_ns = frame.hub_ns;
+                const RgbdFrame rgbd = rgbd_from_live(spec, frame, color_);
                 hub_views_[s] = io::to_colored_points(
                     pipeline::fusion_view(rgbd, static_cast<int>(s), options_.fusion, centre_));
                 points = &hub_views_[s];
