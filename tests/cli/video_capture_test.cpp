@@ -5,6 +5,8 @@
 // rgbd-info summarises the folder and exports a frame. No wall-clock limits: under load the
 // hub skips sets (counted), it never loses one silently.
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -187,6 +189,80 @@ TEST_F(RgbdCapture, VideoFusedOnNodesOrOnTheHubIsASnapshotOfTheMovingObject) {
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_NE(r.err.find(video.frames.front().file), std::string::npos) << r.err;
     EXPECT_EQ(json::parse(r.out)[0]["problems"].size(), 1u);
+}
+
+TEST_F(RgbdCapture, LiveVideoIsServedWhileCapturing) {
+    if (!fs::exists("/usr/share/javascript/three/build/three.min.js"))
+        GTEST_SKIP() << "libjs-three is not installed";
+    if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
+    const fs::path dir = temp_root();
+    fs::remove_all(dir / "vid_serve");
+    const int port = free_port(), page = free_port() + 1;
+    const std::string rig = rig_of(2);
+    start(dir, "hub_serve",
+          "$BIN/rgbd-capture --rig " + rig + " --video vid_serve --serve " + std::to_string(page) +
+              " --exit-after-bye --listen tcp://127.0.0.1:" + std::to_string(port));
+    for (int s = 0; s < 2; ++s)
+        start(dir, "node_serve_" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
+                  " --views --loop --frames 240 --hub tcp://127.0.0.1:" + std::to_string(port));
+    const std::string url = "http://127.0.0.1:" + std::to_string(page);
+    // The page and, once the first set is fused, the newest fused frame (polled until the hub
+    // ends: no time limit of its own).
+    std::string frame;
+    for (int i = 0; i < 1200 && frame.rfind("RGBDPTS1", 0) != 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        if (fs::exists(dir / "hub_serve.rc")) break;
+        frame = run("curl -s --max-time 10 " + url + "/api/live").out;
+    }
+    EXPECT_EQ(frame.rfind("RGBDPTS1", 0), 0u) << "no live frame served";
+    EXPECT_NE(run("curl -s --max-time 10 " + url + "/").out.find("three.min.js"),
+              std::string::npos);
+    EXPECT_EQ(json::parse(run("curl -s --max-time 10 " + url + "/api/info").out)["mode"], "live");
+    for (int s = 0; s < 2; ++s) EXPECT_EQ(wait_for(dir, "node_serve_" + std::to_string(s), 120), 0);
+    EXPECT_EQ(wait_for(dir, "hub_serve", 60), 0) << slurp(dir / "hub_serve.err");
+    EXPECT_TRUE(rgbd::io::read_video(dir / "vid_serve").complete);
+}
+
+TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
+    if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
+    const fs::path dir = temp_root();
+    const fs::path mount = dir / "small_video_disk";
+    fs::create_directories(mount);
+    if (std::system(
+            ("mount -t tmpfs -o size=400k tmpfs " + mount.string() + " 2>/dev/null").c_str()) != 0)
+        GTEST_SKIP() << "cannot mount a tmpfs here";
+    struct Unmount {
+        fs::path p;
+        ~Unmount() { std::system(("umount " + p.string()).c_str()); }
+    } unmount{mount};
+    const int port = free_port();
+    const std::string rig = rig_of(2);
+    start(dir, "hub_vfull",
+          "$BIN/rgbd-capture --rig " + rig +
+              " --video small_video_disk/vid --exit-after-bye --listen tcp://127.0.0.1:" +
+              std::to_string(port));
+    for (int s = 0; s < 2; ++s)
+        start(dir, "node_vfull_" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
+                  " --views --loop --frames 900 --send-timeout-s 3 --hub tcp://127.0.0.1:" +
+                  std::to_string(port));
+    EXPECT_EQ(wait_for(dir, "hub_vfull", 120), 1);
+    const std::string err = slurp(dir / "hub_vfull.err");
+    EXPECT_NE(err.find("video stopped"), std::string::npos) << err;
+    for (int s = 0; s < 2; ++s) {
+        ::kill(pid_of(dir, "node_vfull_" + std::to_string(s)), SIGTERM);
+        wait_for(dir, "node_vfull_" + std::to_string(s), 20);
+    }
+    // Every frame on the disk, in the index or not, decodes; no temporary file is left.
+    const rgbd::io::VideoInfo video = rgbd::io::read_video(mount / "vid");
+    EXPECT_GE(video.frames.size(), 2u);
+    for (const rgbd::io::VideoFrame& f : video.frames) {
+        EXPECT_TRUE(f.problem.empty()) << f.file << ": " << f.problem;
+        EXPECT_GT(rgbd::io::read_video_frame(video, f.frame).size(), 100u);
+    }
+    for (const auto& e : fs::recursive_directory_iterator(mount / "vid"))
+        EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
 }
 
 TEST_F(RgbdCapture, VideoOptionErrors) {
