@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
         "gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with overlap, "
         "residual and agreement with the ring), and a ring its loop-closure error before and "
         "after, on stderr and in --metrics. Deterministic for a --seed and any --threads. "
+        "On turntable streams the stand below the object is then removed (--stand). "
         "Output: the views in the world frame with their refined poses, or one merged view "
         "with --merge.";
     spec.example =
@@ -55,10 +56,16 @@ int main(int argc, char** argv) {
             "max-prior-rotation-deg",
             cli::po::value<double>()->default_value(20.0)->value_name("D"),
             "pair results farther than this from the initial relative pose are discarded (>= 180 "
-            "disables)");
+            "disables)")(
+            "stand", cli::po::value<std::string>()->default_value("auto")->value_name("MODE"),
+            "the stand (turntable platter) below the object, after the alignment: auto (remove "
+            "it on streams of 3+ views of one sensor: a turntable), remove, keep; its plane is "
+            "written into the views' metadata (rgbd:stand.plane) and rgbd-mesh carries the "
+            "object's walls down to it, as rgbd-reconstruct does");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         registration::MultiViewOptions options;
+        pipeline::StandMode stand = pipeline::StandMode::kAuto;
         try {
             if (ctx.get<int>("fixed-view") < 0) throw cli::UsageError("--fixed-view must be >= 0");
             options.fixed_view = static_cast<std::size_t>(ctx.get<int>("fixed-view"));
@@ -71,6 +78,7 @@ int main(int argc, char** argv) {
             options.max_prior_rotation_deg = ctx.get<double>("max-prior-rotation-deg");
             options.seed = ctx.seed();
             options.check();
+            stand = pipeline::parse_stand_mode(ctx.get<std::string>("stand"));
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
@@ -125,6 +133,16 @@ int main(int argc, char** argv) {
                 ctx.warn(line);
         }
         ctx.metrics()["align"] = report;
+        if (pipeline::stand_applies(views, stand)) {
+            auto stand_bar = ctx.progress("stand");
+            const Report removed =
+                pipeline::stand_stage(views, stand, segment::StandOptions{}, stand_bar.callback());
+            ctx.metrics()["stand"] = removed;
+            if (removed.contains("note")) ctx.info(removed["note"].get<std::string>());
+            if (removed.contains("removed"))
+                ctx.info("stand: " + std::to_string(removed["removed"].get<std::size_t>()) +
+                         " points removed");
+        }
         if (ctx.options().count("merge")) {
             io::Document merged;
             if (ctx.options().count("keep-duplicates")) {

@@ -72,6 +72,9 @@ int main(int argc, char** argv) {
             for (const auto& h : v.view.history)
                 if (std::find(info.history.begin(), info.history.end(), h) == info.history.end())
                     info.history.push_back(h);
+        // A stand removed by rgbd-align: the object's walls carried down to its plane.
+        const std::size_t contact = pipeline::add_stand_contact(views);
+        if (contact > 0) report["stand_contact_points"] = contact;
         Mesh mesh = cli::mesh_stage(std::move(views), options, report, bar.callback());
         ctx.add_history(info);
         ctx.metrics()["mesh"] = report;

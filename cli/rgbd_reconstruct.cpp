@@ -188,13 +188,11 @@ int main(int argc, char** argv) {
                 throw cli::UsageError(std::string("--noise-model: ") + e.what());
             }
         }
-        const std::string stand = ctx.get<std::string>("stand");
-        if (stand == "remove")
-            options.stand = pipeline::ReconstructOptions::Stand::kRemove;
-        else if (stand == "keep")
-            options.stand = pipeline::ReconstructOptions::Stand::kKeep;
-        else if (stand != "auto")
-            throw cli::UsageError("--stand must be auto, remove or keep, not '" + stand + "'");
+        try {
+            options.stand = pipeline::parse_stand_mode(ctx.get<std::string>("stand"));
+        } catch (const InputError& e) {
+            throw cli::UsageError(std::string("--stand: ") + e.what());
+        }
         options.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
         if (!(options.extraction.crop_radius_m >= 0))
             throw cli::UsageError("--crop-radius-m must be >= 0");

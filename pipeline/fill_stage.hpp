@@ -1,5 +1,5 @@
-// The fill stage (docs/algorithms.md §9-§13) as one call, shared by rgbd-fill and rgbd-reconstruct so
-// that the pipe and the one-command run add the same points: hole detection on the aligned
+// The fill stage (docs/algorithms.md §9-§13) as one call, shared by rgbd-fill and rgbd-reconstruct
+// so that the pipe and the one-command run add the same points: hole detection on the aligned
 // views, small holes by one of the four mechanisms, then the head top and large holes by 3D
 // inpainting.
 #pragma once

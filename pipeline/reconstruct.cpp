@@ -214,19 +214,15 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
                        v["sensor"].get<std::string>() + "): registration " +
                        v["verdict"].get<std::string>());
 
-    // 4b. the stand the object stands on (turntable captures: one sensor, many views).
-    bool one_sensor = views.size() >= 3;
-    for (const auto& v : views) one_sensor = one_sensor && v.view.sensor == views[0].view.sensor;
-    const bool stand = options.stand == ReconstructOptions::Stand::kRemove ||
-                       (options.stand == ReconstructOptions::Stand::kAuto && one_sensor);
-    std::optional<segment::SupportPlane> stand_plane;
-    if (stand) {
+    // 4b. the stand the object stands on (turntable captures: one sensor, many views); its
+    // plane travels in the views' metadata to the mesh stage, as through rgbd-align's pipe.
+    if (stand_applies(views, options.stand)) {
         watch = Stopwatch();
         const std::size_t in = count_points(views);
         {
             StageScope scope(hooks, "stand");
             report["stand"] =
-                segment::remove_stand(views, options.stand_options, scope.progress(), &stand_plane);
+                stand_stage(views, options.stand, options.stand_options, scope.progress());
         }
         if (report["stand"].contains("note") && hooks.info)
             hooks.info(report["stand"]["note"].get<std::string>());
@@ -289,11 +285,8 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
 
     // The object's walls carried down to the stand's plane (cut margin_m above it), so that the
     // closed mesh's flat base lies where the object stood.
-    if (stand_plane) {
-        PointCloud contact = segment::contact_points(views, *stand_plane, options.stand_options);
-        report["stand"]["contact_points"] = contact.size();
-        if (!contact.empty()) views.push_back(std::move(contact));
-    }
+    if (report.contains("stand"))
+        report["stand"]["contact_points"] = add_stand_contact(views, options.stand_options);
 
     // The aligned points, for the mesh quality and pictures.
     result.input = render::from_views(views);

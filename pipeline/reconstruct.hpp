@@ -57,8 +57,9 @@ struct ReconstructOptions {
     denoise::DensityOptions density;  ///< noise_model is set from `noise_model`
     /// The stand (turntable platter) below the object, removed after the alignment:
     /// auto = on single-sensor captures of several views (turntable), remove = always,
-    /// keep = never (algorithms/segment/stand_removal.hpp).
-    enum class Stand { kAuto, kRemove, kKeep } stand = Stand::kAuto;
+    /// keep = never (stand_stage in stages.hpp; algorithms/segment/stand_removal.hpp).
+    using Stand = StandMode;
+    Stand stand = Stand::kAuto;
     segment::StandOptions stand_options;
     FillStageOptions fill;
     reconstruction::ReconstructionOptions mesh;  ///< default: watertight as rgbd-mesh --watertight

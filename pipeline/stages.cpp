@@ -1,8 +1,11 @@
 #include "pipeline/stages.hpp"
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "algorithms/frames/object_extraction.hpp"
 #include "algorithms/normals/estimate_normals.hpp"
@@ -88,6 +91,68 @@ Report align_stage(std::vector<PointCloud>& views, const registration::MultiView
     for (std::size_t i = 0; i < views.size() && i < report["views"].size(); ++i)
         report["views"][i]["sensor"] = views[i].view.sensor;
     return report;
+}
+
+namespace {
+constexpr const char* kStandKey = "rgbd:stand.plane ";
+}  // namespace
+
+StandMode parse_stand_mode(const std::string& name) {
+    if (name == "auto") return StandMode::kAuto;
+    if (name == "remove") return StandMode::kRemove;
+    if (name == "keep") return StandMode::kKeep;
+    throw InputError("the stand mode must be auto, remove or keep, not '" + name + "'");
+}
+
+bool stand_applies(const std::vector<PointCloud>& views, StandMode mode) {
+    bool one_sensor = views.size() >= 3;
+    for (const auto& v : views) one_sensor = one_sensor && v.view.sensor == views[0].view.sensor;
+    return mode == StandMode::kRemove || (mode == StandMode::kAuto && one_sensor);
+}
+
+Report stand_stage(std::vector<PointCloud>& views, StandMode mode,
+                   const segment::StandOptions& options, const Progress& progress) {
+    if (!stand_applies(views, mode)) return Report();
+    std::optional<segment::SupportPlane> plane;
+    Report report = segment::remove_stand(views, options, progress, &plane);
+    for (auto& v : views) {
+        auto& extra = v.view.extra_comments;
+        extra.erase(std::remove_if(extra.begin(), extra.end(),
+                                   [](const std::string& c) { return c.rfind(kStandKey, 0) == 0; }),
+                    extra.end());
+        if (!plane) continue;
+        char line[200];
+        std::snprintf(line, sizeof line, "%s%.17g %.17g %.17g %.17g", kStandKey, plane->normal.x(),
+                      plane->normal.y(), plane->normal.z(), plane->offset);
+        extra.emplace_back(line);
+    }
+    return report;
+}
+
+std::optional<segment::SupportPlane> stand_plane_of(const std::vector<PointCloud>& views) {
+    for (const auto& v : views)
+        for (const auto& c : v.view.extra_comments) {
+            if (c.rfind(kStandKey, 0) != 0) continue;
+            std::istringstream in(c.substr(std::string(kStandKey).size()));
+            segment::SupportPlane plane;
+            in >> plane.normal.x() >> plane.normal.y() >> plane.normal.z() >> plane.offset;
+            RGBD_CHECK(!in.fail() && plane.normal.allFinite() && std::isfinite(plane.offset) &&
+                           std::abs(plane.normal.norm() - 1.0) < 1e-6,
+                       "view " + std::to_string(v.view.id) + ": '" + c +
+                           "' is not a stand plane (nx ny nz offset_m, unit normal)");
+            return plane;
+        }
+    return std::nullopt;
+}
+
+std::size_t add_stand_contact(std::vector<PointCloud>& views,
+                              const segment::StandOptions& options) {
+    const std::optional<segment::SupportPlane> plane = stand_plane_of(views);
+    if (!plane) return 0;
+    PointCloud contact = segment::contact_points(views, *plane, options);
+    const std::size_t n = contact.size();
+    if (n > 0) views.push_back(std::move(contact));
+    return n;
 }
 
 Mesh mesh_stage(std::vector<PointCloud>&& views,

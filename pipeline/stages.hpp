@@ -14,6 +14,7 @@
 #include "algorithms/frames/depth_to_cloud.hpp"
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 #include "algorithms/registration/icp.hpp"
+#include "algorithms/segment/stand_removal.hpp"
 #include "io/capture_folder.hpp"
 #include "toolkit/mesh.hpp"
 #include "toolkit/point_cloud.hpp"
@@ -54,6 +55,33 @@ PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, s
 /// entry per view (verdict, fitness, RMSE, pose change).
 Report align_stage(std::vector<PointCloud>& views, const registration::MultiViewOptions& options,
                    const Progress& progress = {});
+
+/// The stand (turntable platter) below the object, after the alignment: auto = on streams of
+/// three or more views of one sensor (a turntable), remove = always, keep = never.
+enum class StandMode { kAuto, kRemove, kKeep };
+/// "auto", "remove" or "keep"; InputError naming the valid ones otherwise.
+StandMode parse_stand_mode(const std::string& name);
+
+/// Whether the stand stage runs on these views in this mode.
+bool stand_applies(const std::vector<PointCloud>& views, StandMode mode);
+
+/// The stand stage of rgbd-align and rgbd-reconstruct (algorithms/segment/stand_removal.hpp):
+/// when `mode` says so, removes the stand from the aligned views and writes its plane into
+/// every view's metadata (`rgbd:stand.plane nx ny nz offset_m`), so that the mesh stage,
+/// in the same process or at the end of a pipe, carries the object's walls down to it
+/// (add_stand_contact). Returns remove_stand's report, or null when the stage did not run.
+Report stand_stage(std::vector<PointCloud>& views, StandMode mode,
+                   const segment::StandOptions& options, const Progress& progress = {});
+
+/// The stand plane written by stand_stage into the views' metadata, if any view carries one.
+/// InputError when the line does not hold four finite numbers with a unit normal.
+std::optional<segment::SupportPlane> stand_plane_of(const std::vector<PointCloud>& views);
+
+/// When the views carry a stand plane: appends segment::contact_points (the object's walls
+/// carried down to the plane, flagged synthetic) as one more view, so the closed mesh's flat
+/// base lies where the object stood. Returns the number of points added.
+std::size_t add_stand_contact(std::vector<PointCloud>& views,
+                              const segment::StandOptions& options = {});
 
 /// Merges views (any frame; normals estimated per view towards its sensor when missing) and
 /// reconstructs a coloured mesh.
