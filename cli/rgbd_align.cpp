@@ -8,55 +8,52 @@
 using namespace rgbd;
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-align";
-    spec.usage = "rgbd-align [options] [FILE...] > aligned.ply";
-    spec.description =
-        "Registers all views of a stream into one world frame. Each view starts from the pose in "
-        "its metadata (the rig's calibration or a per-frame pose, or none with --ignore-poses). "
-        "1. Pairs: every view with its nearest views by viewing direction (ring neighbours), or "
-        "consecutive views and the last-first pair when the directions are unknown (a "
-        "turntable or walk-around sequence). Each pair is registered by point-to-plane ICP with "
-        "a colour term (robust weights, distance and normal gates, coarse to fine) from the "
-        "initial pose and from an FPFH + RANSAC hypothesis (results that leave the "
-        "calibration's bounds are discarded; on a ring the loop picks between the two). "
-        "2. A pose graph spreads the loop error and prunes pairs that disagree with the ring. "
-        "3. Joint rounds refine all views against all others at once, --fixed-view holding the "
-        "gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with overlap, "
-        "residual and agreement with the ring), and a ring its loop-closure error before and "
-        "after, on stderr and in --metrics. Deterministic for a --seed and any --threads. "
-        "Output: the views in the world frame with their refined poses, or one merged view "
-        "with --merge.";
-    spec.example =
-        "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
-    spec.whole_stream = true;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("merge",
-                        "emit one merged view instead of one document per view, without "
-                        "duplicates: a point with an earlier view's point within 1 spacing is "
-                        "dropped when their colours agree (Delta E <= 15), else the better "
-                        "observed of the two (nearer, more head-on) stays")(
-            "keep-duplicates", "with --merge: plain concatenation of the views")(
-            "fixed-view", cli::po::value<int>()->default_value(0)->value_name("I"),
-            "position in the stream of the view that holds the gauge")(
-            "rounds", cli::po::value<int>()->default_value(4)->value_name("N"),
-            "rounds of joint refinement")(
-            "voxel-m", cli::po::value<double>()->default_value(0.0)->value_name("M"),
-            "voxel size for the registration copies (0 = from the point spacing)")(
-            "ignore-poses",
-            "start every view from its own sensor frame (poses unknown); pairs follow the "
-            "stream order and the result is in the first view's frame")(
-            "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
-            "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
-            "colour-weight", cli::po::value<double>()->default_value(0.1)->value_name("W"),
-            "weight of the colour term (0 = geometry only)")(
-            "ransac-iterations", cli::po::value<int>()->default_value(20000)->value_name("N"),
-            "RANSAC hypotheses per pair")(
-            "max-prior-rotation-deg",
-            cli::po::value<double>()->default_value(20.0)->value_name("D"),
-            "pair results farther than this from the initial relative pose are discarded (>= 180 "
-            "disables)");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-align",
+        .usage = "rgbd-align [options] [FILE...] > aligned.ply",
+        .description =
+            "Registers all views of a stream into one world frame. Each view starts from the pose "
+            "in its metadata (the rig's calibration or a per-frame pose, or none with "
+            "--ignore-poses). 1. Pairs: every view with its nearest views by viewing direction "
+            "(ring neighbours), or consecutive views and the last-first pair when the directions "
+            "are unknown (a turntable or walk-around sequence). Each pair is registered by "
+            "point-to-plane ICP with a colour term (robust weights, distance and normal gates, "
+            "coarse to fine) from the initial pose and from an FPFH + RANSAC hypothesis (results "
+            "that leave the calibration's bounds are discarded; on a ring the loop picks between "
+            "the two). 2. A pose graph spreads the loop error and prunes pairs that disagree with "
+            "the ring. 3. Joint rounds refine all views against all others at once, --fixed-view "
+            "holding the gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with "
+            "overlap, residual and agreement with the ring), and a ring its loop-closure error "
+            "before and after, on stderr and in --metrics. Deterministic for a --seed and any "
+            "--threads. Output: the views in the world frame with their refined poses, or one "
+            "merged view with --merge.",
+        .example =
+            "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply",
+        .whole_stream = true,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("merge",
+                            "emit one merged view instead of one document per view, without "
+                            "duplicates: a point with an earlier view's point within 1 spacing is "
+                            "dropped when their colours agree (Delta E <= 15), else the better "
+                            "observed of the two (nearer, more head-on) stays")(
+                "keep-duplicates", "with --merge: plain concatenation of the views")(
+                "fixed-view", cli::value<int>(0, "I"),
+                "position in the stream of the view that holds the gauge")(
+                "rounds", cli::value<int>(4, "N"), "rounds of joint refinement")(
+                "voxel-m", cli::value<double>(0.0, "M"),
+                "voxel size for the registration copies (0 = from the point spacing)")(
+                "ignore-poses",
+                "start every view from its own sensor frame (poses unknown); pairs follow the "
+                "stream order and the result is in the first view's frame")(
+                "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
+                "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
+                "colour-weight", cli::value<double>(0.1, "W"),
+                "weight of the colour term (0 = geometry only)")(
+                "ransac-iterations", cli::value<int>(20000, "N"), "RANSAC hypotheses per pair")(
+                "max-prior-rotation-deg", cli::value<double>(20.0, "D"),
+                "pair results farther than this from the initial relative pose are discarded (>= "
+                "180 disables)");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         registration::MultiViewOptions options;
         try {

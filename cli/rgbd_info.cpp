@@ -120,18 +120,19 @@ void print_text(std::ostream& os, const Report& r, const std::string& indent = "
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-info";
-    spec.usage = "rgbd-info [--json] PATH...";
-    spec.description =
-        "Prints a summary of each input: a capture folder (layout, sensors, frames, frame sets, "
-        "ground truth), a view stream (per document: points, properties, metadata, bounding box, "
-        "flag counts), a mesh (vertices, faces, border edges, closed, colours) or a point file.";
-    spec.example = "rgbd-cloud cap/ | rgbd-info --json";
-    spec.writes_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("json", "print JSON instead of text");
-    };
+    const cli::ToolSpec spec{.name = "rgbd-info",
+                             .usage = "rgbd-info [--json] PATH...",
+                             .description =
+                                 "Prints a summary of each input: a capture folder (layout, "
+                                 "sensors, frames, frame sets, ground truth), a view stream (per "
+                                 "document: points, properties, metadata, bounding box, flag "
+                                 "counts), a mesh (vertices, faces, border edges, closed, colours) "
+                                 "or a point file.",
+                             .example = "rgbd-cloud cap/ | rgbd-info --json",
+                             .writes_stream = false,
+                             .add_options = [](cli::po::options_description& o) {
+                                 o.add_options()("json", "print JSON instead of text");
+                             }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         Report all = Report::array();
         std::vector<std::string> inputs = ctx.inputs();
