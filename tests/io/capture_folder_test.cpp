@@ -11,6 +11,7 @@
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
 
+#include "tests/support/shared_data.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -25,11 +26,7 @@ fs::path temp_dir(const std::string& name) {
     return dir;
 }
 
-fs::path shared(const std::string& rel) { return fs::path(RGBD_SHARED_DATA) / rel; }
-
-#define SKIP_WITHOUT_SHARED_DATA()     \
-    if (!fs::exists(RGBD_SHARED_DATA)) \
-    GTEST_SKIP() << "shared data not found at " << RGBD_SHARED_DATA
+using rgbd::test::shared_data;
 
 Pose test_pose(double angle, double tx) {
     Pose p = Pose::Identity();
@@ -311,8 +308,8 @@ TEST(CaptureFolder, AtomicHelpersLeaveNoTemporaryFiles) {
 }
 
 TEST(CaptureFolder, UvaLayout) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("multiview/uva_cv2_person_kinect1"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("multiview/uva_cv2_person_kinect1"));
     EXPECT_EQ(cap.layout, "uva");
     ASSERT_EQ(cap.frames.at("camera").size(), 50u);
     const SensorSpec& s = cap.rig.sensor("camera");
@@ -345,8 +342,8 @@ TEST(CaptureFolder, UvaLayout) {
 }
 
 TEST(CaptureFolder, TumSample) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("rgbd/open3d_tum_nyu_sun_samples"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("rgbd/open3d_tum_nyu_sun_samples"));
     EXPECT_EQ(cap.layout, "tum");
     ASSERT_EQ(cap.frames.at("camera").size(), 1u);
     EXPECT_EQ(cap.rig.sensor("camera").depth_scale, 5000.0);
@@ -389,8 +386,8 @@ TEST(CaptureFolder, TumListFiles) {
 }
 
 TEST(CaptureFolder, RedwoodLayoutWithCleanDepth) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("rgbd/open3d_livingroom1_augmented_iclnuim"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("rgbd/open3d_livingroom1_augmented_iclnuim"));
     EXPECT_EQ(cap.layout, "redwood");
     ASSERT_EQ(cap.frames.at("camera").size(), 5u);
     ASSERT_EQ(cap.frames.at("clean").size(), 5u);

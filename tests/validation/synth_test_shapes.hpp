@@ -64,4 +64,12 @@ inline void add_icosphere(Mesh& mesh, const Eigen::Vector3d& centre, double radi
     append(mesh, v, f);
 }
 
+/// An icosphere alone (20 * 4^levels faces), centred at `centre`.
+inline Mesh icosphere(double radius, int levels,
+                      const Eigen::Vector3d& centre = Eigen::Vector3d::Zero()) {
+    Mesh mesh;
+    add_icosphere(mesh, centre, radius, levels);
+    return mesh;
+}
+
 }  // namespace rgbd::synth::testing
