@@ -30,7 +30,6 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -38,7 +37,7 @@ import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, optimise, pose_of, read_stream, run,  # noqa: E402
-                         xyz_of)
+                         work_folder, xyz_of)
 
 
 
@@ -211,10 +210,7 @@ def main():
     ap.add_argument("--no-peers", action="store_true", help="skip the Open3D runs")
     ap.add_argument("--uva", action="store_true", help="also the real person sequence")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_align: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_align_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_align", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     print(f"work dir {work}; calibration error {a.calib_deg} deg / {a.calib_mm} mm, "
           f"seeds {a.first_seed}..{a.first_seed + a.seeds - 1}")

@@ -26,7 +26,6 @@ Usage: validation/quality/holes/measure_boundary.py [--build build] [--points 30
        [--out results.jsonl]
 """
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -175,9 +174,7 @@ def main():
             print(f"  target (recall >= 0.95, false <= 0.02): "
                   f"{'met' if row['target_met'] else 'NOT met'}")
     if args.out:
-        with open(args.out, "w") as f:
-            for r in results:
-                f.write(json.dumps(r) + "\n")
+        rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":

@@ -202,9 +202,7 @@ def main():
     print(f"within 1 mm RMS: {', '.join(r['mechanism'] for r in ok) or 'none'}"
           f"; best (closure >= 0.95 first, then RMS): {best['mechanism']}")
     if args.out:
-        with open(args.out, "w") as f:
-            for r in results:
-                f.write(json.dumps(r) + "\n")
+        rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":

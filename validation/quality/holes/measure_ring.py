@@ -51,10 +51,8 @@ cyan), in --work.
 Usage: measure_ring.py [--bin build/bin] [--work DIR] [--busts max_planck,bust_man_wreath]
 """
 import argparse
-import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -63,7 +61,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import BUSTS, DATA, read_stream, run, write_points, xyz_of  # noqa: E402
+from rgbd_stream import (BUSTS, DATA, read_stream, run, work_folder, write_points,  # noqa: E402
+                         xyz_of)
 
 TAU = 0.005
 VARIANTS = [("small only", "--no-large --no-head-top"), ("+ head top", "--no-large"),
@@ -206,10 +205,7 @@ def main():
     ap.add_argument("--samples", type=int, default=200000)
     ap.add_argument("--fill-args", default="", help="extra rgbd-fill options for every variant")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_ring: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_ring_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_ring", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     print(f"work dir {work}; seed {a.seed}; Open3D {o3d.__version__}")

@@ -33,7 +33,6 @@ import json
 import os
 import resource
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -44,7 +43,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import BUSTS, DATA, read_stream, rgb_of, run, xyz_of  # noqa: E402
+from rgbd_stream import BUSTS, DATA, read_stream, rgb_of, run, work_folder, xyz_of  # noqa: E402
 
 BUSTS = dict(BUSTS)  # the validation busts, plus the bunny
 BUSTS.update({
@@ -146,10 +145,7 @@ def main():
     ap.add_argument("--clean-args", default="",
                     help="extra options of the per-view rgbd-clean --distance (e.g. --smooth)")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_mesh: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_mesh_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_mesh", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     print(f"work dir {work}; seed {a.seed}; Open3D {o3d.__version__}")
     summary = []
