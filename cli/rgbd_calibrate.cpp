@@ -1,6 +1,6 @@
 // rgbd-calibrate: the sensor network's extrinsics (rig.json) from a capture of a ChArUco board
-// carried through the ring, or refined on whatever the sensors see (--refine). DESIGN.md §2,
-// ALGORITHMS.md §6.3, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint solve:
+// carried through the ring, or refined on whatever the sensors see (--refine). cli/README.md,
+// docs/algorithms.md §6, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint solve:
 // algorithms/calibration/rig_solver.hpp; refinement: registration::align_views.
 #include <tbb/parallel_for.h>
 

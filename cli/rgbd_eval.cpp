@@ -392,7 +392,7 @@ int main(int argc, char** argv) {
                 run.report["mesh_quality"] = mesh_quality(run.mesh);
                 b["runs"].push_back(run.report);
             }
-            if (best < 0) {  // no reference: depth 9 (PEERS.md's choice), else the last
+            if (best < 0) {  // no reference: depth 9 (the peer pipeline's choice), else the last
                 best = static_cast<int>(runs.size()) - 1;
                 for (std::size_t i = 0; i < runs.size(); ++i)
                     if (runs[i].depth == 9) best = static_cast<int>(i);

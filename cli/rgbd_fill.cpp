@@ -1,5 +1,5 @@
 // rgbd-fill: hole detection, small-hole filling, large holes and the head top on aligned views
-// (ALGORITHMS.md §9-§13).
+// (docs/algorithms.md §9-§13).
 #include <algorithm>
 #include <optional>
 #include <string>
@@ -19,15 +19,15 @@ int main(int argc, char** argv) {
             "filled.ply",
         .description =
             "Finds holes in the surface sampled by a stream of aligned views and fills the small "
-            "ones (ALGORITHMS.md §9-§11); reads the whole stream. All views are taken together in "
-            "the world frame (sensor-frame views are moved with their pose). Per point: normal and "
-            "tangent frame (the views' normals, else PCA over the neighbours), then the boundary "
-            "probability of Bendels et al. combining the angle criterion (largest angular gap "
-            "between the neighbours projected on the tangent plane), the half-disk criterion "
-            "(offset of the neighbourhood's centroid) and the shape criterion (eigenvalues of the "
-            "neighbourhood), over a symmetric kNN-or-radius neighbourhood; a candidate must be "
-            "coherent (a neighbour bounding its gap is a candidate too; both with "
-            "--coherence-both), and rims grow one ring into neighbours above --hysteresis. "
+            "ones (docs/algorithms.md §9-§11); reads the whole stream. All views are taken "
+            "together in the world frame (sensor-frame views are moved with their pose). Per "
+            "point: normal and tangent frame (the views' normals, else PCA over the neighbours), "
+            "then the boundary probability of Bendels et al. combining the angle criterion "
+            "(largest angular gap between the neighbours projected on the tangent plane), the "
+            "half-disk criterion (offset of the neighbourhood's centroid) and the shape criterion "
+            "(eigenvalues of the neighbourhood), over a symmetric kNN-or-radius neighbourhood; a "
+            "candidate must be coherent (a neighbour bounding its gap is a candidate too; both "
+            "with --coherence-both), and rims grow one ring into neighbours above --hysteresis. "
             "Connected rims of boundary points are loops, small when their diameter is at most "
             "--small-diameter spacings. The views' sensor poses tell an occlusion hole (no sensor "
             "had a clear, front-facing line of sight to it: fill it) from a real opening (a sensor "

@@ -1,5 +1,5 @@
-// Rigid poses. Named target_from_source (STYLE.md §3): p_in_world = world_from_sensor *
-// p_in_sensor.
+// Rigid poses. Named target_from_source (docs/architecture.md, the data model): p_in_world =
+// world_from_sensor * p_in_sensor.
 #pragma once
 
 #include <Eigen/Geometry>

@@ -81,7 +81,7 @@ void check_frame(const RgbdFrame& frame, bool use_mask, const std::string& name)
     }
 }
 
-/// Default axial noise model of ALGORITHMS.md §2.3, metres.
+/// Default axial noise model of docs/algorithms.md §4 (noise models), metres.
 double default_sigma_z(double z) { return 0.0015 * (z / 1.5) * (z / 1.5); }
 
 /// Atomic minimum on a float slot: the final value is independent of the order of writes.

@@ -51,7 +51,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                        " is in its sensor frame but has no world_from_sensor pose");
     }
 
-    // Poses are estimated on measured points only (ALGORITHMS.md §0.3 order note): copies of
+    // Poses are estimated on measured points only (docs/method.md order note): copies of
     // the views that carry super-resolved points (prop::kSynthetic = 1) without them.
     std::vector<PointCloud> measured_copies;
     measured_copies.reserve(nv);

@@ -1,4 +1,4 @@
-// The driver every rgbd-<verb> tool runs through (STYLE.md §8): option parsing, --help,
+// The driver every rgbd-<verb> tool runs through (cli/README.md): option parsing, --help,
 // --version, input/output handling (files or stdin/stdout, atomic output files), messages,
 // progress on a terminal only, --metrics, --threads, --seed, exit codes 0/1/2.
 // Modelled on PDAL's Kernel (parse, run, catch-all, exit codes).

@@ -1,4 +1,4 @@
-// Contract tests of every tool (STYLE.md §8): --help, --version, exit codes 0/1/2, one-line
+// Contract tests of every tool (cli/README.md): --help, --version, exit codes 0/1/2, one-line
 // errors naming the file, no partial output, stdout purity, metadata through a chain, and the
 // pipeline end to end on a small synthetic capture rendered by rgbd-synth.
 #include <gtest/gtest.h>

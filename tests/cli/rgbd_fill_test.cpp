@@ -1,4 +1,4 @@
-// Contract tests of rgbd-fill (STYLE.md §8): two views of a sphere with an occlusion hole (near
+// Contract tests of rgbd-fill (cli/README.md): two views of a sphere with an occlusion hole (near
 // the equator, which neither sensor faces) and an opening (facing sensor A, which looked
 // through it): only the occlusion hole is filled, with synthetic points on the sphere, in one
 // new document after the input ones; --detect-only --mark flags rim points and adds nothing;

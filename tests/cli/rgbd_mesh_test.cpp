@@ -1,4 +1,4 @@
-// Contract tests of rgbd-mesh (STYLE.md §8, issue 7): methods and formats, --watertight closes
+// Contract tests of rgbd-mesh (cli/README.md, issue 7): methods and formats, --watertight closes
 // the mesh, --target-faces is honoured, vertex colours reach the file, and bad input (empty
 // stream, a non-finite coordinate, no normals with too few points, absurd --target-faces,
 // unknown --method) gives a one-line error, the right exit code and no output file.

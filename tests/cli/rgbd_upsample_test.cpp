@@ -1,4 +1,4 @@
-// Contract tests of rgbd-upsample (STYLE.md §8): help, exit codes, the capture folder found
+// Contract tests of rgbd-upsample (cli/README.md): help, exit codes, the capture folder found
 // from rgbd:view.source or --capture, a missing colour image or one of another size than
 // rig.json says (one-line error naming the file or the sizes, no partial output), a view
 // without grid, and the point count on a rendered capture.

@@ -1,8 +1,8 @@
-// Synthetic RGB-D captures with ground truth ("virtual ring", ALGORITHMS.md §0.5): places a
-// mesh in the world, builds a ring of Kinect v2 sensors or one SR300-like sensor in front of a
-// turntable, renders depth and colour by rasterisation, injects sensor noise, calibration
-// error and clock offsets, and writes a capture folder v1 with gt/ (DESIGN.md §3, §6).
-// See also: rasterizer.hpp, noise.hpp, texture.hpp, validation/rgbd_synth.cpp (the tool).
+// Synthetic RGB-D captures with ground truth ("virtual ring", docs/algorithms.md, synthetic ground
+// truth): places a mesh in the world, builds a ring of Kinect v2 sensors or one SR300-like sensor
+// in front of a turntable, renders depth and colour by rasterisation, injects sensor noise,
+// calibration error and clock offsets, and writes a capture folder v1 with gt/ (docs/formats.md,
+// §6). See also: rasterizer.hpp, noise.hpp, texture.hpp, validation/rgbd_synth.cpp (the tool).
 #pragma once
 
 #include <Eigen/Core>
@@ -32,7 +32,7 @@ enum class RigKind {
 /// Up axis of the input mesh.
 enum class UpAxis { kY, kZ };
 
-/// Everything that defines a synthetic capture. Defaults are the PEERS.md captures.
+/// Everything that defines a synthetic capture. Defaults are the captures of the peer comparisons.
 struct SynthOptions {
     RigKind rig = RigKind::kRing;  ///< ring or turntable
     int sensors = 8;               ///< ring: number of sensors, 360/N degrees apart
@@ -73,7 +73,7 @@ std::string to_string(RigKind rig);
 RigKind parse_rig_kind(const std::string& name);
 UpAxis parse_up_axis(const std::string& name);
 
-/// Kinect v2 (ALGORITHMS.md §0.5) and SR300-like (shared/data/README.md) sensor specs with
+/// Kinect v2 (docs/algorithms.md, synthetic ground truth) and SR300-like sensor specs with
 /// identity poses and zero clock offset.
 io::SensorSpec kinect_v2_spec(const std::string& id);
 io::SensorSpec sr300_spec(const std::string& id);

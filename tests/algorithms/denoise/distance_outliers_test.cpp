@@ -1,4 +1,4 @@
-// Tests of the adaptive distance-based filter (ALGORITHMS.md §4) on synthetic organised
+// Tests of the adaptive distance-based filter (docs/algorithms.md §4) on synthetic organised
 // frames with known answers: flying pixels between a foreground and a background, speckles,
 // a plane tilted 70 degrees, the same scene at 1 m and 3 m, mark == delete, errors, threads.
 #include "algorithms/denoise/distance_outliers.hpp"
@@ -406,7 +406,7 @@ TEST(DistanceOutliers, OneAndTwoThreadsAgree) {
 
 TEST(SensorNoise, KinectV2AtOnePointFiveMetres) {
     EXPECT_NEAR(sigma_z_m(NoiseModel::kKinectV2, 1.5), 0.0014, 0.0001);
-    // dz_max(1.5 m) ~ 4.1 mm * 3.73 + 3 * 1.4 mm ~ 19.5 mm (ALGORITHMS.md §4).
+    // dz_max(1.5 m) ~ 4.1 mm * 3.73 + 3 * 1.4 mm ~ 19.5 mm (docs/algorithms.md §4).
     EXPECT_NEAR(max_depth_step_m(NoiseModel::kKinectV2, 1.5, kF, 75 * std::numbers::pi / 180),
                 0.0195, 0.001);
     EXPECT_EQ(parse_noise_model("sr300"), NoiseModel::kSr300);

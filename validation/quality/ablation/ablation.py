@@ -18,7 +18,7 @@ Variants (--variants):
 - skip-distance, skip-upsample, skip-density, skip-fill: the same with --skip STAGE (on the
   person, skip-upsample is the default's run: Kinect v1 colour has the depth's pixel count, so
   upsampling never runs);
-- o3d-spr, o3d-spr-trim: PEERS.md's Open3D 0.16 pipeline on the views of rgbd-cloud: per-view
+- o3d-spr, o3d-spr-trim: the Open3D 0.16 peer pipeline of docs/method.md on the views of rgbd-cloud: per-view
   statistical outlier removal (k 20, std 2), 5 mm voxels + normals for point-to-plane ICP
   between neighbouring views (48/24/12/6 mm, 40/40/40/30 iterations) from the rig's
   (camera.xml) poses, Open3D pose graph (Levenberg-Marquardt, closing edge uncertain), merge of
@@ -170,7 +170,7 @@ def ours(obj, variant, cap, b, d, chain, frames, seed):
 
 
 def o3d_pipeline(views, out_untrimmed, out_trimmed, depth=9, trim=0.02):
-    """PEERS.md's Open3D pipeline on sensor-frame views [(comments, records)]; returns
+    """The Open3D peer pipeline (docs/method.md) on sensor-frame views [(comments, records)]; returns
     (seconds, world_from_sensor poses after the pose graph)."""
     import open3d as o3d
     reg = o3d.pipelines.registration

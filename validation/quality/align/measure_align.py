@@ -8,7 +8,7 @@ erroneous rig poses as initial poses). Methods, timed in the same run:
 - ours: rgbd-align (pairwise stage with FPFH + RANSAC hypotheses, pose graph, joint rounds);
 - o3d-p2plane: Open3D point-to-plane ICP between ring neighbours from the rig poses
   (coarse to fine 48/24/12/6 mm, 40/40/40/30 iterations, 5 mm voxel), then Open3D's pose graph
-  (global_optimization, Levenberg-Marquardt, edge prune 0.25, reference node 0): PEERS.md's
+  (global_optimization, Levenberg-Marquardt, edge prune 0.25, reference node 0): the peer pipeline's
   pipeline;
 - o3d-colored: the same with registration_colored_icp (3 scales, 20/10/5 mm voxel, 50/30/14
   iterations, the Open3D tutorial schedule).
@@ -75,7 +75,7 @@ def pose_errors(est, truth, pts):
 
 
 def o3d_p2plane(src, tgt, t):
-    """PEERS.md's coarse-to-fine point-to-plane ICP: 48/24/12/6 mm, 40/40/40/30 iterations."""
+    """The peer pipeline's coarse-to-fine point-to-plane ICP: 48/24/12/6 mm, 40/40/40/30 iterations."""
     reg = o3d.pipelines.registration
     for d, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
         t = reg.registration_icp(src, tgt, d, t, reg.TransformationEstimationPointToPlane(),

@@ -1,4 +1,4 @@
-"""The Open3D pipeline of the peer comparisons (docs/method.md, PEERS.md's Open3D 0.16 chain),
+"""The Open3D pipeline of the peer comparisons (docs/method.md, the Open3D 0.16 chain),
 shared by validation/performance/person_vs_open3d.py and validation/quality/ablation/ablation.py:
 per view statistical outlier removal and a down-sampled copy with normals, pairwise multi-scale
 point-to-plane ICP, the merged world-frame cloud and Screened Poisson. Open3D is imported by

@@ -110,7 +110,7 @@ def o3d_view_cloud(doc, voxel):
 
 
 def optimise(graph):
-    """Open3D's pose graph (PEERS.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
+    """Open3D's pose graph (the peer pipeline of docs/method.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
     import open3d as o3d
     reg = o3d.pipelines.registration
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Hole-rim (boundary) detection on meshes with known holes (ALGORITHMS.md §10), ours against the
+"""Hole-rim (boundary) detection on meshes with known holes (docs/algorithms.md §10), ours against the
 peers in the same run.
 
 Meshes: shared/data/meshes/cgal_with_holes/{head,holes,mech-holes-shark}.off and the Stanford

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
-"""Small-hole filling (ALGORITHMS.md §11) on a bust with holes cut on purpose: the four
+"""Small-hole filling (docs/algorithms.md §11) on a bust with holes cut on purpose: the four
 mechanisms of rgbd-fill measured against the true surface, in one run.
 
-Bust: shared/data/meshes/max_planck/max-planck.obj scaled to 0.45 m height (as in PEERS.md),
+Bust: shared/data/meshes/max_planck/max-planck.obj scaled to 0.45 m height (as in the peer comparisons),
 sampled with Open3D's Poisson-disk sampling (--points, fixed seed; about 2 mm spacing at the
 default), optionally with Gaussian noise along the normal (--noise-mm), coloured by a smooth procedural texture of the position. Holes: --holes balls of
 radius 3 - 7 spacings around sample points (fixed seed), all points inside removed: small holes

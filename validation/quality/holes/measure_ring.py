@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Large holes and the head top (ALGORITHMS.md §12, §13) on 8-Kinect ring captures of the busts,
+"""Large holes and the head top (docs/algorithms.md §12, §13) on 8-Kinect ring captures of the busts,
 against Open3D Screened Poisson and CGAL's hole filling, in one run (issue 6).
 
 For every bust: rgbd-synth renders an 8-Kinect-v2 ring capture (default noise, rig poses off by

@@ -2,7 +2,7 @@
 """Surface reconstruction of rgbd-mesh against Open3D 0.16 Screened Poisson (issue 7).
 
 For every bust: rgbd-synth renders an 8-Kinect-v2 ring capture (default noise, rig poses off by
-1.5 degrees / 15 mm as in PEERS.md), and our pipeline builds the cloud:
+1.5 degrees / 15 mm as in docs/method.md), and our pipeline builds the cloud:
     rgbd-cloud | rgbd-clean --distance | rgbd-align | rgbd-clean --density
 (estimated poses, not the true ones: the meshers see the alignment error too). The aligned views
 carry normals oriented towards their sensors; their concatenation (world frame, with normals and
@@ -11,7 +11,7 @@ colours) is written to one point file for Open3D, and the SAME oriented points g
   poses, from which --watertight knows up; each method given by --methods, plus --watertight
   variants);
 - Open3D 0.16 create_from_point_cloud_poisson at depth 8, 9, 10 (scale 1.1, width 0,
-  linear_fit False; PEERS.md), untrimmed and trimmed at the 2% density quantile.
+  linear_fit False; docs/method.md), untrimmed and trimmed at the 2% density quantile.
 Every mesh is scored by rgbd-eval against the capture's true mesh: F-score at 2 mm, Chamfer,
 invented surface (share of the area farther than 5 mm); manifoldness by Open3D (edge- and
 vertex-manifold) and closedness (edge-manifold without boundary edges). Time: ours is the

@@ -1,5 +1,5 @@
 // upsample_quality: error of super-resolved points against a synthetic capture's truth
-// (validation of ALGORITHMS.md §5). Reads a view stream (sensor frame) whose new points carry
+// (validation of docs/algorithms.md §5). Reads a view stream (sensor frame) whose new points carry
 // prop::kSynthetic, brings every view into the world with the TRUE pose (gt/world_from_depth
 // .json), and prints one JSON line: point ratio, RMS distance to gt/mesh.ply of original and
 // new points, share of new points farther than 3 sigma_z(z) = 3 * 0.0015 (z/1.5)^2 m, mean
