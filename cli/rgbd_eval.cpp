@@ -20,6 +20,7 @@
 #include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 using namespace rgbd;
 namespace fs = std::filesystem;
@@ -115,11 +116,7 @@ Report input_distance(const Mesh& mesh, const std::vector<Eigen::Vector3d>& inpu
     std::vector<double> d = evaluation::distances_to_points(v, input);
     std::size_t far = 0;
     for (double x : d) far += x > tau;
-    auto q = [&](double f) {
-        const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(f * d.size()));
-        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
-        return d[k];
-    };
+    auto q = [&](double f) { return count_quantile(d, f); };
     char key[64];
     std::snprintf(key, sizeof key, "vertices_farther_than_%gmm", tau * 1000);
     return {{"median_mm", q(0.5) * 1000},

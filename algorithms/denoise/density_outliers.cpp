@@ -21,6 +21,7 @@
 #include "algorithms/internal/spacing_sample.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::denoise {
 
@@ -213,7 +214,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     for (const double s : view_spacing)
         if (s >= 0.0) spacings.push_back(s);
     if (spacings.empty()) spacings.push_back(sampling::robust_spacing(world, 10000, options.seed));
-    const double spacing = detail::median_of(spacings);
+    const double spacing = lower_median(spacings);
     report["spacing_m"] = spacing;
     stage("spacing");
 
@@ -415,7 +416,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                   dens.resize(found);
                                   for (std::size_t j = 0; j < found; ++j)
                                       dens[j] = measured[ids[j]];
-                                  expected[i] = detail::median_of(dens);
+                                  expected[i] = lower_median(dens);
                               }
                           });
     }

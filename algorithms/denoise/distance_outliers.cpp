@@ -14,6 +14,7 @@
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::denoise {
 
@@ -59,7 +60,7 @@ double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
             const double d = cam[b].x() / cam[b].z() - cam[a].x() / cam[a].z();
             if (d > 0.0) f.push_back(1.0 / d);
         }
-    return detail::median_of(f);
+    return lower_median(f);
 }
 
 }  // namespace
@@ -401,9 +402,9 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                                   }
                               });
             std::vector<double> tmp(ratio);
-            const double med = detail::median_of(tmp);
+            const double med = lower_median(tmp);
             for (double& t : tmp) t = std::abs(t - med);
-            const double sigma = 1.4826 * detail::median_of(tmp);
+            const double sigma = 1.4826 * lower_median(tmp);
             const double threshold =
                 std::max(med + options.alpha * sigma, med / std::cos(theta_max));
             report["r_median"] = med;

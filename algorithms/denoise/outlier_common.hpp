@@ -99,12 +99,4 @@ private:
     std::vector<std::uint32_t> parent_;
 };
 
-/// Median of `v` (reordered); 0 for an empty vector.
-inline double median_of(std::vector<double>& v) {
-    if (v.empty()) return 0.0;
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>((v.size() - 1) / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-}
-
 }  // namespace rgbd::denoise::detail

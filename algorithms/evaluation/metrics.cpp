@@ -17,6 +17,7 @@
 
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::evaluation {
 
@@ -126,13 +127,9 @@ DistanceStats stats(std::vector<double> d) {
     for (double x : d) sum += x;  // sequential: same result for any thread count
     s.mean = sum / double(d.size());
     s.max = *std::max_element(d.begin(), d.end());
-    auto at = [&](std::size_t k) {
-        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
-        return d[k];
-    };
-    s.median = at((d.size() - 1) / 2);
+    s.median = lower_median(d);
     const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * double(d.size())));
-    s.p95 = at(std::max<std::size_t>(rank, 1) - 1);
+    s.p95 = kth_smallest(d, std::max<std::size_t>(rank, 1) - 1);
     return s;
 }
 

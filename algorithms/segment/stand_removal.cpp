@@ -9,6 +9,7 @@
 
 #include "algorithms/denoise/outlier_common.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::segment {
 namespace {
@@ -102,12 +103,7 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     std::vector<double> h(all.size());
     tbb::parallel_for(std::size_t(0), all.size(), [&](std::size_t i) { h[i] = all[i].dot(up); });
     std::vector<double> sorted = h;
-    const auto pct = [&](double q) {
-        auto it = sorted.begin() + static_cast<std::ptrdiff_t>(q * (sorted.size() - 1));
-        std::nth_element(sorted.begin(), it, sorted.end());
-        return *it;
-    };
-    const double lo = pct(0.02), hi = pct(0.98);
+    const double lo = rank_quantile(sorted, 0.02), hi = rank_quantile(sorted, 0.98);
     const double band = lo + options.search_fraction * (hi - lo);
     std::vector<Eigen::Vector3d> low;
     const std::size_t stride =
