@@ -18,6 +18,7 @@
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
+#include "toolkit/random.hpp"
 
 namespace rgbd::evaluation {
 
@@ -64,15 +65,6 @@ Triangles collect_triangles(const Mesh& mesh, const char* what) {
     return t;
 }
 
-/// SplitMix64: a counter-based generator, so sample i is the same for any thread count.
-std::uint64_t splitmix64(std::uint64_t x) {
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-}
-double unit(std::uint64_t x) { return double(x >> 11) * 0x1.0p-53; }
-
 /// Area-uniform samples; face_of[i] = index into t.faces of sample i.
 void sample_triangles(const Triangles& t, std::size_t count, std::uint64_t seed,
                       std::vector<Eigen::Vector3d>& points, std::vector<std::uint32_t>& face_of) {
@@ -84,9 +76,9 @@ void sample_triangles(const Triangles& t, std::size_t count, std::uint64_t seed,
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           for (std::size_t i = r.begin(); i != r.end(); ++i) {
                               std::uint64_t state = base + 3 * static_cast<std::uint64_t>(i);
-                              const double a = unit(splitmix64(state)) * total;
-                              const double r1 = unit(splitmix64(state + 1));
-                              const double r2 = unit(splitmix64(state + 2));
+                              const double a = unit_interval(splitmix64(state)) * total;
+                              const double r1 = unit_interval(splitmix64(state + 1));
+                              const double r2 = unit_interval(splitmix64(state + 2));
                               auto it = std::upper_bound(t.cumulative_area.begin(),
                                                          t.cumulative_area.end(), a);
                               if (it == t.cumulative_area.end()) --it;

@@ -10,6 +10,7 @@
 #include "algorithms/denoise/outlier_common.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
+#include "toolkit/random.hpp"
 
 namespace rgbd::segment {
 namespace {
@@ -27,14 +28,6 @@ std::vector<Eigen::Vector3d> world_points(const PointCloud& view,
         for (auto& p : out) p = pose * p;
     }
     return out;
-}
-
-/// splitmix64: the deterministic sample stream of the RANSAC.
-std::uint64_t next(std::uint64_t& state) {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
 }
 
 /// Least-squares plane through `points` (normal = smallest principal axis), oriented along
@@ -119,9 +112,9 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     SupportPlane best;
     std::size_t best_score = 0;
     for (int it = 0; it < options.iterations; ++it) {
-        const auto& a = low[next(state) % low.size()];
-        const auto& b = low[next(state) % low.size()];
-        const auto& c = low[next(state) % low.size()];
+        const auto& a = low[splitmix64_next(state) % low.size()];
+        const auto& b = low[splitmix64_next(state) % low.size()];
+        const auto& c = low[splitmix64_next(state) % low.size()];
         Eigen::Vector3d n = (b - a).cross(c - a);
         if (n.norm() < 1e-12) continue;
         n.normalize();
