@@ -80,11 +80,8 @@ io::SensorSpec sr300_spec(const std::string& id);
 /// Noise traits (model, range, quantum) for a spec made by the functions above.
 DepthSensorTraits traits_of(const io::SensorSpec& spec);
 
-/// Camera pose at `position` looking at `target` (OpenCV frame: x right, y down, z forward),
-/// with `up` the world up direction. Throws InputError when the two coincide or the view
-/// direction is parallel to `up`.
-Pose look_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
-             const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
+/// Camera pose at a position looking at a target (toolkit/pose.hpp).
+using rgbd::look_at;
 
 /// The input mesh scaled and placed in the world (z up, bbox centre at `centre`).
 struct PlacedMesh {
