@@ -129,11 +129,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                            "world_from_sensor pose");
     report["reference"] = reference == DensityReference::kSensors ? "sensors" : "local";
     const std::size_t k = std::min<std::size_t>(std::size_t(options.k), n > 0 ? n - 1 : 0);
-    if (n < 3 || k < 2) {
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
-    }
+    if (n < 3 || k < 2) return detail::nothing_removed(std::move(report), watch);
     Report stages;
     double lap = 0.0;
     const auto stage = [&](const char* name) {
@@ -613,13 +609,10 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                             {options.mark ? "marked" : "removed", removed[v]}});
     }
     report["views"] = per_view;
-    report[options.mark ? "marked" : "removed"] = total;
-    if (options.mark) report["removed"] = 0;
+    detail::record_removed(report, total, options.mark);
     stage("apply");
     report["stages_s"] = stages;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    return detail::finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise

@@ -77,11 +77,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     const detail::Gathered g = detail::gather(cloud);
     const std::size_t n = g.xyz.size();
     report["input_points"] = n;
-    if (n == 0) {
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
-    }
+    if (n == 0) return detail::nothing_removed(std::move(report), watch);
     RGBD_CHECK(cloud.view.has_grid(),
                name +
                    ": --distance needs an organised view (pixel grid); this view has none, "
@@ -420,12 +416,8 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     report["statistical"] = statistical;
     std::vector<std::uint8_t> outlier(n);
     for (std::size_t i = 0; i < n; ++i) outlier[i] = reason[i] != kKeep;
-    const std::size_t count = detail::apply(cloud, g, outlier, options.mark);
-    report[options.mark ? "marked" : "removed"] = count;
-    if (options.mark) report["removed"] = 0;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    detail::record_removed(report, detail::apply(cloud, g, outlier, options.mark), options.mark);
+    return detail::finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise
