@@ -43,7 +43,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "quality", "common"))
 from open3d_peer import merge_views, pair_icp, prepare_views, screened_poisson  # noqa: E402
-from rgbd_stream import optimise, pose_of, read_stream, work_folder  # noqa: E402
+from rgbd_stream import argument_parser, optimise, pose_of, read_stream, run_stamp, work_folder  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "data", "multiview",
                                        "uva_cv2_person_kinect1"))
@@ -209,9 +209,7 @@ def read_stream_header_size(header):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--out", default=None, help="markdown file (default validation/results/"
                     "DATE-person-vs-open3d-COMMIT.md)")
     ap.add_argument("--frames", default="0:50", help="frame positions of the main comparison")
@@ -227,9 +225,7 @@ def main():
     if not os.path.exists(f"{b}/rgbd-reconstruct"):
         sys.exit(f"person_vs_open3d: {b}/rgbd-reconstruct not found (build first, or --bin)")
     work = work_folder("person_vs_open3d", a.work, needs=PERSON)
-    commit = subprocess.run("git rev-parse --short HEAD", shell=True, capture_output=True,
-                            text=True, cwd=HERE).stdout.strip() or "unknown"
-    today = datetime.date.today().isoformat()
+    today, commit = run_stamp(HERE)
     lines = [f"# Person: rgbd-reconstruct against Open3D 0.16 ({today})", "",
              f"- commit {commit}; machine: {os.cpu_count()} cores (nproc), shared; work {work}",
              f"- command: `{' '.join(sys.argv)}`", ""]

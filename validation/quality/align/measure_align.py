@@ -26,7 +26,6 @@ ground truth (median, p90) and the 360-degree loop closure before / after.
 Usage: measure_align.py [--bin build/bin] [--work DIR] [--seeds 20] [--calib-deg 5]
                         [--calib-mm 50] [--busts max_planck,bust_man_wreath] [--uva]
 """
-import argparse
 import json
 import os
 import sys
@@ -36,8 +35,8 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, optimise, pose_of, read_stream, run,  # noqa: E402
-                         work_folder, xyz_of)
+from rgbd_stream import (argument_parser, BUSTS, DATA, meta, o3d_view_cloud, optimise,  # noqa: E402
+                         pose_of, read_stream, run, work_folder, xyz_of)
 
 
 
@@ -199,9 +198,7 @@ def uva(b, work):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--calib-deg", type=float, default=5.0)

@@ -1,5 +1,7 @@
 """Small helpers shared by the validation scripts: the PLY view-stream reader, view metadata,
 poses and a shell runner. numpy only (Debian's /usr/bin/python3)."""
+import argparse
+import datetime
 import json
 import os
 import re
@@ -77,6 +79,15 @@ def rgb_of(doc):
     return np.stack([doc["red"], doc["green"], doc["blue"]], 1).astype(np.float64) / 255.0
 
 
+def argument_parser(doc):
+    """The measurement scripts' command line: `doc` (the script's docstring) as its help, --bin
+    (the built tools) and --work (the scratch folder of work_folder())."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--bin", default="build/bin", help="folder of the built rgbd-* tools")
+    ap.add_argument("--work", default=None, help="scratch folder (default: a new temporary one)")
+    return ap
+
+
 def work_folder(script, work=None, needs=None):
     """A script's scratch folder: `work` (made when missing) or a new temporary one named after
     the script. With `needs`, first exits naming that path when it is absent (test data that
@@ -93,6 +104,25 @@ def write_json_lines(path, rows):
     with open(path, "w") as f:
         for r in rows:
             f.write(json.dumps(r) + "\n")
+
+
+def run_stamp(folder):
+    """(today's ISO date, the short commit of the checkout that holds `folder`, or "unknown"):
+    what names a results file."""
+    commit = subprocess.run(["git", "-C", folder, "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip() or "unknown"
+    return datetime.date.today().isoformat(), commit
+
+
+def publish(text, out_dir, name, date, commit):
+    """Prints a results table and, with `out_dir`, writes it to out_dir/<date>-<name>-<commit>.md
+    (validation/results/ keeps them)."""
+    print(text)
+    if out_dir:
+        path = os.path.join(out_dir, f"{date}-{name}-{commit}.md")
+        with open(path, "w") as f:
+            f.write(text)
+        print(f"written {path}", file=sys.stderr)
 
 
 def run(cmd, **kw):

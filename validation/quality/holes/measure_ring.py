@@ -50,7 +50,6 @@ cyan), in --work.
 
 Usage: measure_ring.py [--bin build/bin] [--work DIR] [--busts max_planck,bust_man_wreath]
 """
-import argparse
 import os
 import sys
 import time
@@ -61,8 +60,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import (BUSTS, DATA, read_stream, run, work_folder, write_points,  # noqa: E402
-                         xyz_of)
+from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, run, work_folder,  # noqa: E402
+                         write_points, xyz_of)
 
 TAU = 0.005
 VARIANTS = [("small only", "--no-large --no-head-top"), ("+ head top", "--no-large"),
@@ -196,9 +195,7 @@ def picture(b, filled, work, tag):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--busts", default="max_planck,bust_man_wreath")
     ap.add_argument("--depths", default="8,9,10")

@@ -28,7 +28,6 @@ SP's time at that depth.
 Usage: measure_mesh.py [--bin build/bin] [--work DIR] [--busts max_planck,...]
                        [--methods default,poisson,advancing-front] [--seed 1]
 """
-import argparse
 import json
 import os
 import resource
@@ -43,7 +42,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import BUSTS, DATA, read_stream, rgb_of, run, work_folder, xyz_of  # noqa: E402
+from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, rgb_of, run,  # noqa: E402
+                         work_folder, xyz_of)
 
 BUSTS = dict(BUSTS)  # the validation busts, plus the bunny
 BUSTS.update({
@@ -132,9 +132,7 @@ def children_cpu():
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--busts", default="max_planck,bust_man_wreath,stanford_bunny")
     ap.add_argument("--methods", default="default,poisson",
