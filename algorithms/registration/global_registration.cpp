@@ -71,15 +71,7 @@ public:
     }
 
 private:
-    struct Adaptor {
-        const std::vector<Fpfh>* f;
-        std::size_t kdtree_get_point_count() const { return f->size(); }
-        float kdtree_get_pt(std::size_t i, std::size_t d) const { return (*f)[i][d]; }
-        template <class B>
-        bool kdtree_get_bbox(B&) const {
-            return false;
-        }
-    };
+    using Adaptor = internal::VectorAdaptor<Fpfh, float>;
     using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>,
                                                       Adaptor, 33, std::uint32_t>;
     Adaptor adaptor_;
