@@ -84,21 +84,25 @@ int main(int argc, char** argv) {
             }
         auto bar = ctx.progress("align");
         Report report = cli::align_stage(views, options, bar.callback());
-        for (const auto& p : report["pairs"]) {
+        // A line per pair and per view: PASS only with -v, WARN and FAIL always.
+        const auto say = [&](const Report& r, const std::string& who, const std::string& more) {
             const std::string line =
-                "pair " + std::to_string(p["target"].get<int>()) + "-" +
-                std::to_string(p["source"].get<int>()) + ": " + p["verdict"].get<std::string>() +
-                (p.contains("reason") ? " (" + p["reason"].get<std::string>() + ")" : "") +
-                ", fitness " + std::to_string(p["fitness"].get<double>()) + ", rmse " +
-                std::to_string(p["inlier_rmse_m"].get<double>() * 1000) + " mm, start " +
-                p["method"].get<std::string>() + ", off the ring " +
-                std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
-                std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm";
-            if (p["verdict"] == "PASS")
+                who + ": " + r["verdict"].get<std::string>() +
+                (r.contains("reason") ? " (" + r["reason"].get<std::string>() + ")" : "") +
+                ", fitness " + std::to_string(r["fitness"].get<double>()) + ", rmse " +
+                std::to_string(r["inlier_rmse_m"].get<double>() * 1000) + " mm, " + more;
+            if (r["verdict"] == "PASS")
                 ctx.info(line);
             else
                 ctx.warn(line);
-        }
+        };
+        for (const auto& p : report["pairs"])
+            say(p,
+                "pair " + std::to_string(p["target"].get<int>()) + "-" +
+                    std::to_string(p["source"].get<int>()),
+                "start " + p["method"].get<std::string>() + ", off the ring " +
+                    std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
+                    std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm");
         if (report.contains("loop_closure")) {
             const auto& l = report["loop_closure"];
             ctx.info("loop closure: " + std::to_string(l["before_rotation_deg"].get<double>()) +
@@ -107,20 +111,12 @@ int main(int argc, char** argv) {
                      " deg / " + std::to_string(l["after_translation_m"].get<double>() * 1000) +
                      " mm after the pose graph and joint rounds");
         }
-        for (const auto& v : report["views"]) {
-            const std::string line =
+        for (const auto& v : report["views"])
+            say(v,
                 "view " + std::to_string(v["view"].get<int>()) + " (" +
-                v["sensor"].get<std::string>() + "): " + v["verdict"].get<std::string>() +
-                (v.contains("reason") ? " (" + v["reason"].get<std::string>() + ")" : "") +
-                ", fitness " + std::to_string(v["fitness"].get<double>()) + ", rmse " +
-                std::to_string(v["inlier_rmse_m"].get<double>() * 1000) + " mm, moved " +
-                std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
-                std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm";
-            if (v["verdict"] == "PASS")
-                ctx.info(line);
-            else
-                ctx.warn(line);
-        }
+                    v["sensor"].get<std::string>() + ")",
+                "moved " + std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
+                    std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm");
         ctx.metrics()["align"] = report;
         if (ctx.options().count("merge")) {
             io::Document merged;
