@@ -72,4 +72,15 @@ inline Mesh icosphere(double radius, int levels,
     return mesh;
 }
 
+/// A ball (icosphere of `levels` subdivisions, radius `radius`, centred at `ball`) in front of
+/// a wall (a square of half-size `half` centred at `wall`, in the x-y plane): occluding edges,
+/// a shadow and two depths for the rendering and noise tests.
+inline Mesh ball_before_wall(const Eigen::Vector3d& wall, double half, const Eigen::Vector3d& ball,
+                             double radius, int levels) {
+    Mesh mesh;
+    add_quad(mesh, wall, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), half);
+    add_icosphere(mesh, ball, radius, levels);
+    return mesh;
+}
+
 }  // namespace rgbd::synth::testing
