@@ -360,7 +360,7 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
     const internal::KdTree tree(points.position);
     Neighbourhood graph;
     {
-        std::vector<Directed> directed =
+        std::vector<detail::Directed> directed =
             detail::directed_lists(points.position, tree, r.spacing_m,
                                    {gradient_options.neighbourhood, options.neighbourhood});
         if (!report_progress(progress, 0.2)) throw AlgorithmError("cancelled");
