@@ -1,5 +1,5 @@
-// rgbd-capture, the control side of the hub (DESIGN.md §5, ALGORITHMS.md §1): the node
-// sessions, their four-timestamp clock probes and the start/stop messages, on a thread of its
+// rgbd-capture, the control side of the hub (docs/algorithms.md §1, docs/algorithms.md §1): the
+// node sessions, their four-timestamp clock probes and the start/stop messages, on a thread of its
 // own. Used only by cli/rgbd_capture.cpp.
 #pragma once
 

@@ -1,10 +1,10 @@
 // rgbd-capture --live: the newest frame sets as a view stream for a live pipeline
-// (DESIGN.md §4-§5). The hub keeps the last frames of every sensor in memory (FrameHistory),
-// hands each complete frame set to LiveStream, and a thread of its own turns the newest set
-// into views (io::frame_from_stored + view_from_frame, exactly what rgbd-cloud does with the
-// recorded folder) and writes them. A reader slower than the sensors gets the newest set
-// each time it is ready; the sets in between are skipped and counted, never queued, so the
-// hub and the recording never wait for the pipeline.
+// (docs/formats.md, docs/algorithms.md §1). The hub keeps the last frames of every sensor in memory
+// (FrameHistory), hands each complete frame set to LiveStream, and a thread of its own turns the
+// newest set into views (io::frame_from_stored + view_from_frame, exactly what rgbd-cloud does with
+// the recorded folder) and writes them. A reader slower than the sensors gets the newest set each
+// time it is ready; the sets in between are skipped and counted, never queued, so the hub and the
+// recording never wait for the pipeline.
 #pragma once
 
 #include <atomic>

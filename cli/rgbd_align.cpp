@@ -8,61 +8,58 @@
 using namespace rgbd;
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-align";
-    spec.usage = "rgbd-align [options] [FILE...] > aligned.ply";
-    spec.description =
-        "Registers all views of a stream into one world frame. Each view starts from the pose in "
-        "its metadata (the rig's calibration or a per-frame pose, or none with --ignore-poses). "
-        "1. Pairs: every view with its nearest views by viewing direction (ring neighbours), or "
-        "consecutive views and the last-first pair when the directions are unknown (a "
-        "turntable or walk-around sequence). Each pair is registered by point-to-plane ICP with "
-        "a colour term (robust weights, distance and normal gates, coarse to fine) from the "
-        "initial pose and from an FPFH + RANSAC hypothesis (results that leave the "
-        "calibration's bounds are discarded; on a ring the loop picks between the two). "
-        "2. A pose graph spreads the loop error and prunes pairs that disagree with the ring. "
-        "3. Joint rounds refine all views against all others at once, --fixed-view holding the "
-        "gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with overlap, "
-        "residual and agreement with the ring), and a ring its loop-closure error before and "
-        "after, on stderr and in --metrics. Deterministic for a --seed and any --threads. "
-        "On turntable streams the stand below the object is then removed (--stand). "
-        "Output: the views in the world frame with their refined poses, or one merged view "
-        "with --merge.";
-    spec.example =
-        "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply";
-    spec.whole_stream = true;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("merge",
-                        "emit one merged view instead of one document per view, without "
-                        "duplicates: a point with an earlier view's point within 1 spacing is "
-                        "dropped when their colours agree (Delta E <= 15), else the better "
-                        "observed of the two (nearer, more head-on) stays")(
-            "keep-duplicates", "with --merge: plain concatenation of the views")(
-            "fixed-view", cli::po::value<int>()->default_value(0)->value_name("I"),
-            "position in the stream of the view that holds the gauge")(
-            "rounds", cli::po::value<int>()->default_value(4)->value_name("N"),
-            "rounds of joint refinement")(
-            "voxel-m", cli::po::value<double>()->default_value(0.0)->value_name("M"),
-            "voxel size for the registration copies (0 = from the point spacing)")(
-            "ignore-poses",
-            "start every view from its own sensor frame (poses unknown); pairs follow the "
-            "stream order and the result is in the first view's frame")(
-            "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
-            "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
-            "colour-weight", cli::po::value<double>()->default_value(0.1)->value_name("W"),
-            "weight of the colour term (0 = geometry only)")(
-            "ransac-iterations", cli::po::value<int>()->default_value(20000)->value_name("N"),
-            "RANSAC hypotheses per pair")(
-            "max-prior-rotation-deg",
-            cli::po::value<double>()->default_value(20.0)->value_name("D"),
-            "pair results farther than this from the initial relative pose are discarded (>= 180 "
-            "disables)")(
-            "stand", cli::po::value<std::string>()->default_value("auto")->value_name("MODE"),
-            "the stand (turntable platter) below the object, after the alignment: auto (remove "
-            "it on streams of 3+ views of one sensor: a turntable), remove, keep; its plane is "
-            "written into the views' metadata (rgbd:stand.plane) and rgbd-mesh carries the "
-            "object's walls down to it, as rgbd-reconstruct does");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-align",
+        .usage = "rgbd-align [options] [FILE...] > aligned.ply",
+        .description =
+            "Registers all views of a stream into one world frame. Each view starts from the pose "
+            "in its metadata (the rig's calibration or a per-frame pose, or none with "
+            "--ignore-poses). 1. Pairs: every view with its nearest views by viewing direction "
+            "(ring neighbours), or consecutive views and the last-first pair when the directions "
+            "are unknown (a turntable or walk-around sequence). Each pair is registered by "
+            "point-to-plane ICP with a colour term (robust weights, distance and normal gates, "
+            "coarse to fine) from the initial pose and from an FPFH + RANSAC hypothesis (results "
+            "that leave the calibration's bounds are discarded; on a ring the loop picks between "
+            "the two). 2. A pose graph spreads the loop error and prunes pairs that disagree with "
+            "the ring. 3. Joint rounds refine all views against all others at once, --fixed-view "
+            "holding the gauge. Every pair and every view gets a verdict (PASS / WARN / FAIL with "
+            "overlap, residual and agreement with the ring), and a ring its loop-closure error "
+            "before and after, on stderr and in --metrics. Deterministic for a --seed and any "
+            "--threads. On turntable streams the stand below the object is then removed "
+            "(--stand). Output: the views in the world frame with their refined poses, or one "
+            "merged view with --merge.",
+        .example =
+            "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply",
+        .whole_stream = true,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("merge",
+                            "emit one merged view instead of one document per view, without "
+                            "duplicates: a point with an earlier view's point within 1 spacing is "
+                            "dropped when their colours agree (Delta E <= 15), else the better "
+                            "observed of the two (nearer, more head-on) stays")(
+                "keep-duplicates", "with --merge: plain concatenation of the views")(
+                "fixed-view", cli::value<int>(0, "I"),
+                "position in the stream of the view that holds the gauge")(
+                "rounds", cli::value<int>(4, "N"), "rounds of joint refinement")(
+                "voxel-m", cli::value<double>(0.0, "M"),
+                "voxel size for the registration copies (0 = from the point spacing)")(
+                "ignore-poses",
+                "start every view from its own sensor frame (poses unknown); pairs follow the "
+                "stream order and the result is in the first view's frame")(
+                "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
+                "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
+                "colour-weight", cli::value<double>(0.1, "W"),
+                "weight of the colour term (0 = geometry only)")(
+                "ransac-iterations", cli::value<int>(20000, "N"), "RANSAC hypotheses per pair")(
+                "max-prior-rotation-deg", cli::value<double>(20.0, "D"),
+                "pair results farther than this from the initial relative pose are discarded (>= "
+                "180 disables)")(
+                "stand", cli::value<std::string>("auto", "MODE"),
+                "the stand (turntable platter) below the object, after the alignment: auto "
+                "(remove it on streams of 3+ views of one sensor: a turntable), remove, keep; its "
+                "plane is written into the views' metadata (rgbd:stand.plane) and rgbd-mesh "
+                "carries the object's walls down to it, as rgbd-reconstruct does");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         registration::MultiViewOptions options;
         pipeline::StandMode stand = pipeline::StandMode::kAuto;
@@ -95,21 +92,25 @@ int main(int argc, char** argv) {
             }
         auto bar = ctx.progress("align");
         Report report = cli::align_stage(views, options, bar.callback());
-        for (const auto& p : report["pairs"]) {
+        // A line per pair and per view: PASS only with -v, WARN and FAIL always.
+        const auto say = [&](const Report& r, const std::string& who, const std::string& more) {
             const std::string line =
-                "pair " + std::to_string(p["target"].get<int>()) + "-" +
-                std::to_string(p["source"].get<int>()) + ": " + p["verdict"].get<std::string>() +
-                (p.contains("reason") ? " (" + p["reason"].get<std::string>() + ")" : "") +
-                ", fitness " + std::to_string(p["fitness"].get<double>()) + ", rmse " +
-                std::to_string(p["inlier_rmse_m"].get<double>() * 1000) + " mm, start " +
-                p["method"].get<std::string>() + ", off the ring " +
-                std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
-                std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm";
-            if (p["verdict"] == "PASS")
+                who + ": " + r["verdict"].get<std::string>() +
+                (r.contains("reason") ? " (" + r["reason"].get<std::string>() + ")" : "") +
+                ", fitness " + std::to_string(r["fitness"].get<double>()) + ", rmse " +
+                std::to_string(r["inlier_rmse_m"].get<double>() * 1000) + " mm, " + more;
+            if (r["verdict"] == "PASS")
                 ctx.info(line);
             else
                 ctx.warn(line);
-        }
+        };
+        for (const auto& p : report["pairs"])
+            say(p,
+                "pair " + std::to_string(p["target"].get<int>()) + "-" +
+                    std::to_string(p["source"].get<int>()),
+                "start " + p["method"].get<std::string>() + ", off the ring " +
+                    std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
+                    std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm");
         if (report.contains("loop_closure")) {
             const auto& l = report["loop_closure"];
             ctx.info("loop closure: " + std::to_string(l["before_rotation_deg"].get<double>()) +
@@ -118,20 +119,12 @@ int main(int argc, char** argv) {
                      " deg / " + std::to_string(l["after_translation_m"].get<double>() * 1000) +
                      " mm after the pose graph and joint rounds");
         }
-        for (const auto& v : report["views"]) {
-            const std::string line =
+        for (const auto& v : report["views"])
+            say(v,
                 "view " + std::to_string(v["view"].get<int>()) + " (" +
-                v["sensor"].get<std::string>() + "): " + v["verdict"].get<std::string>() +
-                (v.contains("reason") ? " (" + v["reason"].get<std::string>() + ")" : "") +
-                ", fitness " + std::to_string(v["fitness"].get<double>()) + ", rmse " +
-                std::to_string(v["inlier_rmse_m"].get<double>() * 1000) + " mm, moved " +
-                std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
-                std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm";
-            if (v["verdict"] == "PASS")
-                ctx.info(line);
-            else
-                ctx.warn(line);
-        }
+                    v["sensor"].get<std::string>() + ")",
+                "moved " + std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
+                    std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm");
         ctx.metrics()["align"] = report;
         if (pipeline::stand_applies(views, stand)) {
             auto stand_bar = ctx.progress("stand");

@@ -1,5 +1,5 @@
-// rgbd-capture: the capture hub (DESIGN.md §5, ALGORITHMS.md §1). Receives frames from many
-// rgbd-node processes over ZeroMQ, estimates each node's clock offset and drift with
+// rgbd-capture: the capture hub (docs/algorithms.md §1, docs/algorithms.md §1). Receives frames
+// from many rgbd-node processes over ZeroMQ, estimates each node's clock offset and drift with
 // four-timestamp probes on a separate control socket, maps every frame to hub time, groups
 // frames of all sensors into frame sets within a tolerance and records a capture folder v1
 // (atomic files, csv appended line by line) that io::open_capture and rgbd-cloud read back.

@@ -19,120 +19,115 @@ enum class Method { kAuto, kDistance, kDensity, kStatistical, kRadius };
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-clean";
-    spec.usage =
-        "rgbd-clean [--distance | --density | --statistical | --radius] [options] [FILE...] > "
-        "cleaned.ply";
-    spec.reads_cloud_files = true;
-    spec.description =
-        "Removes noise points from a view stream, or from plain point-cloud files (.pcd, .xyz, "
-        ".pwn; a .ply file is a stream), each read as one unorganised view. --distance (the "
-        "default for organised views, "
-        "i.e. views with a pixel grid, straight from rgbd-cloud; before alignment) works per "
-        "view: a pixel with fewer than --c-min neighbours in its 5x5 window (and fewer than "
-        "--c-min-wide in its 7x7 window) that a real surface "
-        "at --theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so "
-        "is a pixel inside a dense window that continues no straight depth line (within "
-        "--line-sigmas sigma) along any grid axis, unless its nearest 3D points in the 7x7 "
-        "window lie within --keep-knn pixel footprints; small grid components are speckles; "
-        "--smooth then moves every surviving point along its ray onto the plane (in inverse "
-        "depth) fitted to the same-surface pixels of its 5x5 window (edge-aware: neighbours "
-        "beyond 3 sigma of the sensor noise are another surface), deleting nothing; "
-        "--knn-test adds a kNN distance test relative to the pixel footprint z/f. Every "
-        "threshold scales with depth and the noise model. --density (after alignment: run on the "
-        "aligned "
-        "views of rgbd-align without --merge; reads the whole stream) judges every point over "
-        "all views together: its measured density against what the views that see it should "
-        "have produced (1/(z/f)^2 per view, occlusion-aware); a point below --consensus-ratio "
-        "of it that its own view sees steeper than --theta-max-deg and that lies more than "
-        "--consensus-sigmas sigma off the other views' surface is a flying pixel too; then it "
-        "drops small detached clusters; views without cameras (merged or unorganised clouds) are "
-        "compared with the "
-        "local median density instead. Views without a grid fall back to --statistical when no "
-        "method is given. --statistical is statistical outlier removal with the exact semantics "
-        "of Open3D's remove_statistical_outlier (or PCL's with --convention pcl); --radius "
-        "removes points with too few neighbours within a radius given in metres or as a "
-        "multiple of the view's robust point spacing. --mark flags points (property noise = 1) "
-        "instead of deleting them.";
-    spec.example =
-        "rgbd-cloud cap/ | rgbd-clean --distance | rgbd-align | rgbd-clean --density | rgbd-mesh "
-        "-o bust.ply";
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("distance",
-                        "adaptive distance-based removal per organised view (default when the "
-                        "view has a grid)")(
-            "density", "adaptive density-based removal over all aligned views")(
-            "statistical", "statistical outlier removal (default for views without a grid)")(
-            "radius", "radius outlier removal")(
-            "k", cli::po::value<int>()->value_name("N"),
-            "neighbours per point (default 20 for --statistical and --density, 16 for "
-            "--distance)")(
-            "std-ratio", cli::po::value<double>()->default_value(2.0)->value_name("X"),
-            "--statistical: standard deviations above the mean distance that are kept")(
-            "convention",
-            cli::po::value<std::string>()->default_value("open3d")->value_name("NAME"),
-            "--statistical/--radius: open3d (neighbours include the point itself) or pcl")(
-            "min-points", cli::po::value<int>()->default_value(16)->value_name("N"),
-            "--radius: minimum neighbours within the radius")(
-            "radius-m", cli::po::value<double>()->value_name("M"), "--radius: radius in metres")(
-            "radius-spacing", cli::po::value<double>()->default_value(4.0)->value_name("X"),
-            "--radius: radius as a multiple of the robust point spacing (when --radius-m is not "
-            "given)")(
-            "noise-model",
-            cli::po::value<std::string>()->default_value("kinect_v2")->value_name("NAME"),
-            "--distance/--density: sensor noise model kinect_v2, kinect_v1, sr300 or generic")(
-            "theta-max-deg", cli::po::value<double>()->value_name("DEG"),
-            "--distance/--density: steepest incidence angle of a real surface (default 70 for "
-            "--distance, 75 for --density)")(
-            "c-min", cli::po::value<int>()->default_value(2)->value_name("N"),
-            "--distance: supporting neighbours a pixel needs in its 5x5 window")(
-            "c-min-wide", cli::po::value<int>()->default_value(3)->value_name("N"),
-            "--distance: a pixel short of --c-min keeps its support with N supporting "
-            "neighbours in its 7x7 window (0 = the 5x5 window only)")(
-            "line-sigmas", cli::po::value<double>()->default_value(3.0)->value_name("X"),
-            "--distance: line-support tolerance in sigma of the sensor noise (0 = no line test)")(
-            "dense-min", cli::po::value<int>()->default_value(16)->value_name("N"),
-            "--distance: the line test applies where at least N of the 24 window pixels are "
-            "valid")("keep-knn", cli::po::value<double>()->default_value(3.0)->value_name("X"),
-                     "--distance: keep a pixel the support or line test flags when its "
-                     "--keep-k nearest points in its 7x7 window lie within X pixel footprints "
-                     "z/f on average (0 = off)")(
-            "keep-k", cli::po::value<int>()->default_value(5)->value_name("N"),
-            "--distance: neighbours of the --keep-knn test")(
-            "n-speckle", cli::po::value<int>()->default_value(20)->value_name("N"),
-            "--distance: grid components with fewer pixels are speckles (0 = off)")(
-            "alpha", cli::po::value<double>()->default_value(3.0)->value_name("X"),
-            "--distance: robust standard deviations of the normalised kNN distance that are kept")(
-            "no-pass-a", "--distance: skip the grid support and speckle tests")(
-            "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
-            "beta", cli::po::value<double>()->value_name("X"),
-            "--density: keep a point when its density is at least X times the expected one "
-            "(default 0.1 against the sensors' expectation, 0.2 against the local median)")(
-            "reference", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
-            "--density: expected density from the sensors (views' cameras), local (median of "
-            "the neighbours) or auto")(
-            "consensus-ratio", cli::po::value<double>()->default_value(0.5)->value_name("X"),
-            "--density: consensus test on points below X times their expected density that "
-            "their own view sees steeper than --theta-max-deg (0 = no consensus test)")(
-            "consensus-sigmas", cli::po::value<double>()->default_value(4.5)->value_name("X"),
-            "--density: such a point is noise when farther than X sigma of the sensor noise from "
-            "the plane of the other views' points around it")(
-            "cluster-spacing", cli::po::value<double>()->default_value(3.0)->value_name("X"),
-            "--density: cluster link distance as a multiple of the robust spacing (0 = no "
-            "cluster pass)")(
-            "min-cluster-fraction", cli::po::value<double>()->default_value(0.005)->value_name("X"),
-            "--density: detached clusters smaller than this share of the points are removed")(
-            "mark", "flag noise points (noise = 1) instead of deleting them")(
-            "high-recall",
-            "--distance: the recall operating point (--c-min 4 --c-min-wide 0 --keep-knn 0 "
-            "--line-sigmas 2 --dense-min 12; explicit options win): removes more flying pixels "
-            "at the price of some surface (rgbd-synth rings: 97% of the flying pixels, 0.8-1.3% "
-            "of the surface, against 92-93% and 0.06-0.12% by default)")(
-            "smooth",
-            "--distance: then smooth the surviving depths along the pixel rays (edge-aware "
-            "plane fit over the 5x5 window; points move, none is deleted)");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-clean",
+        .usage =
+            "rgbd-clean [--distance | --density | --statistical | --radius] [options] [FILE...] > "
+            "cleaned.ply",
+        .description =
+            "Removes noise points from a view stream, or from plain point-cloud files (.pcd, .xyz, "
+            ".pwn; a .ply file is a stream), each read as one unorganised view. --distance (the "
+            "default for organised views, i.e. views with a pixel grid, straight from rgbd-cloud; "
+            "before alignment) works per view: a pixel with fewer than --c-min neighbours in its "
+            "5x5 window (and fewer than --c-min-wide in its 7x7 window) that a real surface at "
+            "--theta-max-deg plus 3 sigma of the sensor noise can explain is a flying pixel, so is "
+            "a pixel inside a dense window that continues no straight depth line (within "
+            "--line-sigmas sigma) along any grid axis, unless its nearest 3D points in the 7x7 "
+            "window lie within --keep-knn pixel footprints; small grid components are speckles; "
+            "--smooth then moves every surviving point along its ray onto the plane (in inverse "
+            "depth) fitted to the same-surface pixels of its 5x5 window (edge-aware: neighbours "
+            "beyond 3 sigma of the sensor noise are another surface), deleting nothing; --knn-test "
+            "adds a kNN distance test relative to the pixel footprint z/f. Every threshold scales "
+            "with depth and the noise model. --density (after alignment: run on the aligned views "
+            "of rgbd-align without --merge; reads the whole stream) judges every point over all "
+            "views together: its measured density against what the views that see it should have "
+            "produced (1/(z/f)^2 per view, occlusion-aware); a point below --consensus-ratio of it "
+            "that its own view sees steeper than --theta-max-deg and that lies more than "
+            "--consensus-sigmas sigma off the other views' surface is a flying pixel too; then it "
+            "drops small detached clusters; views without cameras (merged or unorganised clouds) "
+            "are compared with the local median density instead. Views without a grid fall back to "
+            "--statistical when no method is given. --statistical is statistical outlier removal "
+            "with the exact semantics of Open3D's remove_statistical_outlier (or PCL's with "
+            "--convention pcl); --radius removes points with too few neighbours within a radius "
+            "given in metres or as a multiple of the view's robust point spacing. --mark flags "
+            "points (property noise = 1) instead of deleting them.",
+        .example =
+            "rgbd-cloud cap/ | rgbd-clean --distance | rgbd-align | rgbd-clean --density | "
+            "rgbd-mesh -o bust.ply",
+        .reads_cloud_files = true,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("distance",
+                            "adaptive distance-based removal per organised view (default when the "
+                            "view has a grid)")(
+                "density", "adaptive density-based removal over all aligned views")(
+                "statistical", "statistical outlier removal (default for views without a grid)")(
+                "radius", "radius outlier removal")(
+                "k", cli::value<int>("N"),
+                "neighbours per point (default 20 for --statistical and --density, 16 for "
+                "--distance)")(
+                "std-ratio", cli::value<double>(2.0, "X"),
+                "--statistical: standard deviations above the mean distance that are kept")(
+                "convention", cli::value<std::string>("open3d", "NAME"),
+                "--statistical/--radius: open3d (neighbours include the point itself) or pcl")(
+                "min-points", cli::value<int>(16, "N"),
+                "--radius: minimum neighbours within the radius")(
+                "radius-m", cli::value<double>("M"), "--radius: radius in metres")(
+                "radius-spacing", cli::value<double>(4.0, "X"),
+                "--radius: radius as a multiple of the robust point spacing (when --radius-m is "
+                "not given)")(
+                "noise-model", cli::value<std::string>("kinect_v2", "NAME"),
+                "--distance/--density: sensor noise model kinect_v2, kinect_v1, sr300 or generic")(
+                "theta-max-deg", cli::value<double>("DEG"),
+                "--distance/--density: steepest incidence angle of a real surface (default 70 for "
+                "--distance, 75 for --density)")(
+                "c-min", cli::value<int>(2, "N"),
+                "--distance: supporting neighbours a pixel needs in its 5x5 window")(
+                "c-min-wide", cli::value<int>(3, "N"),
+                "--distance: a pixel short of --c-min keeps its support with N supporting "
+                "neighbours in its 7x7 window (0 = the 5x5 window only)")(
+                "line-sigmas", cli::value<double>(3.0, "X"),
+                "--distance: line-support tolerance in sigma of the sensor noise (0 = no line "
+                "test)")(
+                "dense-min", cli::value<int>(16, "N"),
+                "--distance: the line test applies where at least N of the 24 window pixels are "
+                "valid")("keep-knn", cli::value<double>(3.0, "X"),
+                         "--distance: keep a pixel the support or line test flags when its "
+                         "--keep-k nearest points in its 7x7 window lie within X pixel footprints "
+                         "z/f on average (0 = off)")(
+                "keep-k", cli::value<int>(5, "N"), "--distance: neighbours of the --keep-knn test")(
+                "n-speckle", cli::value<int>(20, "N"),
+                "--distance: grid components with fewer pixels are speckles (0 = off)")(
+                "alpha", cli::value<double>(3.0, "X"),
+                "--distance: robust standard deviations of the normalised kNN distance that are "
+                "kept")("no-pass-a", "--distance: skip the grid support and speckle tests")(
+                "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
+                "beta", cli::value<double>("X"),
+                "--density: keep a point when its density is at least X times the expected one "
+                "(default 0.1 against the sensors' expectation, 0.2 against the local median)")(
+                "reference", cli::value<std::string>("auto", "NAME"),
+                "--density: expected density from the sensors (views' cameras), local (median of "
+                "the neighbours) or auto")(
+                "consensus-ratio", cli::value<double>(0.5, "X"),
+                "--density: consensus test on points below X times their expected density that "
+                "their own view sees steeper than --theta-max-deg (0 = no consensus test)")(
+                "consensus-sigmas", cli::value<double>(4.5, "X"),
+                "--density: such a point is noise when farther than X sigma of the sensor noise "
+                "from the plane of the other views' points around it")(
+                "cluster-spacing", cli::value<double>(3.0, "X"),
+                "--density: cluster link distance as a multiple of the robust spacing (0 = no "
+                "cluster pass)")(
+                "min-cluster-fraction", cli::value<double>(0.005, "X"),
+                "--density: detached clusters smaller than this share of the points are removed")(
+                "mark", "flag noise points (noise = 1) instead of deleting them")(
+                "high-recall",
+                "--distance: the recall operating point (--c-min 4 --c-min-wide 0 --keep-knn 0 "
+                "--line-sigmas 2 --dense-min 12; explicit options win): removes more flying pixels "
+                "at the price of some surface (rgbd-synth rings: 97% of the flying pixels, "
+                "0.8-1.3% of the surface, against 92-93% and 0.06-0.12% by default)")(
+                "smooth",
+                "--distance: then smooth the surviving depths along the pixel rays (edge-aware "
+                "plane fit over the 5x5 window; points move, none is deleted)");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         const auto& vm = ctx.options();
         std::vector<Method> chosen;

@@ -25,39 +25,39 @@ std::set<std::string> split_ids(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-cloud";
-    spec.usage = "rgbd-cloud CAPTURE_DIR [options] > views.ply";
-    spec.description =
-        "Turns the frames of a capture folder (capture folder v1, TUM RGB-D, Open3D/Redwood or a "
-        "folder of frames with OpenCV camera files) into a stream of coloured point clouds, one "
-        "per sensor view: depth pixels are back-projected with the depth camera's intrinsics, "
-        "mapped into the colour camera (with an occlusion test, so a point hidden from the colour "
-        "camera is not painted with its occluder's colour) and cut to the object by a depth "
-        "window and, when the capture has one, the object mask. Points stay in the sensor frame; "
-        "the view's world_from_sensor pose travels in the metadata.\n\n"
-        "Multi-sensor captures emit the sensors of one frame set (--frameset); single-sensor "
-        "sequences (turntable, hand-held) emit every frame (--frames) as a view.";
-    spec.example =
-        "rgbd-cloud cap/ --frameset 0 | rgbd-clean --statistical | rgbd-align | rgbd-mesh -o "
-        "bust.ply";
-    spec.reads_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
-                        "frame set to emit (multi-sensor captures)")(
-            "frames", cli::po::value<std::string>()->value_name("A:B[:STEP]"),
-            "frame positions to emit per sensor (default: all for single-sensor captures)")(
-            "sensors", cli::po::value<std::string>()->value_name("ID,..."),
-            "only these sensor ids (default: all)")(
-            "z-min", cli::po::value<double>()->default_value(0.0)->value_name("M"),
-            "depth window near limit in metres (0 = the sensor's range)")(
-            "z-max", cli::po::value<double>()->default_value(0.0)->value_name("M"),
-            "depth window far limit in metres (0 = the sensor's range)")(
-            "no-mask", "ignore the capture's object masks")(
-            "crop-radius-m", cli::po::value<double>()->default_value(0.6)->value_name("M"),
-            "keep points within this distance of the object centre, where the sensors' optical "
-            "axes converge (0 = no crop; skipped when the poses do not tell a centre)");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-cloud",
+        .usage = "rgbd-cloud CAPTURE_DIR [options] > views.ply",
+        .description =
+            "Turns the frames of a capture folder (capture folder v1, TUM RGB-D, Open3D/Redwood or "
+            "a folder of frames with OpenCV camera files) into a stream of coloured point clouds, "
+            "one per sensor view: depth pixels are back-projected with the depth camera's "
+            "intrinsics, mapped into the colour camera (with an occlusion test, so a point hidden "
+            "from the colour camera is not painted with its occluder's colour) and cut to the "
+            "object by a depth window and, when the capture has one, the object mask. Points stay "
+            "in the sensor frame; the view's world_from_sensor pose travels in the metadata.\n\n"
+            "Multi-sensor captures emit the sensors of one frame set (--frameset); single-sensor "
+            "sequences (turntable, hand-held) emit every frame (--frames) as a view.",
+        .example =
+            "rgbd-cloud cap/ --frameset 0 | rgbd-clean --statistical | rgbd-align | rgbd-mesh -o "
+            "bust.ply",
+        .reads_stream = false,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("frameset", cli::value<long long>(0, "N"),
+                            "frame set to emit (multi-sensor captures)")(
+                "frames", cli::value<std::string>("A:B[:STEP]"),
+                "frame positions to emit per sensor (default: all for single-sensor captures)")(
+                "sensors", cli::value<std::string>("ID,..."),
+                "only these sensor ids (default: all)")(
+                "z-min", cli::value<double>(0.0, "M"),
+                "depth window near limit in metres (0 = the sensor's range)")(
+                "z-max", cli::value<double>(0.0, "M"),
+                "depth window far limit in metres (0 = the sensor's range)")(
+                "no-mask", "ignore the capture's object masks")(
+                "crop-radius-m", cli::value<double>(0.6, "M"),
+                "keep points within this distance of the object centre, where the sensors' optical "
+                "axes converge (0 = no crop; skipped when the poses do not tell a centre)");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
         const std::string root = ctx.inputs().front();

@@ -20,6 +20,7 @@
 #include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 using namespace rgbd;
 namespace fs = std::filesystem;
@@ -115,11 +116,7 @@ Report input_distance(const Mesh& mesh, const std::vector<Eigen::Vector3d>& inpu
     std::vector<double> d = evaluation::distances_to_points(v, input);
     std::size_t far = 0;
     for (double x : d) far += x > tau;
-    auto q = [&](double f) {
-        const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(f * d.size()));
-        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
-        return d[k];
-    };
+    auto q = [&](double f) { return count_quantile(d, f); };
     char key[64];
     std::snprintf(key, sizeof key, "vertices_farther_than_%gmm", tau * 1000);
     return {{"median_mm", q(0.5) * 1000},
@@ -219,62 +216,61 @@ std::pair<int, int> parse_size(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-eval";
-    spec.usage =
-        "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
-        "[--report DIR] [options] [-o metrics.json]";
-    spec.description =
-        "Compares a result (a mesh, or a view stream / point file) with a reference surface and "
-        "prints the metrics as one JSON object: Chamfer distance (mean of both directed mean "
-        "distances), Hausdorff distance (max and 95th percentile), accuracy, completeness, "
-        "precision, recall and F-score at each threshold tau, and the invented surface (share "
-        "of the result farther than --invented-tau-mm from the reference). Distances are exact "
-        "point-to-triangle distances from area-uniform samples. With --gt-poses (a capture's "
-        "gt/world_from_depth.json) and a view stream as RESULT, it also reports each view's "
-        "rotation and translation error. With --points (the points the result was made from), "
-        "the distance of the result's vertices to them. A mesh result also gets \"mesh_quality\": "
-        "shares of sliver faces (minimum angle < 5 / 10 deg, by count and area), fold edges "
-        "(adjacent normals > 120 deg apart), spike vertices (a face normal > 60 deg from the "
-        "vertex's area-weighted normal) and, with --points, the share of its area farther than "
-        "3 mm from every input point and of grey fill vertices (128,128,128) within 3 mm of "
-        "one. --baseline screened-poisson runs Open3D "
-        "0.16's Screened Poisson (Debian's python3-open3d) on the same input points at each "
-        "--baseline-depths, normals as given or estimated by Open3D towards the sensors, times "
-        "it, and evaluates its meshes exactly like the result, side by side (JSON and a table "
-        "on stderr). --report DIR writes a page (index.html, pictures, metrics.json) with "
-        "pictures of the input, the result, the best baseline depth and heat maps of the "
-        "distance to the reference (else to the input points). The result is read whole.";
-    spec.example =
-        "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
-        "screened-poisson --report bust_report/";
-    spec.writes_stream = false;
-    spec.reads_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("reference", cli::po::value<std::string>()->value_name("MESH"),
-                        "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(
-            "tau-mm", cli::po::value<std::string>()->default_value("2,5")->value_name("LIST"),
-            "F-score thresholds in millimetres")(
-            "invented-tau-mm", cli::po::value<double>()->default_value(5.0)->value_name("MM"),
-            "distance beyond which result surface counts as invented")(
-            "samples", cli::po::value<std::size_t>()->default_value(200000)->value_name("N"),
-            "surface samples per mesh")(
-            "gt-poses", cli::po::value<std::string>()->value_name("JSON"),
-            "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
-            "keep-gauge", "do not remove the global gauge before pose errors")(
-            "points", cli::po::value<std::string>()->value_name("STREAM"),
-            "the input points of the result (view stream or point file)")(
-            "baseline", cli::po::value<std::string>()->value_name("NAME"),
-            "run a peer on the same input: screened-poisson (Open3D 0.16)")(
-            "baseline-depths", cli::po::value<std::string>()->default_value("8,9,10"),
-            "octree depths of the Screened Poisson baseline")(
-            "baseline-trim", cli::po::value<double>()->default_value(0.02)->value_name("Q"),
-            "drop baseline vertices below this density quantile (0 = untrimmed)")(
-            "report", cli::po::value<std::string>()->value_name("DIR"),
-            "write a report page with pictures to DIR")(
-            "report-size", cli::po::value<std::string>()->default_value("640x480"),
-            "size of each report picture, WxH");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-eval",
+        .usage =
+            "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
+            "[--report DIR] [options] [-o metrics.json]",
+        .description =
+            "Compares a result (a mesh, or a view stream / point file) with a reference surface "
+            "and prints the metrics as one JSON object: Chamfer distance (mean of both directed "
+            "mean distances), Hausdorff distance (max and 95th percentile), accuracy, "
+            "completeness, precision, recall and F-score at each threshold tau, and the invented "
+            "surface (share of the result farther than --invented-tau-mm from the reference). "
+            "Distances are exact point-to-triangle distances from area-uniform samples. With "
+            "--gt-poses (a capture's gt/world_from_depth.json) and a view stream as RESULT, it "
+            "also reports each view's rotation and translation error. With --points (the points "
+            "the result was made from), the distance of the result's vertices to them. A mesh "
+            "result also gets \"mesh_quality\": shares of sliver faces (minimum angle < 5 / 10 "
+            "deg, by count and area), fold edges (adjacent normals > 120 deg apart), spike "
+            "vertices (a face normal > 60 deg from the vertex's area-weighted normal) and, with "
+            "--points, the share of its area farther than 3 mm from every input point and of grey "
+            "fill vertices (128,128,128) within 3 mm of one. --baseline screened-poisson runs "
+            "Open3D 0.16's Screened Poisson (Debian's python3-open3d) on the same input points at "
+            "each --baseline-depths, normals as given or estimated by Open3D towards the sensors, "
+            "times it, and evaluates its meshes exactly like the result, side by side (JSON and a "
+            "table on stderr). --report DIR writes a page (index.html, pictures, metrics.json) "
+            "with pictures of the input, the result, the best baseline depth and heat maps of the "
+            "distance to the reference (else to the input points). The result is read whole.",
+        .example =
+            "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
+            "screened-poisson --report bust_report/",
+        .writes_stream = false,
+        .reads_stream = false,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("reference", cli::value<std::string>("MESH"),
+                            "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(
+                "tau-mm", cli::value<std::string>("2,5", "LIST"),
+                "F-score thresholds in millimetres")(
+                "invented-tau-mm", cli::value<double>(5.0, "MM"),
+                "distance beyond which result surface counts as invented")(
+                "samples", cli::value<std::size_t>(200000, "N"), "surface samples per mesh")(
+                "gt-poses", cli::value<std::string>("JSON"),
+                "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
+                "keep-gauge", "do not remove the global gauge before pose errors")(
+                "points", cli::value<std::string>("STREAM"),
+                "the input points of the result (view stream or point file)")(
+                "baseline", cli::value<std::string>("NAME"),
+                "run a peer on the same input: screened-poisson (Open3D 0.16)")(
+                "baseline-depths", cli::value<std::string>("8,9,10", "LIST"),
+                "octree depths of the Screened Poisson baseline")(
+                "baseline-trim", cli::value<double>(0.02, "Q"),
+                "drop baseline vertices below this density quantile (0 = untrimmed)")(
+                "report", cli::value<std::string>("DIR"),
+                "write a report page with pictures to DIR")(
+                "report-size", cli::value<std::string>("640x480", "WxH"),
+                "size of each report picture, WxH");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one RESULT file");
         const bool reference_given = ctx.options().count("reference") > 0;
@@ -393,7 +389,7 @@ int main(int argc, char** argv) {
                 run.report["mesh_quality"] = mesh_quality(run.mesh);
                 b["runs"].push_back(run.report);
             }
-            if (best < 0) {  // no reference: depth 9 (PEERS.md's choice), else the last
+            if (best < 0) {  // no reference: depth 9 (the peer pipeline's choice), else the last
                 best = static_cast<int>(runs.size()) - 1;
                 for (std::size_t i = 0; i < runs.size(); ++i)
                     if (runs[i].depth == 9) best = static_cast<int>(i);

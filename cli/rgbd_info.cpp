@@ -203,25 +203,25 @@ void print_text(std::ostream& os, const Report& r, const std::string& indent = "
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-info";
-    spec.usage = "rgbd-info [--json] PATH...   |   rgbd-info VIDEO_DIR --frame N -o frame.ply";
-    spec.description =
-        "Prints a summary of each input: a capture folder (layout, sensors, frames, frame sets, "
-        "ground truth), a view stream (per document: points, properties, metadata, bounding box, "
-        "flag counts), a mesh (vertices, faces, border edges, closed, colours), a point file, or a "
-        "3D video folder (rgbd-capture --video: frames, duration, points and bytes per frame, "
-        "hub ms and latency p50/p95, counters, and every frame file that is missing, stale or "
-        "does not decode, by name). --frame N exports one video frame as a view for the "
-        "rest of the pipeline.";
-    spec.example = "rgbd-cloud cap/ | rgbd-info --json";
-    spec.writes_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("json", "print JSON instead of text")(
-            "frame", cli::po::value<long long>()->value_name("N"),
-            "with a 3D video folder: write its frame N as a view (binary PLY, world frame, "
-            "coloured) to -o FILE or stdout instead of the summary");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-info",
+        .usage = "rgbd-info [--json] PATH...   |   rgbd-info VIDEO_DIR --frame N -o frame.ply",
+        .description =
+            "Prints a summary of each input: a capture folder (layout, sensors, frames, frame "
+            "sets, ground truth), a view stream (per document: points, properties, metadata, "
+            "bounding box, flag counts), a mesh (vertices, faces, border edges, closed, colours), "
+            "a point file, or a 3D video folder (rgbd-capture --video: frames, duration, points "
+            "and bytes per frame, hub ms and latency p50/p95, counters, and every frame file that "
+            "is missing, stale or does not decode, by name). --frame N exports one video frame as "
+            "a view for the rest of the pipeline.",
+        .example = "rgbd-cloud cap/ | rgbd-info --json",
+        .writes_stream = false,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("json", "print JSON instead of text")(
+                "frame", cli::po::value<long long>()->value_name("N"),
+                "with a 3D video folder: write its frame N as a view (binary PLY, world frame, "
+                "coloured) to -o FILE or stdout instead of the summary");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         Report all = Report::array();
         std::vector<std::string> inputs = ctx.inputs();

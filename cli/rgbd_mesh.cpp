@@ -9,39 +9,38 @@
 using namespace rgbd;
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-mesh";
-    spec.usage = "rgbd-mesh [options] [FILE...] -o mesh.ply";
-    spec.description =
-        "Reconstructs a coloured triangle mesh from the views of a stream (merged into one cloud "
-        "in the world frame; normals are estimated per view towards its sensor when missing). "
-        "--method front (default) denoises the oriented points by a normal-aware moving-least-"
-        "squares projection (the two sides of thin parts stay apart), thins them to the point "
-        "spacing and interpolates them by CGAL's advancing front restricted to short triangles "
-        "whose corners' normals agree: detail and thin parts survive and no surface is invented "
-        "where no sensor looked, so unseen regions stay open. --watertight closes every "
-        "remaining hole into a closed 2-manifold: the loop at the bottom of the object (up from "
-        "the sensors' poses) is the cut it stood on and gets straight sides down to a flat base; "
-        "every other hole is triangulated, refined and faired. --method "
-        "poisson solves CGAL's (unscreened) Poisson reconstruction and gives a closed surface; "
-        "--method advancing-front interpolates the raw points. Components smaller than 1% of "
-        "the largest are dropped. --target-faces N simplifies by edge collapse (Garland-"
-        "Heckbert quadrics). Vertices are coloured from the nearest measured points. -o FILE "
-        "picks the format by extension (.ply binary with vertex colours, .obj, .off); without "
-        "-o a mesh document goes to stdout.";
-    spec.example =
-        "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json";
-    spec.whole_stream = true;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("method",
-                        cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
-                        "front, poisson or advancing-front")(
-            "watertight", "close every hole: the result is a closed 2-manifold")(
-            "target-faces", cli::po::value<long long>()->default_value(0)->value_name("N"),
-            "simplify to at most N faces (0 = no simplification)")(
-            "max-points", cli::po::value<long long>()->default_value(60000)->value_name("N"),
-            "down-sample the input to at most N points first");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-mesh",
+        .usage = "rgbd-mesh [options] [FILE...] -o mesh.ply",
+        .description =
+            "Reconstructs a coloured triangle mesh from the views of a stream (merged into one "
+            "cloud in the world frame; normals are estimated per view towards its sensor when "
+            "missing). --method front (default) denoises the oriented points by a normal-aware "
+            "moving-least-squares projection (the two sides of thin parts stay apart), thins them "
+            "to the point spacing and interpolates them by CGAL's advancing front restricted to "
+            "short triangles whose corners' normals agree: detail and thin parts survive and no "
+            "surface is invented where no sensor looked, so unseen regions stay open. --watertight "
+            "closes every remaining hole into a closed 2-manifold: the loop at the bottom of the "
+            "object (up from the sensors' poses) is the cut it stood on and gets straight sides "
+            "down to a flat base; every other hole is triangulated, refined and faired. --method "
+            "poisson solves CGAL's (unscreened) Poisson reconstruction and gives a closed surface; "
+            "--method advancing-front interpolates the raw points. Components smaller than 1% of "
+            "the largest are dropped. --target-faces N simplifies by edge collapse "
+            "(Garland-Heckbert quadrics). Vertices are coloured from the nearest measured points. "
+            "-o FILE picks the format by extension (.ply binary with vertex colours, .obj, .off); "
+            "without -o a mesh document goes to stdout.",
+        .example =
+            "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json",
+        .whole_stream = true,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("method", cli::value<std::string>("front", "NAME"),
+                            "front, poisson or advancing-front")(
+                "watertight", "close every hole: the result is a closed 2-manifold")(
+                "target-faces", cli::value<long long>(0, "N"),
+                "simplify to at most N faces (0 = no simplification)")(
+                "max-points", cli::value<long long>(60000, "N"),
+                "down-sample the input to at most N points first");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         reconstruction::ReconstructionOptions options;
         try {

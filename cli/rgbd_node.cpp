@@ -1,5 +1,5 @@
-// rgbd-node: one sensor -> the capture hub (DESIGN.md §5, ALGORITHMS.md §1). Reads frames
-// from a sensor (a recording played back in real time, the synthetic sensor, a device),
+// rgbd-node: one sensor -> the capture hub (docs/algorithms.md §1, docs/algorithms.md §1). Reads
+// frames from a sensor (a recording played back in real time, the synthetic sensor, a device),
 // compresses depth losslessly (RVL) and colour as JPEG, and pushes them to rgbd-capture over
 // ZeroMQ; a second socket answers the hub's clock probes so they never wait behind frames.
 // For tests the node can run on a deliberately wrong clock (--clock-offset-ms,

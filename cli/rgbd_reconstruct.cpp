@@ -98,61 +98,60 @@ cli::ReportPage report_page(const Report& report) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-reconstruct";
-    spec.usage =
-        "rgbd-reconstruct CAPTURE_DIR -o MESH [--report DIR] [--skip STAGE[,STAGE]] [options]";
-    spec.description =
-        "Runs the whole method on a capture folder with the defaults of each stage, in the order "
-        "of the README's pipe: coloured clouds per view (rgbd-cloud), adaptive distance-based "
-        "noise removal per view (rgbd-clean --distance), colour-guided super-resolution "
-        "(rgbd-upsample, 8 neighbours; only for sensors whose colour camera has more pixels than "
-        "the depth camera), multi-view registration from the rig's poses (rgbd-align), adaptive "
-        "density-based noise removal over the aligned views (rgbd-clean --density; before it, on "
-        "turntable captures, the stand the object stands on is removed: --stand), hole "
-        "filling (rgbd-fill: small holes, head top, large holes, only where no sensor saw the "
-        "surface) and surface reconstruction (rgbd-mesh --watertight: a closed coloured mesh; "
-        "--open keeps unseen holes). The same options through the pipe give the same mesh. "
-        "--skip leaves stages out (distance, upsample, density, fill) for comparisons. Writes "
-        "the mesh and a report folder (metrics.json and index.html) with each stage's time and "
-        "point counts in and out, per-view registration verdicts, the mesh's quality and, when "
-        "the capture has ground truth (gt/ of rgbd-synth) or --reference is given, the metrics "
-        "of rgbd-eval.";
-    spec.example = "rgbd-reconstruct cap/ -o bust.ply --report report/";
-    spec.reads_stream = false;
-    spec.writes_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("report", cli::po::value<std::string>()->value_name("DIR"),
-                        "report folder (default: MESH without extension + _report)")(
-            "frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
-            "frame set to reconstruct (multi-sensor captures)")(
-            "frames", cli::po::value<std::string>()->value_name("A:B[:STEP]"),
-            "frame positions (single-sensor sequences; default all)")(
-            "reference", cli::po::value<std::string>()->value_name("MESH"),
-            "reference surface for the evaluation (default: CAPTURE/gt/mesh.ply if present)")(
-            "skip", cli::po::value<std::string>()->value_name("STAGE[,STAGE]"),
-            "leave stages out of the chain: distance, upsample, density, fill")(
-            "stages-dir", cli::po::value<std::string>()->value_name("DIR"),
-            "also write the views after each stage to DIR/NN-STAGE.ply (view streams, as the "
-            "pipe carries them)")(
-            "noise-model", cli::po::value<std::string>()->default_value("auto")->value_name("NAME"),
-            "sensor noise model of the distance and density cleaning: auto (the rig's sensors' "
-            "model when they share one the denoisers know, else kinect_v2), kinect_v2, "
-            "kinect_v1, sr300 or generic")(
-            "crop-radius-m", cli::po::value<double>()->default_value(0.6)->value_name("M"),
-            "object extraction radius around the sensors' common centre (0 = no crop)")(
-            "method", cli::po::value<std::string>()->default_value("front")->value_name("NAME"),
-            "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
-            "stand", cli::po::value<std::string>()->default_value("auto")->value_name("MODE"),
-            "the stand (turntable platter) below the object, after the alignment: auto (remove "
-            "it on single-sensor captures of several views: turntable), remove or keep")(
-            "open",
-            "keep the holes no sensor saw open (default: closed, as rgbd-mesh "
-            "--watertight)")(
-            "upsample", cli::po::value<int>()->default_value(8)->value_name("4|8"),
-            "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
-            "--skip upsample)");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-reconstruct",
+        .usage =
+            "rgbd-reconstruct CAPTURE_DIR -o MESH [--report DIR] [--skip STAGE[,STAGE]] [options]",
+        .description =
+            "Runs the whole method on a capture folder with the defaults of each stage, in the "
+            "order of the README's pipe: coloured clouds per view (rgbd-cloud), adaptive "
+            "distance-based noise removal per view (rgbd-clean --distance), colour-guided "
+            "super-resolution (rgbd-upsample, 8 neighbours; only for sensors whose colour camera "
+            "has more pixels than the depth camera), multi-view registration from the rig's poses "
+            "(rgbd-align), adaptive density-based noise removal over the aligned views (rgbd-clean "
+            "--density; before it, on turntable captures, the stand the object stands on is "
+            "removed: --stand), hole filling (rgbd-fill: small holes, head top, large holes, only "
+            "where no sensor saw the surface) and surface reconstruction (rgbd-mesh --watertight: "
+            "a closed coloured mesh; --open keeps unseen holes). The same options through the pipe "
+            "give the same mesh. --skip leaves stages out (distance, upsample, density, fill) for "
+            "comparisons. Writes the mesh and a report folder (metrics.json and index.html) with "
+            "each stage's time and point counts in and out, per-view registration verdicts, the "
+            "mesh's quality and, when the capture has ground truth (gt/ of rgbd-synth) or "
+            "--reference is given, the metrics of rgbd-eval.",
+        .example = "rgbd-reconstruct cap/ -o bust.ply --report report/",
+        .writes_stream = false,
+        .reads_stream = false,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("report", cli::value<std::string>("DIR"),
+                            "report folder (default: MESH without extension + _report)")(
+                "frameset", cli::value<long long>(0, "N"),
+                "frame set to reconstruct (multi-sensor captures)")(
+                "frames", cli::value<std::string>("A:B[:STEP]"),
+                "frame positions (single-sensor sequences; default all)")(
+                "reference", cli::value<std::string>("MESH"),
+                "reference surface for the evaluation (default: CAPTURE/gt/mesh.ply if present)")(
+                "skip", cli::value<std::string>("STAGE[,STAGE]"),
+                "leave stages out of the chain: distance, upsample, density, fill")(
+                "stages-dir", cli::value<std::string>("DIR"),
+                "also write the views after each stage to DIR/NN-STAGE.ply (view streams, as the "
+                "pipe carries them)")(
+                "noise-model", cli::value<std::string>("auto", "NAME"),
+                "sensor noise model of the distance and density cleaning: auto (the rig's sensors' "
+                "model when they share one the denoisers know, else kinect_v2), kinect_v2, "
+                "kinect_v1, sr300 or generic")(
+                "crop-radius-m", cli::value<double>(0.6, "M"),
+                "object extraction radius around the sensors' common centre (0 = no crop)")(
+                "method", cli::value<std::string>("front", "NAME"),
+                "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
+                "stand", cli::value<std::string>("auto", "MODE"),
+                "the stand (turntable platter) below the object, after the alignment: auto (remove "
+                "it on single-sensor captures of several views: turntable), remove or keep")(
+                "open",
+                "keep the holes no sensor saw open (default: closed, as rgbd-mesh --watertight)")(
+                "upsample", cli::value<int>(8, "4|8"),
+                "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
+                "--skip upsample)");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
         if (ctx.output_path().empty()) throw cli::UsageError("give the mesh file with -o MESH");

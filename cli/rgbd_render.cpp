@@ -32,45 +32,44 @@ Eigen::Vector3d parse_up(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-render";
-    spec.usage = "rgbd-render INPUT -o PICTURE.png [options]";
-    spec.description =
-        "Draws a mesh (.ply/.off/.obj) or points (a view stream, .ply/.pcd/.xyz) into a PNG "
-        "picture, in software. The camera looks at the object's bounding box (0.2%-99.8% "
-        "quantiles, so a few stray points do not shrink the object) and fits it into the "
-        "picture; by default from a three-quarter view on the sensors' side (35 degrees right "
-        "of the front, 20 degrees above), with up from the sensors' poses, else +y. Vertex "
-        "colours are used when present, else grey Lambert shading. Points are splatted as discs "
-        "with a depth test. --scalar colours by a per-vertex value (turbo colour map) and adds "
-        "a colour bar: 'distance' (to --reference, in mm) or a float property of a point file "
-        "(confidence, scale, ...). --metrics gets the camera.";
-    spec.example = "rgbd-render bust.ply -o bust.png --view front --width 800 --height 800";
-    spec.reads_stream = false;
-    spec.writes_stream = false;
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("view", cli::po::value<std::string>()->default_value("auto"),
-                        "auto, front, back, left, right or top")(
-            "azimuth", cli::po::value<double>()->value_name("DEG"),
-            "camera azimuth around up (0 = front, 90 = from the right)")(
-            "elevation", cli::po::value<double>()->value_name("DEG"),
-            "camera elevation (0 = level, 90 = from above)")(
-            "up", cli::po::value<std::string>()->value_name("AXIS|X,Y,Z"),
-            "world up direction (default: from the sensors' poses, else +y)")(
-            "width", cli::po::value<int>()->default_value(960)->value_name("PX"), "picture width")(
-            "height", cli::po::value<int>()->default_value(720)->value_name("PX"),
-            "picture height")("point-size",
-                              cli::po::value<double>()->default_value(0.0)->value_name("PX"),
-                              "splat radius of points in pixels (0 = from the point spacing)")(
-            "scalar", cli::po::value<std::string>()->value_name("NAME"),
-            "colour by a value: 'distance' (to --reference) or a float point property")(
-            "reference", cli::po::value<std::string>()->value_name("MESH"),
-            "reference surface for --scalar distance")(
-            "scalar-min", cli::po::value<double>()->value_name("V"),
-            "value at the bottom of the colour bar (distance: mm; default 0 or the minimum)")(
-            "scalar-max", cli::po::value<double>()->value_name("V"),
-            "value at the top of the colour bar (distance: mm; default the 98th percentile)");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-render",
+        .usage = "rgbd-render INPUT -o PICTURE.png [options]",
+        .description =
+            "Draws a mesh (.ply/.off/.obj) or points (a view stream, .ply/.pcd/.xyz) into a PNG "
+            "picture, in software. The camera looks at the object's bounding box (0.2%-99.8% "
+            "quantiles, so a few stray points do not shrink the object) and fits it into the "
+            "picture; by default from a three-quarter view on the sensors' side (35 degrees right "
+            "of the front, 20 degrees above), with up from the sensors' poses, else +y. Vertex "
+            "colours are used when present, else grey Lambert shading. Points are splatted as "
+            "discs with a depth test. --scalar colours by a per-vertex value (turbo colour map) "
+            "and adds a colour bar: 'distance' (to --reference, in mm) or a float property of a "
+            "point file (confidence, scale, ...). --metrics gets the camera.",
+        .example = "rgbd-render bust.ply -o bust.png --view front --width 800 --height 800",
+        .writes_stream = false,
+        .reads_stream = false,
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("view", cli::value<std::string>("auto", "NAME"),
+                            "auto, front, back, left, right or top")(
+                "azimuth", cli::value<double>("DEG"),
+                "camera azimuth around up (0 = front, 90 = from the right)")(
+                "elevation", cli::value<double>("DEG"),
+                "camera elevation (0 = level, 90 = from above)")(
+                "up", cli::value<std::string>("AXIS|X,Y,Z"),
+                "world up direction (default: from the sensors' poses, else +y)")(
+                "width", cli::value<int>(960, "PX"), "picture width")(
+                "height", cli::value<int>(720, "PX"), "picture height")(
+                "point-size", cli::value<double>(0.0, "PX"),
+                "splat radius of points in pixels (0 = from the point spacing)")(
+                "scalar", cli::value<std::string>("NAME"),
+                "colour by a value: 'distance' (to --reference) or a float point property")(
+                "reference", cli::value<std::string>("MESH"),
+                "reference surface for --scalar distance")(
+                "scalar-min", cli::value<double>("V"),
+                "value at the bottom of the colour bar (distance: mm; default 0 or the minimum)")(
+                "scalar-max", cli::value<double>("V"),
+                "value at the top of the colour bar (distance: mm; default the 98th percentile)");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one INPUT file");
         const std::string out = ctx.output_path();

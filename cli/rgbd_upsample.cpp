@@ -1,4 +1,5 @@
-// rgbd-upsample: colour-guided 3D super-resolution of every view of a stream (ALGORITHMS.md §5).
+// rgbd-upsample: colour-guided 3D super-resolution of every view of a stream (docs/algorithms.md
+// §5).
 #include <filesystem>
 #include <map>
 #include <string>
@@ -63,47 +64,49 @@ private:
 }  // namespace
 
 int main(int argc, char** argv) {
-    cli::ToolSpec spec;
-    spec.name = "rgbd-upsample";
-    spec.usage =
-        "rgbd-upsample [--neighbors 4|8] [--midpoints] [--capture DIR] [options] [FILE...] > "
-        "views.ply";
-    spec.description =
-        "Colour-guided 3D super-resolution, one view at a time (ALGORITHMS.md §5). The colour "
-        "camera has about 3x the depth camera's resolution (Kinect v2), so each depth point gets "
-        "new points at the 4 (N, S, E, W) or 8 colour pixels around the colour pixel it maps to. "
-        "A new point lies on the colour camera's ray through its pixel, at a depth interpolated "
-        "from the surrounding depth samples with a joint bilateral weight (colour-pixel distance "
-        "x colour similarity); it takes that colour pixel's colour, is flagged synthetic = 1 and "
-        "gets a confidence (parent confidence x mean colour weight). Depth pixels next to a depth "
-        "discontinuity get no new points, so nothing is placed in the gaps. --midpoints adds "
-        "midpoints of grid neighbours instead (E, S; + SE, SW with 8). When the colour image has "
-        "the depth's resolution (registered data), the steps become 1/3 pixel and the colour is "
-        "interpolated: more points, but no new colour detail.\n\n"
-        "Needs organised views from rgbd-cloud (rgbd:grid, pixel) and their RGB-D frames: the "
-        "frame is found by the view's sensor and frame_index in the capture folder given with "
-        "--capture, by default the folder the view's source lies in (rgbd:view.source = "
-        "CAPTURE/<sensor>/depth/NNNNNN.png, so CAPTURE = its grandparent's parent; flat layouts: "
-        "the nearest ancestor folder that opens as a capture). Run before rgbd-align: alignment "
-        "estimates poses on the original points only and moves all points.";
-    spec.example =
-        "rgbd-cloud cap/ | rgbd-clean | rgbd-upsample --neighbors 8 | rgbd-align | rgbd-mesh -o "
-        "bust.ply";
-    spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("neighbors", cli::po::value<int>()->default_value(8)->value_name("4|8"),
-                        "new points per depth point: 4 or 8 colour-pixel neighbours")(
-            "midpoints", "Algorithm B: midpoints of grid neighbours instead of colour pixels")(
-            "capture", cli::po::value<std::string>()->value_name("DIR"),
-            "capture folder holding the views' frames (default: derived from rgbd:view.source)")(
-            "sigma-spatial", cli::po::value<double>()->default_value(1.0)->value_name("X"),
-            "spatial sigma of the bilateral weight, in depth pixels")(
-            "sigma-color", cli::po::value<double>()->default_value(24.0)->value_name("X"),
-            "colour sigma of the bilateral weight, mean absolute RGB difference in 8-bit levels")(
-            "grazing-deg", cli::po::value<double>()->default_value(80.0)->value_name("DEG"),
-            "no new point where the colour ray meets the surface more obliquely than this")(
-            "theta-max-deg", cli::po::value<double>()->default_value(75.0)->value_name("DEG"),
-            "discontinuity gate: largest surface slope a depth step may come from");
-    };
+    const cli::ToolSpec spec{
+        .name = "rgbd-upsample",
+        .usage =
+            "rgbd-upsample [--neighbors 4|8] [--midpoints] [--capture DIR] [options] [FILE...] > "
+            "views.ply",
+        .description =
+            "Colour-guided 3D super-resolution, one view at a time (docs/algorithms.md §5). The "
+            "colour camera has about 3x the depth camera's resolution (Kinect v2), so each depth "
+            "point gets new points at the 4 (N, S, E, W) or 8 colour pixels around the colour "
+            "pixel it maps to. A new point lies on the colour camera's ray through its pixel, at a "
+            "depth interpolated from the surrounding depth samples with a joint bilateral weight "
+            "(colour-pixel distance x colour similarity); it takes that colour pixel's colour, is "
+            "flagged synthetic = 1 and gets a confidence (parent confidence x mean colour weight). "
+            "Depth pixels next to a depth discontinuity get no new points, so nothing is placed in "
+            "the gaps. --midpoints adds midpoints of grid neighbours instead (E, S; + SE, SW with "
+            "8). When the colour image has the depth's resolution (registered data), the steps "
+            "become 1/3 pixel and the colour is interpolated: more points, but no new colour "
+            "detail.\n\n"
+            "Needs organised views from rgbd-cloud (rgbd:grid, pixel) and their RGB-D frames: the "
+            "frame is found by the view's sensor and frame_index in the capture folder given with "
+            "--capture, by default the folder the view's source lies in (rgbd:view.source = "
+            "CAPTURE/<sensor>/depth/NNNNNN.png, so CAPTURE = its grandparent's parent; flat "
+            "layouts: the nearest ancestor folder that opens as a capture). Run before rgbd-align: "
+            "alignment estimates poses on the original points only and moves all points.",
+        .example =
+            "rgbd-cloud cap/ | rgbd-clean | rgbd-upsample --neighbors 8 | rgbd-align | rgbd-mesh "
+            "-o bust.ply",
+        .add_options = [](cli::po::options_description& o) {
+            o.add_options()("neighbors", cli::value<int>(8, "4|8"),
+                            "new points per depth point: 4 or 8 colour-pixel neighbours")(
+                "midpoints", "Algorithm B: midpoints of grid neighbours instead of colour pixels")(
+                "capture", cli::value<std::string>("DIR"),
+                "capture folder holding the views' frames (default: derived from "
+                "rgbd:view.source)")("sigma-spatial", cli::value<double>(1.0, "X"),
+                                     "spatial sigma of the bilateral weight, in depth pixels")(
+                "sigma-color", cli::value<double>(24.0, "X"),
+                "colour sigma of the bilateral weight, mean absolute RGB difference in 8-bit "
+                "levels")(
+                "grazing-deg", cli::value<double>(80.0, "DEG"),
+                "no new point where the colour ray meets the surface more obliquely than this")(
+                "theta-max-deg", cli::value<double>(75.0, "DEG"),
+                "discontinuity gate: largest surface slope a depth step may come from");
+        }};
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         upsample::UpsampleOptions options;
         try {

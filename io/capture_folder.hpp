@@ -1,4 +1,4 @@
-// Capture folders (DESIGN.md §3): capture folder v1 (rig.json, framesets.csv, per-sensor
+// Capture folders (docs/formats.md): capture folder v1 (rig.json, framesets.csv, per-sensor
 // frames.csv with depth/ and color/ images, gt/ for synthetic captures), plus read-only
 // layouts: TUM RGB-D, Open3D/Redwood (intrinsic JSON + .log trajectory) and the
 // "frames with OpenCV camera xml" layout of shared/data/multiview/uva_cv2_person_kinect1.

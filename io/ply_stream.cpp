@@ -323,32 +323,7 @@ void add_column(PointSet& points, const Element& e, const Property& p) {
 }
 
 void add_typed_column(PointSet& points, const Element& e, const Property& p, PlyType as) {
-    switch (as) {
-        case PlyType::kInt8:
-            add_column<std::int8_t>(points, e, p);
-            break;
-        case PlyType::kUint8:
-            add_column<std::uint8_t>(points, e, p);
-            break;
-        case PlyType::kInt16:
-            add_column<std::int16_t>(points, e, p);
-            break;
-        case PlyType::kUint16:
-            add_column<std::uint16_t>(points, e, p);
-            break;
-        case PlyType::kInt32:
-            add_column<std::int32_t>(points, e, p);
-            break;
-        case PlyType::kUint32:
-            add_column<std::uint32_t>(points, e, p);
-            break;
-        case PlyType::kFloat32:
-            add_column<float>(points, e, p);
-            break;
-        case PlyType::kFloat64:
-            add_column<double>(points, e, p);
-            break;
-    }
+    visit_type(as, [&]<typename T>() { add_column<T>(points, e, p); });
 }
 
 std::optional<PlyType> known_property_type(std::string_view n) {

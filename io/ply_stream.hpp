@@ -1,4 +1,4 @@
-// The pipe format, PLY stream v1 (STYLE.md §9, DESIGN.md §4): zero or more complete PLY
+// The pipe format, PLY stream v1 (docs/formats.md): zero or more complete PLY
 // documents back to back; one document = one view (points) or one mesh. Metadata travels as
 // `comment rgbd:<key> <values>` lines. Writers emit binary_little_endian; readers accept
 // ASCII, binary big- and little-endian, float and double coordinates.

@@ -1,6 +1,6 @@
 // Opens a sensor from a "kind:argument" string (the --sensor option of rgbd-node):
 //   playback:FOLDER[#ID]     one sensor of a capture folder (or TUM sequence) replayed in real
-//                            time; FOLDER may also be CAPTURE/ID (DESIGN.md §1)
+//                            time; FOLDER may also be CAPTURE/ID (docs/formats.md)
 //   synthetic:[ID]           the synthetic sensor (sensors/synthetic/synthetic_sensor.hpp)
 //   openni2:[URI]            an OpenNI2 device (only when built with RGBD_WITH_OPENNI2)
 #pragma once

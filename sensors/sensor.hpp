@@ -1,6 +1,6 @@
-// The Sensor interface (DESIGN.md §5, STYLE.md §1): anything that produces RGB-D frames at a
-// rate: a recording played back as a virtual sensor, the synthetic sensor, a device. A sensor
-// only produces frames; sending and recording them is the job of rgbd-node / rgbd-capture.
+// The Sensor interface (docs/algorithms.md §1, docs/architecture.md): anything that produces RGB-D
+// frames at a rate: a recording played back as a virtual sensor, the synthetic sensor, a device. A
+// sensor only produces frames; sending and recording them is the job of rgbd-node / rgbd-capture.
 // See also: sensors/playback/playback_sensor.hpp, sensors/synthetic/synthetic_sensor.hpp,
 // sensors/registry.hpp (open a sensor from a "kind:argument" string).
 #pragma once

@@ -1,6 +1,6 @@
 // Pinhole camera model with optional Brown-Conrady distortion (OpenCV coefficient order
 // k1 k2 p1 p2 k3). Camera frame: x right, y down, z forward; pixel (0,0) is the centre of
-// the top-left pixel. See DESIGN.md §3 (rig.json) and ALGORITHMS.md §2.
+// the top-left pixel. See docs/formats.md (rig.json) and docs/algorithms.md §2.
 #pragma once
 
 #include <Eigen/Core>

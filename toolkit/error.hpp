@@ -1,5 +1,5 @@
 // Error types of the toolkit. Library code throws these; tools catch them in cli/common
-// and turn them into one-line messages and exit codes (STYLE.md §6, §8).
+// and turn them into one-line messages and exit codes (cli/README.md).
 #pragma once
 
 #include <stdexcept>

@@ -1,5 +1,5 @@
 // Mesh: a CGAL Surface_mesh with optional per-vertex colour ("v:color") and normal
-// ("v:normal") properties (STYLE.md §3).
+// ("v:normal") properties (docs/architecture.md, the data model).
 #pragma once
 
 #include <CGAL/IO/Color.h>

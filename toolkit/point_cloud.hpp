@@ -1,5 +1,6 @@
-// PointCloud: a CGAL Point_set_3 plus the metadata of the view it came from (STYLE.md §3,
-// DESIGN.md §4). Property names equal PLY property names; use the constants below.
+// PointCloud: a CGAL Point_set_3 plus the metadata of the view it came from (docs/architecture.md,
+// the data model; docs/formats.md). Property names equal PLY property names; use the constants
+// below.
 #pragma once
 
 #include <CGAL/Point_set_3.h>

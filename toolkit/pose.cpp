@@ -71,4 +71,21 @@ Pose orthonormalized(const Pose& pose) {
     return out;
 }
 
+Pose look_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
+             const Eigen::Vector3d& up) {
+    const Eigen::Vector3d d = target - position;
+    RGBD_CHECK(d.norm() > 1e-9, "look_at: position and target coincide");
+    const Eigen::Vector3d z = d.normalized();
+    const Eigen::Vector3d xr = z.cross(up);
+    RGBD_CHECK(xr.norm() > 1e-9, "look_at: view direction parallel to up");
+    const Eigen::Vector3d x = xr.normalized();
+    const Eigen::Vector3d y = z.cross(x);
+    Pose p = Pose::Identity();
+    p.linear().col(0) = x;
+    p.linear().col(1) = y;
+    p.linear().col(2) = z;
+    p.translation() = position;
+    return p;
+}
+
 }  // namespace rgbd

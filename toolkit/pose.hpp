@@ -1,5 +1,5 @@
-// Rigid poses. Named target_from_source (STYLE.md §3): p_in_world = world_from_sensor *
-// p_in_sensor.
+// Rigid poses. Named target_from_source (docs/architecture.md, the data model): p_in_world =
+// world_from_sensor * p_in_sensor.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -30,5 +30,10 @@ std::optional<Eigen::Vector3d> sensors_up(const std::vector<Pose>& world_from_se
                                           double min_agreement = 1e-6);
 /// Re-orthonormalises the rotation part (nearest rotation, by SVD).
 Pose orthonormalized(const Pose& pose);
+/// Camera pose at `position` looking at `target` (OpenCV frame: x right = z x up, y down,
+/// z forward), with `up` the world up direction. Throws InputError when the two points
+/// coincide or the view direction is parallel to `up`.
+Pose look_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
+             const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
 
 }  // namespace rgbd

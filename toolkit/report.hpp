@@ -1,6 +1,6 @@
 // Report: what an algorithm resolved, counted and timed, as one JSON object.
 // Keys are snake_case with units (`inlier_rmse_m`, `time_s`). Tools merge reports
-// into the `--metrics` file (STYLE.md §8).
+// into the `--metrics` file (cli/README.md).
 #pragma once
 
 #include <chrono>

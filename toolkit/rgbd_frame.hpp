@@ -1,5 +1,5 @@
-// RgbdFrame: one organised depth + colour frame of one sensor (STYLE.md §3). Dense data
-// lives only here; point clouds keep `pixel` back-references into it.
+// RgbdFrame: one organised depth + colour frame of one sensor (docs/architecture.md, the data
+// model). Dense data lives only here; point clouds keep `pixel` back-references into it.
 #pragma once
 
 #include <cstdint>

@@ -1,8 +1,8 @@
 // rgbd-synth: renders a synthetic RGB-D capture of a mesh (capture folder v1 plus gt/) from a
 // virtual ring of Kinect v2 sensors or an SR300-like sensor and a turntable, with sensor
-// noise, calibration error and clock offsets (DESIGN.md §3, §6; ALGORITHMS.md §0.5).
-// Validation tool: it does not use cli/common (STYLE.md §2), but follows its conventions
-// (STYLE.md §8). See also: validation/synth/synthesize.hpp.
+// noise, calibration error and clock offsets (docs/formats.md; docs/algorithms.md, synthetic ground
+// truth). Validation tool: it does not use cli/common (docs/architecture.md), but follows its
+// conventions (cli/README.md). See also: validation/synth/synthesize.hpp.
 #include <unistd.h>
 
 #include <boost/program_options.hpp>

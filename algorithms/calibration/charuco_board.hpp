@@ -4,7 +4,7 @@
 // measured depth on the board to the board plane). Detection follows OpenCV's ChArUco module
 // (Garrido-Jurado et al., "Automatic generation and detection of highly reliable fiducial
 // markers under occlusion", Pattern Recognition 2014; OpenCV 4.6 aruco: detectMarkers,
-// interpolateCornersCharuco, estimatePoseCharucoBoard). ALGORITHMS.md §6.3.
+// interpolateCornersCharuco, estimatePoseCharucoBoard). docs/algorithms.md §6.
 // See also: rig_solver.hpp (joint solve of all extrinsics), cli/rgbd_calibrate.cpp.
 #pragma once
 

@@ -5,7 +5,7 @@
 // residuals: corner reprojection errors in pixels, Huber-weighted) solves all extrinsics at once,
 // so that no error piles up around the ring. Levenberg-Marquardt on SE(3) with left
 // perturbations (Triggs et al., "Bundle adjustment - a modern synthesis", 1999, §4, §6;
-// the graph view as in Kümmerle et al., g2o, ICRA 2011). ALGORITHMS.md §6.3.
+// the graph view as in Kümmerle et al., g2o, ICRA 2011). docs/algorithms.md §6.
 // See also: charuco_board.hpp (observations), cli/rgbd_calibrate.cpp.
 #pragma once
 

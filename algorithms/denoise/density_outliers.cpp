@@ -21,6 +21,7 @@
 #include "algorithms/internal/spacing_sample.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::denoise {
 
@@ -128,11 +129,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                            "world_from_sensor pose");
     report["reference"] = reference == DensityReference::kSensors ? "sensors" : "local";
     const std::size_t k = std::min<std::size_t>(std::size_t(options.k), n > 0 ? n - 1 : 0);
-    if (n < 3 || k < 2) {
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
-    }
+    if (n < 3 || k < 2) return detail::nothing_removed(std::move(report), watch);
     Report stages;
     double lap = 0.0;
     const auto stage = [&](const char* name) {
@@ -213,7 +210,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     for (const double s : view_spacing)
         if (s >= 0.0) spacings.push_back(s);
     if (spacings.empty()) spacings.push_back(sampling::robust_spacing(world, 10000, options.seed));
-    const double spacing = detail::median_of(spacings);
+    const double spacing = lower_median(spacings);
     report["spacing_m"] = spacing;
     stage("spacing");
 
@@ -415,7 +412,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                   dens.resize(found);
                                   for (std::size_t j = 0; j < found; ++j)
                                       dens[j] = measured[ids[j]];
-                                  expected[i] = detail::median_of(dens);
+                                  expected[i] = lower_median(dens);
                               }
                           });
     }
@@ -612,13 +609,10 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                             {options.mark ? "marked" : "removed", removed[v]}});
     }
     report["views"] = per_view;
-    report[options.mark ? "marked" : "removed"] = total;
-    if (options.mark) report["removed"] = 0;
+    detail::record_removed(report, total, options.mark);
     stage("apply");
     report["stages_s"] = stages;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    return detail::finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise

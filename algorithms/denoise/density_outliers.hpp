@@ -1,4 +1,4 @@
-// Adaptive density-based noise removal after alignment (ALGORITHMS.md §8): floating clusters,
+// Adaptive density-based noise removal after alignment (docs/algorithms.md §8): floating clusters,
 // sparse stragglers and halos between views, judged against the density the sensors should
 // have produced at each point rather than one global threshold.
 //

@@ -178,9 +178,7 @@ Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progr
     report["moved"] = moved;
     report["unchanged"] = n - moved;
     report["mean_shift_mm"] = moved > 0 ? 1000.0 * shift / double(moved) : 0.0;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    return detail::finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise

@@ -14,6 +14,7 @@
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::denoise {
 
@@ -59,7 +60,7 @@ double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
             const double d = cam[b].x() / cam[b].z() - cam[a].x() / cam[a].z();
             if (d > 0.0) f.push_back(1.0 / d);
         }
-    return detail::median_of(f);
+    return lower_median(f);
 }
 
 }  // namespace
@@ -76,11 +77,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     const detail::Gathered g = detail::gather(cloud);
     const std::size_t n = g.xyz.size();
     report["input_points"] = n;
-    if (n == 0) {
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
-    }
+    if (n == 0) return detail::nothing_removed(std::move(report), watch);
     RGBD_CHECK(cloud.view.has_grid(),
                name +
                    ": --distance needs an organised view (pixel grid); this view has none, "
@@ -401,9 +398,9 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                                   }
                               });
             std::vector<double> tmp(ratio);
-            const double med = detail::median_of(tmp);
+            const double med = lower_median(tmp);
             for (double& t : tmp) t = std::abs(t - med);
-            const double sigma = 1.4826 * detail::median_of(tmp);
+            const double sigma = 1.4826 * lower_median(tmp);
             const double threshold =
                 std::max(med + options.alpha * sigma, med / std::cos(theta_max));
             report["r_median"] = med;
@@ -419,12 +416,8 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     report["statistical"] = statistical;
     std::vector<std::uint8_t> outlier(n);
     for (std::size_t i = 0; i < n; ++i) outlier[i] = reason[i] != kKeep;
-    const std::size_t count = detail::apply(cloud, g, outlier, options.mark);
-    report[options.mark ? "marked" : "removed"] = count;
-    if (options.mark) report["removed"] = 0;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    detail::record_removed(report, detail::apply(cloud, g, outlier, options.mark), options.mark);
+    return detail::finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise

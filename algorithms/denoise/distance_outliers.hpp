@@ -1,4 +1,4 @@
-// Adaptive distance-based noise removal on one organised view, before alignment (ALGORITHMS.md
+// Adaptive distance-based noise removal on one organised view, before alignment (docs/algorithms.md
 // §4): flying pixels, speckles and isolated outliers, with every threshold scaled by the depth
 // (pixel footprint s_d(z) = z / f) and the sensor noise model sigma_z(z) of §2.3.
 //
@@ -6,7 +6,7 @@
 //  1. window support: a real surface at incidence <= theta_max puts a neighbour at pixel
 //     offset o within |o| s_d(z) / cos(theta_max) + 3 sigma_z(z) in 3D; a point with fewer
 //     than c_min such neighbours in its 5 x 5 window and fewer than c_min_wide in its 7 x 7
-//     window is flying (ALGORITHMS.md §4 step 2 counts depth jumps in 3 x 3 instead: it loses
+//     window is flying (docs/algorithms.md §4 step 2 counts depth jumps in 3 x 3 instead: it loses
 //     grazing surface next to dropouts);
 //  2. line support where the 5 x 5 window is dense (>= dense_min valid pixels): p must continue
 //     a straight depth line along one of the 4 grid axes (interpolated between both sides or

@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "toolkit/error.hpp"
 #include "toolkit/point_cloud.hpp"
+#include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
 
 namespace rgbd::denoise::detail {
@@ -68,10 +70,29 @@ inline std::size_t apply(PointCloud& cloud, const Gathered& g,
     return count;
 }
 
+/// The report of a run that removes nothing (no points to judge) and ends here.
+inline Report nothing_removed(Report report, const Stopwatch& watch) {
+    report["removed"] = 0;
+    report["time_s"] = watch.seconds();
+    return report;
+}
+
 /// The report of a run cancelled through its progress callback: nothing removed.
 inline Report cancelled(Report report, const Stopwatch& watch) {
     report["cancelled"] = true;
-    report["removed"] = 0;
+    return nothing_removed(std::move(report), watch);
+}
+
+/// Records how many points a filter flagged: "marked" (and "removed" 0) when it only marks
+/// them, else "removed".
+inline void record_removed(Report& report, std::size_t count, bool mark) {
+    report[mark ? "marked" : "removed"] = count;
+    if (mark) report["removed"] = 0;
+}
+
+/// The report of a finished run: progress 1, total time.
+inline Report finished(Report report, const Stopwatch& watch, const Progress& progress) {
+    report_progress(progress, 1.0);
     report["time_s"] = watch.seconds();
     return report;
 }
@@ -98,13 +119,5 @@ public:
 private:
     std::vector<std::uint32_t> parent_;
 };
-
-/// Median of `v` (reordered); 0 for an empty vector.
-inline double median_of(std::vector<double>& v) {
-    if (v.empty()) return 0.0;
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>((v.size() - 1) / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-}
 
 }  // namespace rgbd::denoise::detail

@@ -1,7 +1,7 @@
-// Depth sensor noise models shared by the adaptive filters (ALGORITHMS.md §2.3, §4, §8): axial
-// noise sigma_z(z, theta), the per-pixel footprint s_d(z) = z / f and the largest depth step a
-// real surface can make between neighbouring pixels, dz_max(z) = s_d(z) tan(theta_max) +
-// 3 sigma_z(z). Sources: Fankhauser et al., ICAR 2015 (Kinect v2, constants recalled, see §2.3);
+// Depth sensor noise models shared by the adaptive filters (docs/algorithms.md §4 (noise models),
+// §4, §8): axial noise sigma_z(z, theta), the per-pixel footprint s_d(z) = z / f and the largest
+// depth step a real surface can make between neighbouring pixels, dz_max(z) = s_d(z) tan(theta_max)
+// + 3 sigma_z(z). Sources: Fankhauser et al., ICAR 2015 (Kinect v2, constants recalled, see §2.3);
 // Nguyen, Izadi, Lovell 2012 (Kinect v1); SR300 model of validation/synth/noise.hpp.
 // See also: distance_outliers.hpp, density_outliers.hpp.
 #pragma once

@@ -39,8 +39,11 @@ const char* convention_name(OutlierConvention c) {
 
 using detail::apply;
 using detail::cancelled;
+using detail::finished;
 using detail::gather;
 using detail::Gathered;
+using detail::nothing_removed;
+using detail::record_removed;
 using detail::view_name;
 
 }  // namespace
@@ -66,11 +69,7 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
     const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(options.k), k_max);
     report["k"] = k;
     report["k_clamped"] = k < static_cast<std::size_t>(options.k);
-    if (n == 0 || k == 0) {
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
-    }
+    if (n == 0 || k == 0) return nothing_removed(std::move(report), watch);
 
     const internal::KdTree tree(g.xyz);
     std::vector<double> mean_distance(n);
@@ -124,11 +123,8 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
     report["mean_distance_m"] = mean;
     report["std_distance_m"] = stddev;
     report["threshold_m"] = threshold;
-    report[options.mark ? "marked" : "removed"] = apply(cloud, g, outlier, options.mark);
-    if (options.mark) report["removed"] = 0;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    record_removed(report, apply(cloud, g, outlier, options.mark), options.mark);
+    return finished(std::move(report), watch, progress);
 }
 
 Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
@@ -146,9 +142,7 @@ Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
     if (!report_progress(progress, 0.0)) return cancelled(report, watch);
     if (n == 0) {
         report["radius_m"] = options.radius_m;
-        report["removed"] = 0;
-        report["time_s"] = watch.seconds();
-        return report;
+        return nothing_removed(std::move(report), watch);
     }
 
     double radius = options.radius_m;
@@ -184,11 +178,8 @@ Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
             }
         });
     if (!report_progress(progress, 0.8)) return cancelled(report, watch);
-    report[options.mark ? "marked" : "removed"] = apply(cloud, g, outlier, options.mark);
-    if (options.mark) report["removed"] = 0;
-    report_progress(progress, 1.0);
-    report["time_s"] = watch.seconds();
-    return report;
+    record_removed(report, apply(cloud, g, outlier, options.mark), options.mark);
+    return finished(std::move(report), watch, progress);
 }
 
 }  // namespace rgbd::denoise

@@ -1,10 +1,10 @@
-// Statistical and radius outlier removal: the classic baselines of ALGORITHMS.md §4 / §8,
+// Statistical and radius outlier removal: the classic baselines of docs/algorithms.md §4 / §8,
 // reproducing the exact rules of the peers so that side-by-side runs are comparable.
 //
 // Sources: Rusu et al., "Towards 3D Point cloud based object maps for household environments"
 // (RAS 2008), as implemented by PCL 1.13 `StatisticalOutlierRemoval` / `RadiusOutlierRemoval`
 // and Open3D 0.16 `remove_statistical_outlier` / `remove_radius_outlier`. The quirks of both
-// are listed in ALGORITHMS.md §0.4 and documented at each option below (checked against the
+// are documented at each option below (checked against the
 // PCL source and by running python3-open3d 0.16.1).
 // See also: CGAL `remove_outliers` (Point_set_processing_3), algorithms/internal/kd_tree.hpp.
 #pragma once
@@ -55,7 +55,7 @@ struct RadiusOptions {
     /// Search radius in metres; 0 = radius_spacing_factor * s_hat (robust spacing).
     double radius_m = 0.0;
     /// Radius as a multiple of the robust spacing s_hat (median nearest-neighbour distance of
-    /// a fixed-seed sample of <= 10 000 points, ALGORITHMS.md §0.2,
+    /// a fixed-seed sample of <= 10 000 points, docs/algorithms.md, notation,
     /// rgbd::sampling::robust_spacing). Used when radius_m == 0.
     double radius_spacing_factor = 4.0;
     /// Seed of the s_hat sample.

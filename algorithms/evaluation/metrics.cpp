@@ -17,6 +17,8 @@
 
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
+#include "toolkit/random.hpp"
 
 namespace rgbd::evaluation {
 
@@ -63,15 +65,6 @@ Triangles collect_triangles(const Mesh& mesh, const char* what) {
     return t;
 }
 
-/// SplitMix64: a counter-based generator, so sample i is the same for any thread count.
-std::uint64_t splitmix64(std::uint64_t x) {
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-}
-double unit(std::uint64_t x) { return double(x >> 11) * 0x1.0p-53; }
-
 /// Area-uniform samples; face_of[i] = index into t.faces of sample i.
 void sample_triangles(const Triangles& t, std::size_t count, std::uint64_t seed,
                       std::vector<Eigen::Vector3d>& points, std::vector<std::uint32_t>& face_of) {
@@ -83,9 +76,9 @@ void sample_triangles(const Triangles& t, std::size_t count, std::uint64_t seed,
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           for (std::size_t i = r.begin(); i != r.end(); ++i) {
                               std::uint64_t state = base + 3 * static_cast<std::uint64_t>(i);
-                              const double a = unit(splitmix64(state)) * total;
-                              const double r1 = unit(splitmix64(state + 1));
-                              const double r2 = unit(splitmix64(state + 2));
+                              const double a = unit_interval(splitmix64(state)) * total;
+                              const double r1 = unit_interval(splitmix64(state + 1));
+                              const double r2 = unit_interval(splitmix64(state + 2));
                               auto it = std::upper_bound(t.cumulative_area.begin(),
                                                          t.cumulative_area.end(), a);
                               if (it == t.cumulative_area.end()) --it;
@@ -126,13 +119,9 @@ DistanceStats stats(std::vector<double> d) {
     for (double x : d) sum += x;  // sequential: same result for any thread count
     s.mean = sum / double(d.size());
     s.max = *std::max_element(d.begin(), d.end());
-    auto at = [&](std::size_t k) {
-        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
-        return d[k];
-    };
-    s.median = at((d.size() - 1) / 2);
+    s.median = lower_median(d);
     const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * double(d.size())));
-    s.p95 = at(std::max<std::size_t>(rank, 1) - 1);
+    s.p95 = kth_smallest(d, std::max<std::size_t>(rank, 1) - 1);
     return s;
 }
 

@@ -2,8 +2,8 @@
 // percentile), accuracy / completeness, precision / recall / F-score at thresholds, invented
 // surface, normal consistency; rotation and translation errors of camera poses.
 //
-// Definitions: ALGORITHMS.md §7 and §15, DESIGN.md §6. F-score at tau as in Knapitsch et al.,
-// "Tanks and Temples" (SIGGRAPH 2017); accuracy / completeness as in Aanaes et al., "Large-
+// Definitions: docs/algorithms.md §7 and §15, docs/method.md. F-score at tau as in Knapitsch et
+// al., "Tanks and Temples" (SIGGRAPH 2017); accuracy / completeness as in Aanaes et al., "Large-
 // scale data for multiple-view stereopsis" (DTU, IJCV 2016); pose alignment by Umeyama, "Least-
 // squares estimation of transformation parameters between two point patterns" (PAMI 1991).
 // See also: CGAL `PMP::approximate_Hausdorff_distance`, Open3D

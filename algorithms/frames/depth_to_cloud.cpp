@@ -42,27 +42,26 @@ std::string frame_name(const RgbdFrame& frame) {
     return name;
 }
 
+/// Throws naming the frame when the `what` ("depth", "colour") image is not of `type`
+/// (`type_text`), its intrinsics are invalid or its size is not theirs.
+void check_image(const cv::Mat& image, int type, const char* type_text,
+                 const PinholeIntrinsics& intrinsics, const std::string& what,
+                 const std::string& name) {
+    RGBD_CHECK(image.type() == type, name + ": " + what + " image must be " + type_text);
+    try {
+        intrinsics.check();
+    } catch (const InputError& e) {
+        throw InputError(name + ": " + what + " intrinsics: " + e.what());
+    }
+    RGBD_CHECK(image.cols == intrinsics.width && image.rows == intrinsics.height,
+               name + ": " + what + " image size differs from the " + what + " intrinsics");
+}
+
 void check_frame(const RgbdFrame& frame, bool use_mask, const std::string& name) {
     RGBD_CHECK(!frame.depth.empty(), name + ": depth image is empty");
-    RGBD_CHECK(frame.depth.type() == CV_32FC1, name + ": depth image must be CV_32FC1 metres");
-    try {
-        frame.depth_intrinsics.check();
-    } catch (const InputError& e) {
-        throw InputError(name + ": depth intrinsics: " + e.what());
-    }
-    RGBD_CHECK(frame.depth.cols == frame.depth_intrinsics.width &&
-                   frame.depth.rows == frame.depth_intrinsics.height,
-               name + ": depth image size differs from the depth intrinsics");
+    check_image(frame.depth, CV_32FC1, "CV_32FC1 metres", frame.depth_intrinsics, "depth", name);
     if (!frame.color.empty()) {
-        RGBD_CHECK(frame.color.type() == CV_8UC3, name + ": colour image must be CV_8UC3 BGR");
-        try {
-            frame.color_intrinsics.check();
-        } catch (const InputError& e) {
-            throw InputError(name + ": colour intrinsics: " + e.what());
-        }
-        RGBD_CHECK(frame.color.cols == frame.color_intrinsics.width &&
-                       frame.color.rows == frame.color_intrinsics.height,
-                   name + ": colour image size differs from the colour intrinsics");
+        check_image(frame.color, CV_8UC3, "CV_8UC3 BGR", frame.color_intrinsics, "colour", name);
         RGBD_CHECK(frame.color_from_depth.matrix().allFinite(),
                    name + ": color_from_depth is not finite");
     }
@@ -81,7 +80,7 @@ void check_frame(const RgbdFrame& frame, bool use_mask, const std::string& name)
     }
 }
 
-/// Default axial noise model of ALGORITHMS.md §2.3, metres.
+/// Default axial noise model of docs/algorithms.md §4 (noise models), metres.
 double default_sigma_z(double z) { return 0.0015 * (z / 1.5) * (z / 1.5); }
 
 /// Atomic minimum on a float slot: the final value is independent of the order of writes.

@@ -1,7 +1,7 @@
 // depth_to_cloud: one RGB-D frame -> one organised, coloured point cloud in the sensor frame,
 // with object extraction by depth window and mask.
 //
-// Implements ALGORITHMS.md §2 (back-projection with distortion, depth -> colour mapping,
+// Implements docs/algorithms.md §2 (back-projection with distortion, depth -> colour mapping,
 // z-buffer visibility test, bilinear colour sample) and §3 step 1 (depth window) plus the
 // frame's object mask. The visibility test follows libfreenect2 `Registration::apply` (filter
 // option): a depth point hidden from the colour camera gets no colour from the colour image.

@@ -1,4 +1,4 @@
-// Object extraction in the world frame (ALGORITHMS.md §3 step 2 [M]): the sensors of a ring,
+// Object extraction in the world frame (docs/algorithms.md §3 step 2 [M]): the sensors of a ring,
 // a turntable or a person turning in front of one camera all look at the object, so the point
 // nearest to all their optical axes is the object centre; points farther than a radius from
 // it (walls, floor, flying-pixel streaks towards the background) are not the object.

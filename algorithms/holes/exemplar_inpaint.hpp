@@ -1,4 +1,4 @@
-// Exemplar-based colour inpainting (ALGORITHMS.md §12.2): Criminisi, Perez, Toyama, "Region
+// Exemplar-based colour inpainting (docs/algorithms.md §12): Criminisi, Perez, Toyama, "Region
 // filling and object removal by exemplar-based image inpainting", IEEE TIP 2004. Texture stays
 // texture (stripes, checks, hair strands), where Telea's fast marching blurs it.
 // Repeat until the hole is empty: on the fill front, priority P(p) = C(p) D(p) with the

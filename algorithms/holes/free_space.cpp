@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::holes {
 
@@ -80,8 +81,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
             depths.push_back(z[i]);
         }
         if (depths.size() < 10) return;
-        std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
-        m.focal = depths[depths.size() / 2] / (options.pixel * spacing_m);
+        m.focal = upper_median(depths) / (options.pixel * spacing_m);
         m.cols = static_cast<int>(std::ceil((x1 - x0) * m.focal)) + 1 + 2 * kPad;
         m.rows = static_cast<int>(std::ceil((y1 - y0) * m.focal)) + 1 + 2 * kPad;
         if (double(m.cols) * m.rows > 16e6) return;  // not an object in front of a sensor

@@ -1,4 +1,4 @@
-// The space the sensors saw empty (ALGORITHMS.md §12.3 and §13 step 5, back to 3D; [M], ours,
+// The space the sensors saw empty (docs/algorithms.md §12 and §13 step 5, back to 3D; [M], ours,
 // not in the document yet: proposed as §12.4): a point that a fill proposes is invented when a
 // sensor had a clear line of sight to it, faced it within the angle at which it measures a surface,
 // and measured nothing there: its ray went on to a surface well behind the point, or to the

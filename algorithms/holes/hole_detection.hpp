@@ -1,4 +1,4 @@
-// Hole detection on point sets (ALGORITHMS.md §9 and §10): the "3D gradient" (normals, tangent
+// Hole detection on point sets (docs/algorithms.md §9 and §10): the "3D gradient" (normals, tangent
 // frames, surface variation, tangent-plane colour gradients), per-point boundary probabilities
 // from the angle, half-disk and shape criteria of Bendels, Schnabel and Klein, "Detecting holes
 // in point set surfaces" (WSCG 2006), as implemented in the public code huyaoyu/PointCloudUtils,

@@ -1,7 +1,7 @@
-// Small-hole filling on point sets (ALGORITHMS.md §11): the four mechanisms named by the thesis,
-// in our reconstruction [R]: M1 one point on the bisector of a rim point's largest angular gap,
-// M2 one point on each of its four largest gaps, M3 three points splitting its largest gap, all
-// three swept over the rim until the hole closes; M4 interpolation of the whole hole at once
+// Small-hole filling on point sets (docs/algorithms.md §11): the four mechanisms named by the
+// thesis, in our reconstruction [R]: M1 one point on the bisector of a rim point's largest angular
+// gap, M2 one point on each of its four largest gaps, M3 three points splitting its largest gap,
+// all three swept over the rim until the hole closes; M4 interpolation of the whole hole at once
 // (quadric fitted to the hole's surroundings, hexagonal grid at the point spacing inside the
 // rim). Every new point is projected on a local quadric fitted to *original* points only (so
 // sweeps do not accumulate noise), is rejected when it duplicates a point or lies outside the

@@ -1,4 +1,4 @@
-// Large holes and the head top (ALGORITHMS.md §12 and §13): 3D inpainting built on 2D
+// Large holes and the head top (docs/algorithms.md §12 and §13): 3D inpainting built on 2D
 // inpainting. The surface is turned into images where inpainting is meaningful, the images are
 // inpainted by Telea's fast-marching method (OpenCV cv::inpaint, INPAINT_TELEA, on a float
 // image for the geometry), and the inpainted pixels are turned back into points.

@@ -11,6 +11,19 @@
 
 namespace rgbd::internal {
 
+/// nanoflann's dataset interface over a borrowed vector of fixed-size points (Eigen vectors,
+/// std::arrays) with coordinates of type Scalar; no bounding box (nanoflann computes it).
+template <typename Point, typename Scalar>
+struct VectorAdaptor {
+    const std::vector<Point>* points;
+    std::size_t kdtree_get_point_count() const { return points->size(); }
+    Scalar kdtree_get_pt(std::size_t i, std::size_t d) const { return (*points)[i][d]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const {
+        return false;
+    }
+};
+
 /// Borrowed view of points; the array must outlive the tree.
 class KdTree {
 public:
@@ -83,15 +96,7 @@ private:
         }
         double worstDist() const { return dist; }
     };
-    struct Adaptor {
-        const std::vector<Eigen::Vector3d>* points;
-        std::size_t kdtree_get_point_count() const { return points->size(); }
-        double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*points)[i][d]; }
-        template <class Box>
-        bool kdtree_get_bbox(Box&) const {
-            return false;
-        }
-    };
+    using Adaptor = VectorAdaptor<Eigen::Vector3d, double>;
     using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
                                                       Adaptor, 3, std::uint32_t>;
     Adaptor adaptor_;

@@ -1,5 +1,5 @@
 // Normal estimation by PCA over the k nearest neighbours, with orientation towards the sensor,
-// by a minimum spanning tree, or outward from the centroid (ALGORITHMS.md §9 steps 1-3).
+// by a minimum spanning tree, or outward from the centroid (docs/algorithms.md §9 steps 1-3).
 // Sources: Hoppe et al. 1992 "Surface reconstruction from unorganized points" (PCA normals,
 // MST orientation); CGAL pca_estimate_normals / mst_orient_normals; Open3D estimate_normals.
 // See also: algorithms/sampling/robust_spacing.hpp, algorithms/registration/icp.hpp.

@@ -22,6 +22,7 @@
 #include <limits>
 #include <vector>
 
+#include "toolkit/order_statistics.hpp"
 #include "toolkit/report.hpp"
 
 namespace rgbd::reconstruction::internal {
@@ -114,12 +115,6 @@ void fit_pca_plane(const std::vector<Eigen::Vector3d>& points, const std::vector
     normal = eig.eigenvectors().col(0);
 }
 
-double median_of(std::vector<double> values) {
-    auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), mid, values.end());
-    return *mid;
-}
-
 std::vector<Eigen::Vector3d> loop_points(const Mesh& mesh, Halfedge h) {
     std::vector<Eigen::Vector3d> loop;
     for (Halfedge x : CGAL::halfedges_around_face(h, mesh))
@@ -140,13 +135,14 @@ LoopPlane fit_loop_plane(const std::vector<Eigen::Vector3d>& loop) {
     plane.robust_centre = plane.centre;
     plane.robust_normal = plane.normal;
     plane.robust_rms = plane.rms;
-    std::vector<double> residual(loop.size()), spread(loop.size());
+    std::vector<double> residual(loop.size()), spread(loop.size()), sorted;
     for (int round = 0; round < 3 && loop.size() >= 8; ++round) {
         for (std::size_t i = 0; i < loop.size(); ++i)
             residual[i] = (loop[i] - plane.robust_centre).dot(plane.robust_normal);
-        const double med = median_of(residual);
+        sorted = residual;  // residual[i] stays point i's
+        const double med = upper_median(sorted);
         for (std::size_t i = 0; i < loop.size(); ++i) spread[i] = std::abs(residual[i] - med);
-        const double sigma = std::max(1.4826 * median_of(spread), 1e-9);
+        const double sigma = std::max(1.4826 * upper_median(spread), 1e-9);
         std::size_t kept = 0;
         for (std::size_t i = 0; i < loop.size(); ++i)
             kept += keep[i] = std::abs(residual[i] - med) <= 2.5 * sigma;
@@ -213,10 +209,7 @@ SupportPlane support_plane(const std::vector<Eigen::Vector3d>& rim, const Eigen:
     depth.reserve(rim.size());
     for (const auto& p : rim) depth.push_back((p - plane.robust_centre).dot(support.down));
     constexpr double kCutQuantile = 0.8;
-    auto deep = depth.begin() +
-                static_cast<std::ptrdiff_t>(kCutQuantile * static_cast<double>(depth.size() - 1));
-    std::nth_element(depth.begin(), deep, depth.end());
-    support.point = plane.robust_centre + *deep * support.down;
+    support.point = plane.robust_centre + rank_quantile(depth, kCutQuantile) * support.down;
     return support;
 }
 
@@ -279,9 +272,8 @@ std::vector<char> support_loops(const Mesh& mesh, const std::vector<Halfedge>& b
         // Its deep quintile within the support rim's band.
         std::vector<double> heights;
         for (const auto& p : loop_points(mesh, borders[i])) heights.push_back(p.dot(up));
-        auto deep = heights.begin() + static_cast<std::ptrdiff_t>(0.2 * (heights.size() - 1));
-        std::nth_element(heights.begin(), deep, heights.end());
-        flags[i] = *deep <= reach && planes[i].robust_centre.dot(up) <= reach + 2.5 * spread;
+        flags[i] = rank_quantile(heights, 0.2) <= reach &&
+                   planes[i].robust_centre.dot(up) <= reach + 2.5 * spread;
     }
     for (std::size_t i = 0; i < borders.size(); ++i)
         if (flags[i])
@@ -479,7 +471,7 @@ Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch) 
             lengths.push_back(
                 std::sqrt(CGAL::squared_distance(mesh.point(mesh.source(mesh.halfedge(e))),
                                                  mesh.point(mesh.target(mesh.halfedge(e))))));
-    const double target = lengths.empty() ? 0.0 : median_of(lengths);
+    const double target = lengths.empty() ? 0.0 : upper_median(lengths);
     // The patch and its one-ring (the faces sharing a vertex with it).
     std::vector<Mesh::Face_index> region(patch.begin(), patch.end());
     for (auto f : patch)

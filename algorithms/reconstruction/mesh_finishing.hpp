@@ -1,4 +1,4 @@
-// Finishing steps of a reconstructed mesh (ALGORITHMS.md §14): dropping small components,
+// Finishing steps of a reconstructed mesh (docs/algorithms.md §14): dropping small components,
 // closing every boundary loop (CGAL Polygon_mesh_processing hole filling: Liepa 2003,
 // "Filling holes in meshes"; triangulate, refine, fair), and edge-collapse simplification to a
 // face budget (CGAL Surface_mesh_simplification with Garland-Heckbert quadrics, "Surface

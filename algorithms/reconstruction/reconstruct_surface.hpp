@@ -1,5 +1,5 @@
 // Surface reconstruction of an oriented point cloud into a coloured triangle mesh
-// (ALGORITHMS.md §14). Methods:
+// (docs/algorithms.md §14). Methods:
 // - "front" (default) [M]: normal-aware MLS projection of the points (smooth_points.hpp: the two
 //   sides of thin parts never mix), thinning to a grid of about the point spacing, then CGAL
 //   advancing front (Cohen-Steiner and Da 2004) restricted to triangles whose edges are short
@@ -87,7 +87,7 @@ struct ReconstructionOptions {
     /// Nearest coloured input points blended per vertex (IDW).
     int color_k = 8;
     /// Only observed points (neither `synthetic` nor `uncoloured`: measured, and seen by the
-    /// colour camera) colour a vertex when one lies within this multiple of ŝ (ALGORITHMS.md
+    /// colour camera) colour a vertex when one lies within this multiple of ŝ (docs/algorithms.md
     /// §14: 2 ŝ).
     double color_original_radius = 2.0;
     /// Throws InputError on absurd values or an unknown method.

@@ -1,6 +1,6 @@
 // Normal-aware moving-least-squares projection of an oriented point cloud, the denoising step
-// before an interpolating mesher (ALGORITHMS.md §14, "front" method). Each point is projected on
-// a quadratic height field fitted, in the frame of its weighted PCA plane, to the neighbours
+// before an interpolating mesher (docs/algorithms.md §14, "front" method). Each point is projected
+// on a quadratic height field fitted, in the frame of its weighted PCA plane, to the neighbours
 // within a radius whose normals agree with its own: the two sides of a thin part (a fin, a
 // finger, a sleeve) never average into each other. Sources: Levin 1998 / Alexa et al. 2001
 // (MLS surfaces); Cazals and Pouget 2003 (jet fitting, CGAL jet_smooth_point_set); the normal

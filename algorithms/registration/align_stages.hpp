@@ -1,5 +1,5 @@
 // Stages of align_views (icp.hpp), internal to algorithms/registration: the working copies,
-// the pairwise stage with its pose graph (pairwise_stage.cpp, ALGORITHMS.md §6.3) and the joint
+// the pairwise stage with its pose graph (pairwise_stage.cpp, docs/algorithms.md §6) and the joint
 // multi-view point-to-plane refinement (joint_refinement.cpp). align_views.cpp runs them in
 // order. Not a public header: it exposes the internal kd-tree and ICP arrays.
 #pragma once
@@ -63,7 +63,7 @@ struct PairwiseInputs {
     bool poses_known = false;       // initial poses say something: pairs by direction, bounds
 };
 
-/// Pairwise stage (ALGORITHMS.md §6.3): selects the pairs, registers them in parallel (TBB) from
+/// Pairwise stage (docs/algorithms.md §6): selects the pairs, registers them in parallel (TBB) from
 /// the initial relative pose and from an FPFH + RANSAC hypothesis, chooses between candidates
 /// on a ring by loop closure, runs the pose graph and sets every connected view's `pose`.
 /// Fills result.pairs and result.pairwise_time_s; view_pairs[v] = usable pairs of view v,

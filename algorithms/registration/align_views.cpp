@@ -18,6 +18,7 @@
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::registration {
 
@@ -51,7 +52,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                        " is in its sensor frame but has no world_from_sensor pose");
     }
 
-    // Poses are estimated on measured points only (ALGORITHMS.md §0.3 order note): copies of
+    // Poses are estimated on measured points only (docs/method.md order note): copies of
     // the views that carry super-resolved points (prop::kSynthetic = 1) without them.
     std::vector<PointCloud> measured_copies;
     measured_copies.reserve(nv);
@@ -83,9 +84,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         // On a surface, a voxel of edge e keeps about (ŝ / e)^2 of the points.
         std::vector<std::size_t> sizes;
         for (const PointCloud* v : measured) sizes.push_back(v->size());
-        std::nth_element(sizes.begin(), sizes.begin() + nv / 2, sizes.end());
-        const double ratio =
-            static_cast<double>(sizes[nv / 2]) / static_cast<double>(options.max_points_per_view);
+        const double ratio = static_cast<double>(upper_median(sizes)) /
+                             static_cast<double>(options.max_points_per_view);
         if (ratio > 1.0) {
             voxel = std::max(voxel, spacing * std::sqrt(ratio));
             spacing = std::max(spacing, voxel / options.voxel_factor);

@@ -1,11 +1,11 @@
-// Colour-based duplicate removal when aligned views are merged (ALGORITHMS.md §6.2 step 6, the
+// Colour-based duplicate removal when aligned views are merged (docs/algorithms.md §6 step 6, the
 // thesis's "colour-based duplicate removal"): views are added in order; a point with an earlier
 // point within r_dup = radius_spacing * ŝ is a duplicate when their colours agree (CIELab
 // Delta E76 <= max_delta_e) and is dropped, keeping the density of overlaps that of one view;
 // when the colours disagree, the better observed of the two (smaller expected noise
 // sigma_z(z, theta) in its own sensor: nearer and more head-on) stays and the other goes, so
 // no doubled, differently coloured shell remains.
-// Sources: ALGORITHMS.md §6.2; CIE 1976 L*a*b* (sRGB D65); noise models of
+// Sources: docs/algorithms.md §6; CIE 1976 L*a*b* (sRGB D65); noise models of
 // algorithms/denoise/sensor_noise.hpp. See also: algorithms/sampling/merge_views.hpp (plain
 // concatenation), icp.hpp (align_views / apply_alignment give the poses).
 #pragma once

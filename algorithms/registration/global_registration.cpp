@@ -11,6 +11,7 @@
 
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/random.hpp"
 
 namespace rgbd::registration {
 
@@ -70,27 +71,12 @@ public:
     }
 
 private:
-    struct Adaptor {
-        const std::vector<Fpfh>* f;
-        std::size_t kdtree_get_point_count() const { return f->size(); }
-        float kdtree_get_pt(std::size_t i, std::size_t d) const { return (*f)[i][d]; }
-        template <class B>
-        bool kdtree_get_bbox(B&) const {
-            return false;
-        }
-    };
+    using Adaptor = internal::VectorAdaptor<Fpfh, float>;
     using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>,
                                                       Adaptor, 33, std::uint32_t>;
     Adaptor adaptor_;
     Index index_;
 };
-
-std::uint64_t splitmix(std::uint64_t x) {
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
 
 Pose fit_rigid(const Eigen::Matrix3Xd& src, const Eigen::Matrix3Xd& dst) {
     Pose pose = Pose::Identity();
@@ -218,10 +204,10 @@ RansacResult ransac_feature_match(const std::vector<Eigen::Vector3d>& source_xyz
         Eigen::Matrix3d sm, tm;
         const int end = std::min(options.iterations, (b + 1) * kBlock);
         for (int it = b * kBlock; it < end; ++it) {
-            std::uint64_t state = splitmix(options.seed * 0x100000001b3ULL + std::uint64_t(it));
+            std::uint64_t state = splitmix64(options.seed * 0x100000001b3ULL + std::uint64_t(it));
             std::size_t pick[3];
             for (int k = 0; k < 3; ++k) {
-                state = splitmix(state);
+                state = splitmix64(state);
                 pick[k] = state % nc;
             }
             if (pick[0] == pick[1] || pick[0] == pick[2] || pick[1] == pick[2]) continue;

@@ -1,5 +1,5 @@
 // Global (initialisation-free) pairwise registration: FPFH features and RANSAC over feature
-// correspondences (ALGORITHMS.md §6.3).
+// correspondences (docs/algorithms.md §6).
 // Sources: Rusu, Blodow and Beetz, ICRA 2009 "Fast Point Feature Histograms (FPFH) for 3D
 // registration" (33-bin SPFH/FPFH, the angle triplet of Rusu 2008); Fischler and Bolles 1981
 // (RANSAC); pruning of samples by edge-length consistency as in Open3D

@@ -1,5 +1,5 @@
 // Point-to-plane ICP: pairwise (align_pair) and joint multi-view refinement (align_views)
-// (ALGORITHMS.md §6.1-§6.3, §7 fitness / inlier RMSE).
+// (docs/algorithms.md §6-§6.3, §7 fitness / inlier RMSE).
 // Sources: Chen and Medioni 1991 (point-to-plane, linearised 6x6 normal equations); Besl and
 // McKay 1992; Rusinkiewicz and Levoy 2001 (rejection, coarse-to-fine); robust IRLS kernels and
 // convergence criteria as in Open3D pipelines/registration (Registration.h, RobustKernel.h);
@@ -48,7 +48,7 @@ struct IcpOptions {
     /// the views' spacings (align_views).
     double spacing_m = 0.0;
     RobustKernel kernel = RobustKernel::kTukey;
-    /// Kernel scale k as a fraction of the stage's max distance (ALGORITHMS.md §6.2: d_max / 2).
+    /// Kernel scale k as a fraction of the stage's max distance (docs/algorithms.md §6: d_max / 2).
     double kernel_scale = 0.5;
     /// Pairs whose normals differ by more than this are rejected (needs source normals;
     /// >= 180 disables the gate).
@@ -117,7 +117,7 @@ struct MultiViewOptions {
     double max_rotation_deg = 20.0;
     double max_translation_m = 0.2;
 
-    /// Pairwise stage (ALGORITHMS.md §6.3), before the joint rounds: every overlapping pair is
+    /// Pairwise stage (docs/algorithms.md §6), before the joint rounds: every overlapping pair is
     /// registered by point-to-plane ICP with a colour term from the initial relative pose and,
     /// with `global_registration`, also from an FPFH + RANSAC hypothesis (the better one by
     /// fitness wins); then a pose graph over the pairs that pass spreads the loop error and

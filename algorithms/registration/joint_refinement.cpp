@@ -195,31 +195,28 @@ std::optional<double> JointRefinement::step(double dmax, std::size_t min_matches
             const double wt = internal::robust_weight(s_.kernel, r, k);
             if (wt <= 0) continue;
             vs.used[s] = 1;
+            // One residual r_w along direction `dir` with weight `weight`: its Jacobians for
+            // this view (ji) and the partner (jj) into both views' normal equations.
             Vec6 ji, jj;
-            ji.head<3>() = (p - centre).cross(n);
-            ji.tail<3>() = n;
-            jj.head<3>() = -(q - centre).cross(n);
-            jj.tail<3>() = -n;
-            vs.h_self.noalias() += wt * ji * ji.transpose();
-            vs.h_other[s].noalias() += wt * jj * jj.transpose();
-            vs.h_cross[s].noalias() += wt * ji * jj.transpose();
-            vs.g_self += (wt * r) * ji;
-            vs.g_other[s] += (wt * r) * jj;
+            const auto add_term = [&](const Eigen::Vector3d& dir, double weight, double r_w) {
+                ji.head<3>() = (p - centre).cross(dir);
+                ji.tail<3>() = dir;
+                jj.head<3>() = -(q - centre).cross(dir);
+                jj.tail<3>() = -dir;
+                vs.h_self.noalias() += weight * ji * ji.transpose();
+                vs.h_other[s].noalias() += weight * jj * jj.transpose();
+                vs.h_cross[s].noalias() += weight * ji * jj.transpose();
+                vs.g_self += (weight * r_w) * ji;
+                vs.g_other[s] += (weight * r_w) * jj;
+            };
+            add_term(n, wt, r);
             if (!s_.colour) continue;
             // Park et al.'s colour term, in the same units as the geometric one.
             const Eigen::Vector3d d = o.pose.linear() * o.reg.gradient[m.index];
             const double rc = o.reg.intensity[m.index] + d.dot(p - q) - w.reg.intensity[i];
             const double wc =
                 wt * s_.colour_scale * internal::robust_weight(1, rc, 2.0 * s_.colour_sigma);
-            ji.head<3>() = (p - centre).cross(d);
-            ji.tail<3>() = d;
-            jj.head<3>() = -(q - centre).cross(d);
-            jj.tail<3>() = -d;
-            vs.h_self.noalias() += wc * ji * ji.transpose();
-            vs.h_other[s].noalias() += wc * jj * jj.transpose();
-            vs.h_cross[s].noalias() += wc * ji * jj.transpose();
-            vs.g_self += (wc * rc) * ji;
-            vs.g_other[s] += (wc * rc) * jj;
+            add_term(d, wc, rc);
         }
     });
 

@@ -1,4 +1,4 @@
-// Pairwise stage of align_views (ALGORITHMS.md §6.3): pair selection, pairwise point-to-plane
+// Pairwise stage of align_views (docs/algorithms.md §6): pair selection, pairwise point-to-plane
 // ICP with a colour term from the initial pose and from FPFH + RANSAC hypotheses (pairs in
 // parallel, TBB; each view's kd-tree built once, see align_stages.hpp), the choice between
 // candidates by loop closure on a ring, and the pose graph.

@@ -1,4 +1,4 @@
-// Pose-graph optimisation of a ring or sequence of views (ALGORITHMS.md §6.3): nodes are
+// Pose-graph optimisation of a ring or sequence of views (docs/algorithms.md §6): nodes are
 // world_from_view poses, edges are measured relative poses with information matrices from the
 // pairwise alignment; Gauss-Newton / Levenberg-Marquardt on SE(3) with one node fixed (the
 // gauge), then edges that disagree with the optimised ring are pruned and the rest re-solved.

@@ -13,17 +13,15 @@
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/render/rasterizer.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::render {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-double quantile(std::vector<double> v, double q) {
-    const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * double(v.size())));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return v[k];
-}
+/// count_quantile of a copy of `v` (the callers keep their order).
+double quantile(std::vector<double> v, double q) { return count_quantile(v, q); }
 
 /// The turbo colour map as 256 RGB entries.
 const std::array<Rgb, 256>& turbo() {

@@ -4,7 +4,7 @@
 // pixel, and a colour image from a shading callback. Parallel over bands of rows (oneTBB);
 // the result does not depend on the number of threads (ties go to the lower triangle id).
 // Source: Pineda, "A parallel algorithm for polygon rasterization", SIGGRAPH 1988 (edge
-// functions); ALGORITHMS.md §0.5. See also: picture.hpp (rgbd-render),
+// functions); docs/algorithms.md, synthetic ground truth. See also: picture.hpp (rgbd-render),
 // validation/synth/synthesize.hpp.
 #pragma once
 

@@ -1,4 +1,4 @@
-// Merge of aligned views into one cloud (ALGORITHMS.md §0.3 "merge"). Plain concatenation with
+// Merge of aligned views into one cloud (docs/method.md "merge"). Plain concatenation with
 // the source view recorded per point; the duplicate removal of §6.2 step 6 is a separate stage.
 // Source: CGAL Point_set_3::join / copy_properties. See also: algorithms/registration/icp.hpp
 // (align_views gives the poses), algorithms/sampling/voxel_downsample.hpp.

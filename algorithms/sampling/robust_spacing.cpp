@@ -12,6 +12,7 @@
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/spacing_sample.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::internal {
 
@@ -93,8 +94,7 @@ double median_view_spacing(const std::vector<const PointCloud*>& views, std::siz
     for (const PointCloud* v : views)
         if (v->size() >= 2) s.push_back(robust_spacing(v->points, sample));
     if (s.empty()) return 0.0;
-    std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
-    return s[s.size() / 2];
+    return upper_median(s);
 }
 
 }  // namespace rgbd::sampling

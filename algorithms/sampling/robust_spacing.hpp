@@ -1,6 +1,6 @@
 // Robust point spacing ŝ: the median, over a random sample of points, of the distance to the
-// nearest other point (ALGORITHMS.md §0.2). Every length threshold after cloud generation is a
-// multiple of it. Source: the median-of-NN-distances estimator; CGAL compute_average_spacing
+// nearest other point (docs/algorithms.md, notation). Every length threshold after cloud generation
+// is a multiple of it. Source: the median-of-NN-distances estimator; CGAL compute_average_spacing
 // is the mean-based peer (less robust to duplicates and outliers).
 // See also: algorithms/sampling/voxel_downsample.hpp, algorithms/internal/kd_tree.hpp.
 #pragma once

@@ -2,7 +2,7 @@
 // averaged colour and normal). Source: the voxel filter of PCL (VoxelGrid) and Open3D
 // (voxel_down_sample); CGAL grid_simplify_point_set keeps an input point instead of the centroid.
 // See also: algorithms/sampling/robust_spacing.hpp (choose the voxel as a multiple of ŝ),
-// ALGORITHMS.md §6.2 step 1.
+// docs/algorithms.md §6 step 1.
 #pragma once
 
 #include "toolkit/point_cloud.hpp"

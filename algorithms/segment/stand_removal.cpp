@@ -9,6 +9,8 @@
 
 #include "algorithms/denoise/outlier_common.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
+#include "toolkit/random.hpp"
 
 namespace rgbd::segment {
 namespace {
@@ -26,14 +28,6 @@ std::vector<Eigen::Vector3d> world_points(const PointCloud& view,
         for (auto& p : out) p = pose * p;
     }
     return out;
-}
-
-/// splitmix64: the deterministic sample stream of the RANSAC.
-std::uint64_t next(std::uint64_t& state) {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
 }
 
 /// Least-squares plane through `points` (normal = smallest principal axis), oriented along
@@ -102,12 +96,7 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     std::vector<double> h(all.size());
     tbb::parallel_for(std::size_t(0), all.size(), [&](std::size_t i) { h[i] = all[i].dot(up); });
     std::vector<double> sorted = h;
-    const auto pct = [&](double q) {
-        auto it = sorted.begin() + static_cast<std::ptrdiff_t>(q * (sorted.size() - 1));
-        std::nth_element(sorted.begin(), it, sorted.end());
-        return *it;
-    };
-    const double lo = pct(0.02), hi = pct(0.98);
+    const double lo = rank_quantile(sorted, 0.02), hi = rank_quantile(sorted, 0.98);
     const double band = lo + options.search_fraction * (hi - lo);
     std::vector<Eigen::Vector3d> low;
     const std::size_t stride =
@@ -123,9 +112,9 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     SupportPlane best;
     std::size_t best_score = 0;
     for (int it = 0; it < options.iterations; ++it) {
-        const auto& a = low[next(state) % low.size()];
-        const auto& b = low[next(state) % low.size()];
-        const auto& c = low[next(state) % low.size()];
+        const auto& a = low[splitmix64_next(state) % low.size()];
+        const auto& b = low[splitmix64_next(state) % low.size()];
+        const auto& c = low[splitmix64_next(state) % low.size()];
         Eigen::Vector3d n = (b - a).cross(c - a);
         if (n.norm() < 1e-12) continue;
         n.normalize();

@@ -41,7 +41,7 @@ std::string view_name(const PointCloud& cloud, const RgbdFrame& frame) {
     return name;
 }
 
-/// Default axial noise model of ALGORITHMS.md §2.3, metres.
+/// Default axial noise model of docs/algorithms.md §4 (noise models), metres.
 double default_sigma_z(double z) { return 0.0015 * (z / 1.5) * (z / 1.5); }
 
 constexpr int kDu[8] = {1, -1, 0, 0, 1, -1, 1, -1};  // E W S N, then SE NW NE SW

@@ -1,5 +1,5 @@
 // upsample_view: colour-guided 3D super-resolution of one organised view, 4- and 8-neighbour
-// (ALGORITHMS.md §5).
+// (docs/algorithms.md §5).
 //
 // The colour camera has about 3x the depth camera's focal length (Kinect v2: 1081.37 / 365.5
 // = 2.96), so one depth pixel covers about 3x3 colour pixels. Algorithm A (default) adds one

@@ -8,6 +8,7 @@
 #include "algorithms/evaluation/metrics.hpp"
 #include "io/capture_folder.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::cli {
 
@@ -215,11 +216,7 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         return {};
     if (result) result->scalars = distances(*result);
     if (baseline) baseline->scalars = distances(*baseline);
-    auto p98 = [](std::vector<double> d) {
-        const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(0.98 * d.size()));
-        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
-        return d[k];
-    };
+    auto p98 = [](std::vector<double> d) { return count_quantile(d, 0.98); };
     double vmax = 0;
     if (result) vmax = std::max(vmax, p98(result->scalars));
     if (baseline) vmax = std::max(vmax, p98(baseline->scalars));
@@ -242,11 +239,10 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         heights.reserve(result->vertices.size());
         for (const auto& v : result->vertices) heights.push_back(v.dot(orientation.up));
         std::vector<double> sorted = heights;
-        const auto k = static_cast<std::ptrdiff_t>(0.75 * (sorted.size() - 1));
-        std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+        const double top_quarter = rank_quantile(sorted, 0.75);
         std::vector<Eigen::Vector3d> top;
         for (std::size_t i = 0; i < heights.size(); ++i)
-            if (heights[i] >= sorted[k]) top.push_back(result->vertices[i]);
+            if (heights[i] >= top_quarter) top.push_back(result->vertices[i]);
         const render::Camera close = render::fit_camera(top, orientation, in.camera);
         images.push_back({"result_closeup.png", "result, close-up of the top quarter",
                           render::render_picture(*result, close, plain).image});

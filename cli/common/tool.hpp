@@ -1,4 +1,4 @@
-// The driver every rgbd-<verb> tool runs through (STYLE.md §8): option parsing, --help,
+// The driver every rgbd-<verb> tool runs through (cli/README.md): option parsing, --help,
 // --version, input/output handling (files or stdin/stdout, atomic output files), messages,
 // progress on a terminal only, --metrics, --threads, --seed, exit codes 0/1/2.
 // Modelled on PDAL's Kernel (parse, run, catch-all, exit codes).
@@ -33,7 +33,8 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-/// What a tool declares about itself.
+/// What a tool declares about itself; a tool's main() declares it with designated initializers
+/// (`const ToolSpec spec{.name = ..., .usage = ..., ...}`), in the order of the fields.
 struct ToolSpec {
     std::string name;           ///< "rgbd-clean"
     std::string usage;          ///< "rgbd-clean [options] [FILE...]"
@@ -48,6 +49,17 @@ struct ToolSpec {
         false;  ///< reads the whole stream before writing ("reads the whole stream")
     std::function<void(po::options_description&)> add_options;  ///< tool-specific options
 };
+
+/// An option value with the placeholder --help shows for it: `value<int>("N")`.
+template <typename T>
+po::typed_value<T>* value(const char* placeholder) {
+    return po::value<T>()->value_name(placeholder);
+}
+/// An option value with a default and a placeholder: `value<double>(2.0, "X")`.
+template <typename T>
+po::typed_value<T>* value(const T& fallback, const char* placeholder) {
+    return po::value<T>()->default_value(fallback)->value_name(placeholder);
+}
 
 class Context;
 using ToolMain = std::function<void(Context&)>;

@@ -4,7 +4,7 @@
 Reads the points rgbd-eval wrote (binary little-endian PLY: float x y z, float nx ny nz,
 float sx sy sz = position of the point's sensor (NaN when unknown), uchar red green blue;
 `comment normals given` or `comment normals missing`), estimates normals when missing the way
-PEERS.md's pipeline does (Open3D estimate_normals, hybrid search radius 4 x the median
+the peer pipeline of docs/method.md does (Open3D estimate_normals, hybrid search radius 4 x the median
 nearest-neighbour spacing, 30 neighbours, each normal turned towards its sensor; without a
 sensor, away from the centroid), then runs TriangleMesh.create_from_point_cloud_poisson at
 each depth (Open3D's defaults: scale 1.1, samples per node 1.5, point weight 2), optionally

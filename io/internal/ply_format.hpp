@@ -8,9 +8,11 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "io/internal/text.hpp"
@@ -95,22 +97,33 @@ inline const char* type_name(PlyType t) {
     return "?";
 }
 
-inline std::size_t type_size(PlyType t) {
+/// Calls `f.template operator()<T>()` with T the C++ type that stores `t` (std::int8_t ...
+/// double) and returns its result: one switch for every per-type operation.
+template <typename F>
+decltype(auto) visit_type(PlyType t, F&& f) {
     switch (t) {
         case PlyType::kInt8:
+            return f.template operator()<std::int8_t>();
         case PlyType::kUint8:
-            return 1;
+            return f.template operator()<std::uint8_t>();
         case PlyType::kInt16:
+            return f.template operator()<std::int16_t>();
         case PlyType::kUint16:
-            return 2;
+            return f.template operator()<std::uint16_t>();
         case PlyType::kInt32:
+            return f.template operator()<std::int32_t>();
         case PlyType::kUint32:
+            return f.template operator()<std::uint32_t>();
         case PlyType::kFloat32:
-            return 4;
+            return f.template operator()<float>();
         case PlyType::kFloat64:
-            return 8;
+            break;
     }
-    return 0;
+    return f.template operator()<double>();
+}
+
+inline std::size_t type_size(PlyType t) {
+    return visit_type(t, []<typename T>() -> std::size_t { return sizeof(T); });
 }
 
 inline bool is_integer(PlyType t) { return t != PlyType::kFloat32 && t != PlyType::kFloat64; }
@@ -123,25 +136,7 @@ T load(const unsigned char* p) {
 }
 
 inline double read_value(const unsigned char* p, PlyType t) {
-    switch (t) {
-        case PlyType::kInt8:
-            return load<std::int8_t>(p);
-        case PlyType::kUint8:
-            return load<std::uint8_t>(p);
-        case PlyType::kInt16:
-            return load<std::int16_t>(p);
-        case PlyType::kUint16:
-            return load<std::uint16_t>(p);
-        case PlyType::kInt32:
-            return load<std::int32_t>(p);
-        case PlyType::kUint32:
-            return load<std::uint32_t>(p);
-        case PlyType::kFloat32:
-            return load<float>(p);
-        case PlyType::kFloat64:
-            return load<double>(p);
-    }
-    return 0;
+    return visit_type(t, [p]<typename T>() -> double { return load<T>(p); });
 }
 
 template <typename T>
@@ -151,52 +146,18 @@ void store(unsigned char* p, double v) {
 }
 
 inline void write_value(unsigned char* p, PlyType t, double v) {
-    switch (t) {
-        case PlyType::kInt8:
-            store<std::int8_t>(p, v);
-            break;
-        case PlyType::kUint8:
-            store<std::uint8_t>(p, v);
-            break;
-        case PlyType::kInt16:
-            store<std::int16_t>(p, v);
-            break;
-        case PlyType::kUint16:
-            store<std::uint16_t>(p, v);
-            break;
-        case PlyType::kInt32:
-            store<std::int32_t>(p, v);
-            break;
-        case PlyType::kUint32:
-            store<std::uint32_t>(p, v);
-            break;
-        case PlyType::kFloat32:
-            store<float>(p, v);
-            break;
-        case PlyType::kFloat64:
-            store<double>(p, v);
-            break;
-    }
+    visit_type(t, [p, v]<typename T>() { store<T>(p, v); });
 }
 
 /// Range of an integer type, to reject out-of-range ASCII values.
 inline bool fits(PlyType t, double v) {
-    switch (t) {
-        case PlyType::kInt8:
-            return v >= -128 && v <= 127;
-        case PlyType::kUint8:
-            return v >= 0 && v <= 255;
-        case PlyType::kInt16:
-            return v >= -32768 && v <= 32767;
-        case PlyType::kUint16:
-            return v >= 0 && v <= 65535;
-        case PlyType::kInt32:
-            return v >= -2147483648.0 && v <= 2147483647.0;
-        case PlyType::kUint32:
-            return v >= 0 && v <= 4294967295.0;
-        default:
+    return visit_type(t, [v]<typename T>() {
+        if constexpr (std::is_integral_v<T>)
+            return v >= double(std::numeric_limits<T>::min()) &&
+                   v <= double(std::numeric_limits<T>::max());
+        else
             return true;
-    }
+    });
 }
 
 // ---------------------------------------------------------------------------------------

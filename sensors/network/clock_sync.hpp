@@ -1,4 +1,4 @@
-// Node clock -> hub clock (ALGORITHMS.md §1 steps 1-2): NTP/Cristian four-timestamp probes.
+// Node clock -> hub clock (docs/algorithms.md §1 steps 1-2): NTP/Cristian four-timestamp probes.
 // The hub sends a probe at hub time t0, the node stamps receipt t1 and reply t2 in its clock,
 // the hub receives the reply at t3. Per sample offset theta = ((t1 - t0) + (t2 - t3)) / 2 and
 // round trip delta = (t3 - t0) - (t2 - t1). Of each burst of probes the sample with the

@@ -1,5 +1,5 @@
-// Frame-set grouping by hub time (ALGORITHMS.md §1 step 4, DESIGN.md §5). Frames of all
-// sensors wait in per-sensor queues ordered by hub time. A set is formed from the earliest
+// Frame-set grouping by hub time (docs/algorithms.md §1 step 4, docs/algorithms.md §1). Frames of
+// all sensors wait in per-sensor queues ordered by hub time. A set is formed from the earliest
 // waiting frame t0 of any sensor: it takes from every sensor its earliest waiting frame if
 // that is within [t0, t0 + tolerance], else the sensor is missing (-1). So every set's spread
 // (max - min hub time of its members) is <= tolerance, and no frame is used twice. A set is

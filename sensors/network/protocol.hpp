@@ -1,4 +1,4 @@
-// Wire format of the capture network (DESIGN.md §5). Two channels per node:
+// Wire format of the capture network (docs/algorithms.md §1). Two channels per node:
 //  - frames: node PUSH -> hub PULL, one ZeroMQ message part per frame: a fixed 128-byte
 //    little-endian header (magic, version, session, sensor id, frame index, device and node
 //    time stamps, image size, payload sizes, CRC-32 of header and of each payload), then the

@@ -1,8 +1,8 @@
-// Playback of a recording as a virtual sensor (DESIGN.md §5): one sensor of a capture folder
-// v1 (or of any layout io::open_capture reads, e.g. TUM RGB-D) replayed at its recorded rate.
-// Depth is delivered exactly as stored (16-bit, no conversion); JPEG colour is delivered as the
-// file's bytes (no decode / re-encode), other colour formats decoded to BGR.
-// See also: sensors/sensor.hpp, io/capture_folder.hpp.
+// Playback of a recording as a virtual sensor (docs/algorithms.md §1): one sensor of a capture
+// folder v1 (or of any layout io::open_capture reads, e.g. TUM RGB-D) replayed at its recorded
+// rate. Depth is delivered exactly as stored (16-bit, no conversion); JPEG colour is delivered as
+// the file's bytes (no decode / re-encode), other colour formats decoded to BGR. See also:
+// sensors/sensor.hpp, io/capture_folder.hpp.
 #pragma once
 
 #include <cstdint>

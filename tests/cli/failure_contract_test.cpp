@@ -1,7 +1,7 @@
 // Issue 21 item 4, over every tool: a failed run (a missing, garbage or truncated input, a
 // broken capture folder, an output folder that does not exist) exits 1 (runtime) or 2
 // (usage), never by a signal, prints exactly one line on stderr naming the file and the
-// problem, and leaves no output file and no temporary file behind (STYLE.md §8).
+// problem, and leaves no output file and no temporary file behind (cli/README.md).
 #include <gtest/gtest.h>
 
 #include <filesystem>

@@ -3,73 +3,52 @@
 // 1.5 deg / 15 mm) reaches F-score >= 0.9 at 5 mm, and a coloured mesh comes out of the real
 // person sequence with its per-frame poses as initial poses. Skips without ../shared/data.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "io/ply_stream.hpp"
+#include "tests/support/shared_data.hpp"
+#include "tests/support/tool_runner.hpp"
 #include "toolkit/mesh.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path kData = RGBD_SHARED_DATA;
-const std::string kBin = RGBD_BINARY_DIR;
-
-fs::path work_dir() {
-    static const fs::path p = [] {
-        fs::path d = fs::temp_directory_path() / ("rgbd_data_test_" + std::to_string(::getpid()));
-        fs::create_directories(d);
-        return d;
-    }();
-    return p;
-}
-
-int sh(const std::string& command) {
-    const int status = std::system(("cd " + work_dir().string() + " && " + command).c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-nlohmann::json read_json(const fs::path& p) {
-    std::ifstream in(p);
-    return nlohmann::json::parse(in);
-}
+RGBD_TOOL_TEST_SCRATCH("rgbd_data_test")
 
 }  // namespace
 
 TEST(ReconstructData, MaxPlanckRingReachesFScoreAt5mm) {
-    const fs::path mesh = kData / "meshes/max_planck/max-planck.obj";
-    if (!fs::exists(mesh)) GTEST_SKIP() << "needs " << mesh << " (../shared/data is absent)";
-    ASSERT_EQ(sh(kBin + "/rgbd-synth " + mesh.string() +
-                 " -o mp --height-m 0.6 --calib-error-deg 1.5 --calib-error-mm 15 --seed 7 -q"),
-              0);
-    ASSERT_EQ(sh(kBin + "/rgbd-reconstruct mp -o mp.ply --report mp_report -q"), 0);
-    const auto m = read_json(work_dir() / "mp_report" / "metrics.json");
+    const fs::path mesh = rgbd::test::shared_data("meshes/max_planck/max-planck.obj");
+    RGBD_SKIP_WITHOUT(mesh);
+    Outcome r = run("$BIN/rgbd-synth " + mesh.string() +
+                    " -o mp --height-m 0.6 --calib-error-deg 1.5 --calib-error-mm 15 --seed 7 -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    r = run("$BIN/rgbd-reconstruct mp -o mp.ply --report mp_report -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto m = read_json(temp_root() / "mp_report" / "metrics.json");
     const auto& s = m["evaluation"]["surface"];
     EXPECT_GE(s["fscore_5mm"].get<double>(), 0.9) << s.dump(2);
     // The rig poses were 1.5 deg / 15 mm off; alignment must bring them back.
     EXPECT_LT(m["evaluation"]["poses"]["max_rotation_deg"].get<double>(), 0.5);
     EXPECT_LT(m["evaluation"]["poses"]["max_translation_mm"].get<double>(), 5.0);
     // Eval by the separate tool agrees with the report.
-    ASSERT_EQ(sh(kBin + "/rgbd-eval mp.ply --reference mp/gt/mesh.ply -o eval.json"), 0);
-    const auto e = read_json(work_dir() / "eval.json");
+    r = run("$BIN/rgbd-eval mp.ply --reference mp/gt/mesh.ply -o eval.json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto e = read_json(temp_root() / "eval.json");
     EXPECT_NEAR(e["surface"]["fscore_5mm"].get<double>(), s["fscore_5mm"].get<double>(), 0.02);
 }
 
 TEST(ReconstructData, PersonSequenceGivesAColouredClosedMesh) {
-    const fs::path seq = kData / "multiview/uva_cv2_person_kinect1";
-    if (!fs::exists(seq)) GTEST_SKIP() << "needs " << seq << " (../shared/data is absent)";
+    const fs::path seq = rgbd::test::shared_data("multiview/uva_cv2_person_kinect1");
+    RGBD_SKIP_WITHOUT(seq);
     // Every 5th frame of the 360-degree turn keeps the test short; the README runs all 50.
-    ASSERT_EQ(sh(kBin + "/rgbd-reconstruct " + seq.string() +
-                 " --frames 0:50:5 -o person.ply --report person_report -q"),
-              0);
-    std::ifstream in(work_dir() / "person.ply", std::ios::binary);
+    const Outcome r = run("$BIN/rgbd-reconstruct " + seq.string() +
+                          " --frames 0:50:5 -o person.ply --report person_report -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::ifstream in(temp_root() / "person.ply", std::ios::binary);
     rgbd::io::PlyStreamReader reader(in, "person.ply");
     rgbd::io::Document doc;
     ASSERT_TRUE(reader.next(doc));
@@ -96,6 +75,6 @@ TEST(ReconstructData, PersonSequenceGivesAColouredClosedMesh) {
     }
     EXPECT_GT((hi - lo).maxCoeff(), 0.3);
     EXPECT_LT((hi - lo).maxCoeff(), 1.5);
-    const auto m = read_json(work_dir() / "person_report" / "metrics.json");
+    const auto m = read_json(temp_root() / "person_report" / "metrics.json");
     for (const auto& v : m["align"]["views"]) EXPECT_NE(v["verdict"], "FAIL") << v.dump();
 }

@@ -12,14 +12,14 @@
 #include <string>
 
 #include "io/mesh_io.hpp"
+#include "tests/support/shared_data.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path kPcd =
-    fs::path(RGBD_SHARED_DATA) / "multiview/uva_cv2_person_kinect1/0000000000.pcd";
+const fs::path kPcd = rgbd::test::shared_data("multiview/uva_cv2_person_kinect1/0000000000.pcd");
 
 fs::path temp_root() {
     static const fs::path root = rgbd::test::scratch_dir("rgbd_clean_data_test");
@@ -45,7 +45,7 @@ Counts count(const fs::path& file) {
 }
 
 void check_method(const std::string& method, const std::string& out) {
-    if (!fs::exists(kPcd)) GTEST_SKIP() << "needs " << kPcd << " (../shared/data is absent)";
+    RGBD_SKIP_WITHOUT(kPcd);
     const Counts before = count(kPcd);
     ASSERT_EQ(before.total, 68742u);
     ASSERT_EQ(before.gross, 1495u);
@@ -69,7 +69,7 @@ TEST(RgbdCleanData, RawPersonPcdDensityRemovesGrossOutliers) {
 }
 
 TEST(RgbdCleanData, RawPersonPcdDistanceSuggestsDensity) {
-    if (!fs::exists(kPcd)) GTEST_SKIP() << "needs " << kPcd << " (../shared/data is absent)";
+    RGBD_SKIP_WITHOUT(kPcd);
     const rgbd::test::Outcome r =
         rgbd::test::run_in(temp_root(), "$BIN/rgbd-clean --distance " + kPcd.string() + " -q");
     EXPECT_NE(r.code, 0);

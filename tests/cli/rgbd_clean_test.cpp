@@ -1,4 +1,4 @@
-// Contract tests of rgbd-clean's adaptive methods (STYLE.md §8): --distance is the default on
+// Contract tests of rgbd-clean's adaptive methods (cli/README.md): --distance is the default on
 // organised views, --distance on a view without a grid is an error that suggests --density,
 // --density runs on the aligned view stream and keeps the views, --mark == delete, absurd
 // parameters are usage errors (exit 2), empty input passes.

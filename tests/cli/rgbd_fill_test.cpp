@@ -1,4 +1,4 @@
-// Contract tests of rgbd-fill (STYLE.md §8): two views of a sphere with an occlusion hole (near
+// Contract tests of rgbd-fill (cli/README.md): two views of a sphere with an occlusion hole (near
 // the equator, which neither sensor faces) and an opening (facing sensor A, which looked
 // through it): only the occlusion hole is filled, with synthetic points on the sphere, in one
 // new document after the input ones; --detect-only --mark flags rim points and adds nothing;
@@ -169,10 +169,8 @@ TEST_F(RgbdFill, AbsurdParametersAreUsageErrors) {
                             "--search-window 0.5",
                             "--search-window nan"}) {
         SCOPED_TRACE(opt);
-        Outcome r = run(std::string("$BIN/rgbd-fill ") + opt + " views.ply -o never.ply");
-        EXPECT_EQ(r.code, 2) << r.err;
-        EXPECT_EQ(r.err.rfind("rgbd-fill: error: ", 0), 0u) << r.err;
-        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+        const Outcome r = run(std::string("$BIN/rgbd-fill ") + opt + " views.ply -o never.ply");
+        rgbd::test::expect_failure(r, 2, "rgbd-fill", temp_root());
     }
 }
 
@@ -262,11 +260,9 @@ TEST_F(RgbdFill, BadInputIsAnErrorWithoutOutput) {
     std::ofstream(temp_root() / "garbage.ply") << "not a ply file\n";
     for (const char* file : {"truncated.ply", "nan.xyz", "garbage.ply"}) {
         SCOPED_TRACE(file);
-        Outcome r = run(std::string("$BIN/rgbd-fill ") + file + " -o never.ply");
-        EXPECT_EQ(r.code, 1) << r.err;
+        const Outcome r = run(std::string("$BIN/rgbd-fill ") + file + " -o never.ply");
+        rgbd::test::expect_failure(r, 1, "rgbd-fill", temp_root());
         EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
-        EXPECT_EQ(rgbd::test::line_count(r.err), 1) << r.err;
-        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
     }
     Outcome empty = run("$BIN/rgbd-fill - < /dev/null > out.ply");
     EXPECT_EQ(empty.code, 1) << empty.err;

@@ -1,4 +1,4 @@
-// Contract tests of rgbd-upsample (STYLE.md §8): help, exit codes, the capture folder found
+// Contract tests of rgbd-upsample (cli/README.md): help, exit codes, the capture folder found
 // from rgbd:view.source or --capture, a missing colour image or one of another size than
 // rig.json says (one-line error naming the file or the sizes, no partial output), a view
 // without grid, and the point count on a rendered capture.
@@ -48,10 +48,9 @@ TEST_F(Upsample, HelpDocumentsOptionsAndCaptureLookup) {
 
 TEST_F(Upsample, UsageErrorsExitTwo) {
     for (const char* args : {"--neighbors 5", "--sigma-color -1", "--no-such-option"}) {
+        SCOPED_TRACE(args);
         const Outcome r = run(std::string("$BIN/rgbd-upsample views.ply -o never.ply ") + args);
-        EXPECT_EQ(r.code, 2) << args << r.err;
-        EXPECT_EQ(r.err.rfind("rgbd-upsample: error: ", 0), 0u) << r.err;
-        EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
+        rgbd::test::expect_failure(r, 2, "rgbd-upsample", temp_root());
     }
 }
 
@@ -70,44 +69,45 @@ TEST_F(Upsample, AddsPointsFromSourceOrCapture) {
     }
 }
 
-TEST_F(Upsample, MissingColourImageIsAOneLineErrorAndNoOutput) {
-    fs::remove_all(temp_root() / "cap2");
-    fs::copy(temp_root() / "cap", temp_root() / "cap2", fs::copy_options::recursive);
+namespace {
+
+/// Copies the rendered capture to `name` and returns one of its colour images (empty if none).
+fs::path copy_capture_and_pick_colour_image(const std::string& name) {
+    fs::remove_all(temp_root() / name);
+    fs::copy(temp_root() / "cap", temp_root() / name, fs::copy_options::recursive);
     fs::path victim;
-    for (const auto& e : fs::recursive_directory_iterator(temp_root() / "cap2"))
+    for (const auto& e : fs::recursive_directory_iterator(temp_root() / name))
         if (e.path().parent_path().filename() == "color") victim = e.path();
+    return victim;
+}
+
+}  // namespace
+
+TEST_F(Upsample, MissingColourImageIsAOneLineErrorAndNoOutput) {
+    const fs::path victim = copy_capture_and_pick_colour_image("cap2");
     ASSERT_FALSE(victim.empty());
     fs::remove(victim);
     const Outcome r = run("$BIN/rgbd-upsample views.ply --capture cap2 -o never.ply");
-    EXPECT_EQ(r.code, 1);
-    EXPECT_EQ(line_count(r.err), 1) << r.err;
+    rgbd::test::expect_failure(r, 1, "rgbd-upsample", temp_root());
     EXPECT_NE(r.err.find(victim.filename().string()), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
     const Outcome nocap = run("$BIN/rgbd-upsample views.ply --capture no-such-dir -o never.ply");
     EXPECT_EQ(nocap.code, 1);
     EXPECT_NE(nocap.err.find("no-such-dir"), std::string::npos) << nocap.err;
 }
 
 TEST_F(Upsample, ColourImageOfAnotherSizeThanTheRigIsAOneLineError) {
-    fs::remove_all(temp_root() / "cap3");
-    fs::copy(temp_root() / "cap", temp_root() / "cap3", fs::copy_options::recursive);
-    fs::path victim;
-    for (const auto& e : fs::recursive_directory_iterator(temp_root() / "cap3"))
-        if (e.path().parent_path().filename() == "color") victim = e.path();
+    const fs::path victim = copy_capture_and_pick_colour_image("cap3");
     ASSERT_FALSE(victim.empty());
     const cv::Mat image = cv::imread(victim.string(), cv::IMREAD_COLOR);
     ASSERT_FALSE(image.empty());
     cv::Mat half(image.rows / 2, image.cols / 2, CV_8UC3, cv::Scalar(40, 80, 120));
     ASSERT_TRUE(cv::imwrite(victim.string(), half));
     const Outcome r = run("$BIN/rgbd-upsample views.ply --capture cap3 -o never.ply");
-    EXPECT_EQ(r.code, 1) << r.err;
-    EXPECT_EQ(line_count(r.err), 1) << r.err;
-    EXPECT_EQ(r.err.rfind("rgbd-upsample: error: ", 0), 0u) << r.err;
+    rgbd::test::expect_failure(r, 1, "rgbd-upsample", temp_root());
     const std::string size = std::to_string(half.cols) + "x" + std::to_string(half.rows);
     EXPECT_TRUE(r.err.find(size) != std::string::npos ||
                 r.err.find(victim.filename().string()) != std::string::npos)
         << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
 }
 
 TEST_F(Upsample, ViewWithoutGridIsAnError) {
@@ -116,8 +116,6 @@ TEST_F(Upsample, ViewWithoutGridIsAnError) {
            "property float x\nproperty float y\nproperty float z\n"
            "end_header\n0 0 1\n1 0 1\n0 1 1\n";
     const Outcome r = run("$BIN/rgbd-upsample flat.ply -o never.ply");
-    EXPECT_EQ(r.code, 1);
+    rgbd::test::expect_failure(r, 1, "rgbd-upsample", temp_root());
     EXPECT_NE(r.err.find("grid"), std::string::npos) << r.err;
-    EXPECT_EQ(line_count(r.err), 1) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.ply"));
 }

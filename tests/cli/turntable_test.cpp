@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/mesh_io.hpp"
+#include "tests/support/shared_data.hpp"
 #include "tests/support/tool_runner.hpp"
 #include "toolkit/mesh.hpp"
 
@@ -19,19 +20,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const fs::path kData = RGBD_SHARED_DATA;
 RGBD_TOOL_TEST_SCRATCH("rgbd_turntable_test")
-
-nlohmann::json read_json(const fs::path& p) {
-    std::ifstream in(p);
-    return nlohmann::json::parse(in);
-}
 
 }  // namespace
 
 TEST(Turntable, PlatterRemovedAxisCorrectedClosedAndAccurate) {
-    const fs::path mesh = kData / "meshes/max_planck/max-planck.obj";
-    if (!fs::exists(mesh)) GTEST_SKIP() << "needs " << mesh << " (../shared/data is absent)";
+    const fs::path mesh = rgbd::test::shared_data("meshes/max_planck/max-planck.obj");
+    RGBD_SKIP_WITHOUT(mesh);
     ASSERT_EQ(run("$BIN/rgbd-synth " + mesh.string() +
                   " -o tt --rig turntable --stops 12 --height-m 0.25 --stand --resolution-scale 0.5"
                   " --axis-tilt-deg 2 --axis-shift-mm 10 --angle-noise-deg 0.5 --seed 3 -q")

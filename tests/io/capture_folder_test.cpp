@@ -11,7 +11,9 @@
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
 
+#include "tests/support/shared_data.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 
 namespace rgbd::io {
 namespace {
@@ -25,11 +27,7 @@ fs::path temp_dir(const std::string& name) {
     return dir;
 }
 
-fs::path shared(const std::string& rel) { return fs::path(RGBD_SHARED_DATA) / rel; }
-
-#define SKIP_WITHOUT_SHARED_DATA()     \
-    if (!fs::exists(RGBD_SHARED_DATA)) \
-    GTEST_SKIP() << "shared data not found at " << RGBD_SHARED_DATA
+using rgbd::test::shared_data;
 
 Pose test_pose(double angle, double tx) {
     Pose p = Pose::Identity();
@@ -311,8 +309,8 @@ TEST(CaptureFolder, AtomicHelpersLeaveNoTemporaryFiles) {
 }
 
 TEST(CaptureFolder, UvaLayout) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("multiview/uva_cv2_person_kinect1"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("multiview/uva_cv2_person_kinect1"));
     EXPECT_EQ(cap.layout, "uva");
     ASSERT_EQ(cap.frames.at("camera").size(), 50u);
     const SensorSpec& s = cap.rig.sensor("camera");
@@ -334,9 +332,9 @@ TEST(CaptureFolder, UvaLayout) {
             if (f.mask.at<std::uint8_t>(y, x) && std::isfinite(f.depth.at<float>(y, x)))
                 z.push_back(f.depth.at<float>(y, x));
     ASSERT_GT(z.size(), 5000u);
-    std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
-    EXPECT_GT(z[z.size() / 2], 0.75f);
-    EXPECT_LT(z[z.size() / 2], 1.05f);
+    const float median = upper_median(z);
+    EXPECT_GT(median, 0.75f);
+    EXPECT_LT(median, 1.05f);
     EXPECT_EQ(f.color.size(), cv::Size(640, 480));
     EXPECT_EQ(load_frame(cap, "camera", 25).timestamp_ns, 50 * 33'333'333LL);
     const double turn =
@@ -345,8 +343,8 @@ TEST(CaptureFolder, UvaLayout) {
 }
 
 TEST(CaptureFolder, TumSample) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("rgbd/open3d_tum_nyu_sun_samples"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("rgbd/open3d_tum_nyu_sun_samples"));
     EXPECT_EQ(cap.layout, "tum");
     ASSERT_EQ(cap.frames.at("camera").size(), 1u);
     EXPECT_EQ(cap.rig.sensor("camera").depth_scale, 5000.0);
@@ -357,8 +355,7 @@ TEST(CaptureFolder, TumSample) {
         for (int x = 0; x < f.depth.cols; ++x)
             if (std::isfinite(f.depth.at<float>(y, x))) z.push_back(f.depth.at<float>(y, x));
     ASSERT_GT(z.size(), 100000u);
-    std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
-    EXPECT_NEAR(z[z.size() / 2], 2.4, 0.4);  // README: median about 2.4 m
+    EXPECT_NEAR(upper_median(z), 2.4, 0.4);  // README: median about 2.4 m
     EXPECT_EQ(f.color.type(), CV_8UC3);
 }
 
@@ -389,8 +386,8 @@ TEST(CaptureFolder, TumListFiles) {
 }
 
 TEST(CaptureFolder, RedwoodLayoutWithCleanDepth) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const Capture cap = open_capture(shared("rgbd/open3d_livingroom1_augmented_iclnuim"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const Capture cap = open_capture(shared_data("rgbd/open3d_livingroom1_augmented_iclnuim"));
     EXPECT_EQ(cap.layout, "redwood");
     ASSERT_EQ(cap.frames.at("camera").size(), 5u);
     ASSERT_EQ(cap.frames.at("clean").size(), 5u);

@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "io/ply_stream.hpp"
+#include "tests/support/shared_data.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -26,11 +27,7 @@ fs::path temp_dir(const std::string& name) {
     return dir;
 }
 
-fs::path shared(const std::string& rel) { return fs::path(RGBD_SHARED_DATA) / rel; }
-
-#define SKIP_WITHOUT_SHARED_DATA()     \
-    if (!fs::exists(RGBD_SHARED_DATA)) \
-    GTEST_SKIP() << "shared data not found at " << RGBD_SHARED_DATA
+using rgbd::test::shared_data;
 
 Mesh colored_cube_mesh() {
     // An octahedron: 6 vertices, 8 faces, closed.
@@ -185,9 +182,9 @@ TEST(MeshIo, PointCloudPlyAndXyzRoundTrip) {
 }
 
 TEST(MeshIo, RealPcdFiles) {
-    SKIP_WITHOUT_SHARED_DATA();
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
     // binary_compressed, organised 640x480 with NaN points.
-    const PointCloud people = read_point_cloud(shared("pointclouds/pcl/five_people.pcd"));
+    const PointCloud people = read_point_cloud(shared_data("pointclouds/pcl/five_people.pcd"));
     EXPECT_GT(people.size(), 100000u);
     EXPECT_LT(people.size(), 307200u);  // NaN points skipped
     EXPECT_TRUE(people.has_colors());
@@ -208,25 +205,25 @@ TEST(MeshIo, RealPcdFiles) {
     EXPECT_LT(z_max, 12.0);
     EXPECT_GT(colourful, people.size() / 4);
 
-    const PointCloud milk = read_point_cloud(shared("pointclouds/pcl/milk_color.pcd"));
+    const PointCloud milk = read_point_cloud(shared_data("pointclouds/pcl/milk_color.pcd"));
     EXPECT_EQ(milk.size(), 13704u);
 
-    const PointCloud bun0 = read_point_cloud(shared("pointclouds/pcl/bun0.pcd"));
+    const PointCloud bun0 = read_point_cloud(shared_data("pointclouds/pcl/bun0.pcd"));
     EXPECT_EQ(bun0.size(), 397u);
     EXPECT_TRUE(bun0.points.has_normal_map());
-    const PointCloud bunny = read_point_cloud(shared("pointclouds/pcl/bunny.pcd"));
+    const PointCloud bunny = read_point_cloud(shared_data("pointclouds/pcl/bunny.pcd"));
     EXPECT_EQ(bunny.size(), 397u);
 
     // binary PCD with normals and rgb.
     const PointCloud frag =
-        read_point_cloud(shared("multiview/open3d_fragments_cloud_bin/cloud_bin_0.pcd"));
+        read_point_cloud(shared_data("multiview/open3d_fragments_cloud_bin/cloud_bin_0.pcd"));
     EXPECT_EQ(frag.size(), 3903u);
     EXPECT_TRUE(frag.points.has_normal_map());
     EXPECT_TRUE(frag.has_colors());
 
     // ASCII with float-packed rgb and 65 m outliers (kept: the reader does not filter).
     const PointCloud uva =
-        read_point_cloud(shared("multiview/uva_cv2_person_kinect1/0000000000.pcd"));
+        read_point_cloud(shared_data("multiview/uva_cv2_person_kinect1/0000000000.pcd"));
     EXPECT_EQ(uva.size(), 68742u);
     double uva_max = 0;
     for (auto idx : uva.points) uva_max = std::max(uva_max, uva.points.point(idx).z());
@@ -235,34 +232,34 @@ TEST(MeshIo, RealPcdFiles) {
 }
 
 TEST(MeshIo, RealXyzPlyAndMeshes) {
-    SKIP_WITHOUT_SHARED_DATA();
-    const PointCloud kitten = read_point_cloud(shared("pointclouds/cgal/kitten.xyz"));
+    RGBD_SKIP_WITHOUT_SHARED_DATA();
+    const PointCloud kitten = read_point_cloud(shared_data("pointclouds/cgal/kitten.xyz"));
     EXPECT_GT(kitten.size(), 5000u);
     EXPECT_TRUE(kitten.points.has_normal_map());
-    const PointCloud sphere = read_point_cloud(shared("pointclouds/cgal/sphere_20k.xyz"));
+    const PointCloud sphere = read_point_cloud(shared_data("pointclouds/cgal/sphere_20k.xyz"));
     EXPECT_GT(sphere.size(), 20000u);
     EXPECT_FALSE(sphere.points.has_normal_map());
-    const PointCloud oni = read_point_cloud(shared("pointclouds/cgal/oni.pwn"));
+    const PointCloud oni = read_point_cloud(shared_data("pointclouds/cgal/oni.pwn"));
     EXPECT_TRUE(oni.points.has_normal_map());
-    const PointCloud frag =
-        read_point_cloud(shared("multiview/open3d_livingroom1_slac_fragments/fragment_000.ply"));
+    const PointCloud frag = read_point_cloud(
+        shared_data("multiview/open3d_livingroom1_slac_fragments/fragment_000.ply"));
     EXPECT_EQ(frag.size(), 5028u);
     EXPECT_TRUE(frag.has_colors());
     EXPECT_TRUE(frag.points.has_normal_map());
 
-    const Mesh planck = read_mesh(shared("meshes/max_planck/max-planck.obj"));
+    const Mesh planck = read_mesh(shared_data("meshes/max_planck/max-planck.obj"));
     EXPECT_EQ(planck.number_of_vertices(), 10000u);
     EXPECT_EQ(planck.number_of_faces(), 19996u);
     EXPECT_TRUE(CGAL::is_closed(planck));
-    const Mesh bunny = read_mesh(shared("meshes/stanford_bunny/stanford-bunny.obj"));
+    const Mesh bunny = read_mesh(shared_data("meshes/stanford_bunny/stanford-bunny.obj"));
     EXPECT_EQ(bunny.number_of_faces(), 69451u);
-    const Mesh wreath = read_mesh(shared("meshes/danish_statues/BustManWreath_welded.ply"));
+    const Mesh wreath = read_mesh(shared_data("meshes/danish_statues/BustManWreath_welded.ply"));
     EXPECT_EQ(wreath.number_of_faces(), 31514u);  // non-manifold faces kept (own vertices)
     EXPECT_GE(wreath.number_of_vertices(), 15757u);
-    const Mesh shark = read_mesh(shared("meshes/cgal_with_holes/mech-holes-shark.off"));
+    const Mesh shark = read_mesh(shared_data("meshes/cgal_with_holes/mech-holes-shark.off"));
     EXPECT_EQ(shark.number_of_vertices(), 5246u);
     EXPECT_EQ(shark.number_of_faces(), 10192u);
-    const PointCloud head = read_point_cloud(shared("meshes/cgal_with_holes/head.off"));
+    const PointCloud head = read_point_cloud(shared_data("meshes/cgal_with_holes/head.off"));
     EXPECT_EQ(head.size(), 1487u);
 }
 

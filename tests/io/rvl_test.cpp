@@ -52,7 +52,8 @@ std::vector<std::uint16_t> kinect_like_depth(unsigned seed) {
                 z = (-b - std::sqrt(disc)) / (2 * a);
                 edge = disc < 0.02 * b * b;
             }
-            // Kinect v2 axial noise, head-on (ALGORITHMS.md §2.3): 1.4 mm at 1.5 m, 2.7 at 3 m.
+            // Kinect v2 axial noise, head-on (docs/algorithms.md §4 (noise models)): 1.4 mm at 1.5
+            // m, 2.7 at 3 m.
             const double sigma_m = 1e-3 * (1.5 - 0.5 * z + 0.3 * z * z);
             double v = z + sigma_m * gauss(rng);
             if (uni(rng) < 0.005) v = 0.5 + 4.0 * uni(rng);  // outlier

@@ -1,6 +1,8 @@
-// Enforces the dependency rules of STYLE.md §2 on the source tree: which top-level folder may
-// include which, algorithms/internal stays inside algorithms/, and public algorithm headers
-// include no CGAL headers.
+// Enforces the dependency rules of docs/architecture.md on the source tree: which top-level
+// folder may include which, algorithms/internal stays inside algorithms/, and CGAL stays behind
+// the data model: only toolkit/types.hpp, point_cloud.hpp and mesh.hpp include CGAL headers
+// (the kernel, Point_set_3, Surface_mesh) and name CGAL types; every other public header of
+// the libraries uses their aliases (Point_3, PointSet, Mesh) and includes no CGAL header.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -91,15 +93,47 @@ TEST(Layering, FoldersIncludeOnlyWhatStyleAllows) {
     EXPECT_GT(checked, 10u) << "no includes found: is RGBD_SOURCE_DIR right?";
 }
 
-TEST(Layering, PublicAlgorithmHeadersIncludeNoCgal) {
+/// The headers that define the data model on CGAL's types, and the CGAL headers they may use.
+const std::map<std::string, std::set<std::string>> kDataModelHeaders = {
+    {"toolkit/types.hpp", {"CGAL/Exact_predicates_inexact_constructions_kernel.h"}},
+    {"toolkit/point_cloud.hpp", {"CGAL/Point_set_3.h"}},
+    {"toolkit/mesh.hpp", {"CGAL/Surface_mesh.h", "CGAL/IO/Color.h"}},
+};
+
+/// The installed headers of the libraries: every .hpp of toolkit/, io/, algorithms/,
+/// pipeline/ and sensors/ outside internal/ folders.
+std::vector<fs::path> public_headers(const fs::path& root) {
+    std::vector<fs::path> out;
+    for (const char* folder : {"toolkit", "io", "algorithms", "pipeline", "sensors"})
+        for (const auto& file : sources_under(root / folder))
+            if (file.extension() == ".hpp" && file.string().find("/internal/") == std::string::npos)
+                out.push_back(file);
+    return out;
+}
+
+/// Code of a line without its // comment (good enough for headers: no "//" in strings here).
+std::string code_of(const std::string& line) { return line.substr(0, line.find("//")); }
+
+TEST(Layering, CgalOnlyInTheDataModelHeaders) {
     const fs::path root = RGBD_SOURCE_DIR;
-    for (const auto& file : sources_under(root / "algorithms")) {
-        if (file.extension() != ".hpp") continue;
-        if (file.string().find("/internal/") != std::string::npos) continue;
+    std::size_t checked = 0;
+    for (const auto& file : public_headers(root)) {
+        ++checked;
+        const std::string relative = fs::relative(file, root).generic_string();
+        const auto model = kDataModelHeaders.find(relative);
         for (const auto& inc : includes_of(file)) {
-            EXPECT_FALSE(inc.angled && inc.target.rfind("CGAL/", 0) == 0)
-                << fs::relative(file, root) << " includes <" << inc.target
-                << ">: CGAL algorithm headers belong in .cpp files (STYLE.md §2)";
+            if (!inc.angled || inc.target.rfind("CGAL/", 0) != 0) continue;
+            EXPECT_TRUE(model != kDataModelHeaders.end() && model->second.count(inc.target))
+                << relative << " includes <" << inc.target
+                << ">: CGAL headers belong in .cpp files; public headers use the data model of "
+                   "toolkit/ (docs/architecture.md)";
         }
+        if (model != kDataModelHeaders.end()) continue;
+        std::ifstream in(file);
+        std::string line;
+        for (int n = 1; std::getline(in, line); ++n)
+            EXPECT_EQ(code_of(line).find("CGAL::"), std::string::npos)
+                << relative << ":" << n << " names a CGAL type: use the toolkit's aliases";
     }
+    EXPECT_GT(checked, 50u) << "no headers found: is RGBD_SOURCE_DIR right?";
 }

@@ -1,5 +1,5 @@
 // Tests of the clock estimator (sensors/network/clock_sync.hpp) on simulated exchanges with a
-// known answer (ALGORITHMS.md §1 test): clients with offsets up to +-500 ms and drifts up to
+// known answer (docs/algorithms.md §1 test): clients with offsets up to +-500 ms and drifts up to
 // +-50 ppm, asymmetric gamma-distributed one-way delays of 1-20 ms; the estimate must be within
 // 1 ms of the true offset and map node stamps to hub time within 1 ms.
 #include "sensors/network/clock_sync.hpp"

@@ -2,12 +2,14 @@
 // with $BIN pointing at the tools, capturing exit code, stdout and stderr.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
@@ -29,6 +31,11 @@ inline int line_count(const std::string& s) {
     int n = 0;
     for (char c : s) n += c == '\n';
     return n;
+}
+
+/// A JSON file (a tool's --metrics or report), parsed.
+inline nlohmann::json read_json(const std::filesystem::path& p) {
+    return nlohmann::json::parse(slurp(p));
 }
 
 /// A fresh scratch folder per test process: temp/<prefix>_<pid>. A folder of that name can
@@ -59,14 +66,31 @@ inline Outcome run_in(const std::filesystem::path& dir, const std::string& comma
     return r;
 }
 
+/// The failure contract of a tool run (cli/README.md, common behaviour): exit `code` (1 a
+/// runtime failure, 2 a usage error), stderr "<tool>: error: ..." on one line (a usage error
+/// adds the "Try '<tool> --help'" line), and the output file `output` in `dir` not written,
+/// not even as a temporary file left behind.
+inline void expect_failure(const Outcome& r, int code, const std::string& tool,
+                           const std::filesystem::path& dir,
+                           const std::string& output = "never.ply") {
+    EXPECT_EQ(r.code, code) << r.err;
+    EXPECT_EQ(r.err.rfind(tool + ": error: ", 0), 0u) << r.err;
+    EXPECT_EQ(line_count(r.err), code == 2 ? 2 : 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / output));
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        EXPECT_EQ(e.path().filename().string().find("." + output), std::string::npos) << e.path();
+}
+
 }  // namespace rgbd::test
 
 /// The scratch folder and command runner of a tool test file: defines `temp_root()` (a
 /// scratch_dir named `prefix`, made once per test process) and `run(command)` (run_in that
-/// folder) in the including file's anonymous namespace, with Outcome, slurp and line_count.
+/// folder) in the including file's anonymous namespace, with Outcome, slurp, line_count and
+/// read_json.
 #define RGBD_TOOL_TEST_SCRATCH(prefix)                                             \
     using rgbd::test::line_count;                                                  \
     using rgbd::test::Outcome;                                                     \
+    using rgbd::test::read_json;                                                   \
     using rgbd::test::slurp;                                                       \
     std::filesystem::path temp_root() {                                            \
         static const std::filesystem::path root = rgbd::test::scratch_dir(prefix); \

@@ -55,10 +55,8 @@ TEST(Noise, AxialStdMatchesSigmaHeadOn) {
 
 TEST(Noise, LabelCountsFollowTheConfiguredRates) {
     const io::SensorSpec spec = kinect_v2_spec("k");
-    Mesh mesh;
-    testing::add_quad(mesh, Eigen::Vector3d(0.2, 0, 2.0), Eigen::Vector3d::UnitX(),
-                      Eigen::Vector3d::UnitY(), 0.6);
-    testing::add_icosphere(mesh, Eigen::Vector3d(0, 0, 1.2), 0.15, 4);
+    const Mesh mesh = testing::ball_before_wall(Eigen::Vector3d(0.2, 0, 2.0), 0.6,
+                                                Eigen::Vector3d(0, 0, 1.2), 0.15, 4);
     const DepthRender clean = render_depth(RenderScene(mesh), spec.depth, Pose::Identity());
     NoiseOptions o;  // defaults, without jitter and grazing so that the band is known
     o.lateral = false;
@@ -128,10 +126,8 @@ TEST(Noise, GrazingDropoutRampsBetweenSeventyAndEightyFiveDegrees) {
 
 TEST(Noise, DeterministicForASeedAndAnyThreadCount) {
     const io::SensorSpec spec = kinect_v2_spec("k");
-    Mesh mesh;
-    testing::add_quad(mesh, Eigen::Vector3d(0.2, 0, 2.0), Eigen::Vector3d::UnitX(),
-                      Eigen::Vector3d::UnitY(), 0.6);
-    testing::add_icosphere(mesh, Eigen::Vector3d(0, 0, 1.2), 0.15, 3);
+    const Mesh mesh = testing::ball_before_wall(Eigen::Vector3d(0.2, 0, 2.0), 0.6,
+                                                Eigen::Vector3d(0, 0, 1.2), 0.15, 3);
     const DepthRender clean = render_depth(RenderScene(mesh), spec.depth, Pose::Identity());
     const NoiseOptions o;
     NoisyDepth a;

@@ -90,10 +90,8 @@ TEST(Rasterizer, ColourCameraResolvesItsOwnOcclusions) {
     const io::SensorSpec spec = kinect_v2_spec("k");
     const Eigen::Vector3d centre(0, 0, 1.0);
     const double radius = 0.1;
-    Mesh mesh;
-    testing::add_quad(mesh, Eigen::Vector3d(0, 0, 1.5), Eigen::Vector3d::UnitX(),
-                      Eigen::Vector3d::UnitY(), 1.0);  // triangles 0, 1
-    testing::add_icosphere(mesh, centre, radius, 5);
+    // The wall is triangles 0 and 1.
+    const Mesh mesh = testing::ball_before_wall(Eigen::Vector3d(0, 0, 1.5), 1.0, centre, radius, 5);
     const RenderScene scene(mesh);
     const Pose world_from_depth = Pose::Identity();
     const Pose world_from_color = world_from_depth * spec.color_from_depth.inverse();
@@ -135,10 +133,8 @@ TEST(Rasterizer, ColourCameraResolvesItsOwnOcclusions) {
 
 TEST(Rasterizer, SameResultForAnyThreadCountAndBanding) {
     const io::SensorSpec spec = kinect_v2_spec("k");
-    Mesh mesh;
-    testing::add_quad(mesh, Eigen::Vector3d(0, 0, 1.5), Eigen::Vector3d::UnitX(),
-                      Eigen::Vector3d::UnitY(), 0.3);
-    testing::add_icosphere(mesh, Eigen::Vector3d(0.02, 0.01, 1.1), 0.1, 4);
+    const Mesh mesh = testing::ball_before_wall(Eigen::Vector3d(0, 0, 1.5), 0.3,
+                                                Eigen::Vector3d(0.02, 0.01, 1.1), 0.1, 4);
     const RenderScene scene(mesh);
     DepthRender one, many;
     {

@@ -64,4 +64,23 @@ inline void add_icosphere(Mesh& mesh, const Eigen::Vector3d& centre, double radi
     append(mesh, v, f);
 }
 
+/// An icosphere alone (20 * 4^levels faces), centred at `centre`.
+inline Mesh icosphere(double radius, int levels,
+                      const Eigen::Vector3d& centre = Eigen::Vector3d::Zero()) {
+    Mesh mesh;
+    add_icosphere(mesh, centre, radius, levels);
+    return mesh;
+}
+
+/// A ball (icosphere of `levels` subdivisions, radius `radius`, centred at `ball`) in front of
+/// a wall (a square of half-size `half` centred at `wall`, in the x-y plane): occluding edges,
+/// a shadow and two depths for the rendering and noise tests.
+inline Mesh ball_before_wall(const Eigen::Vector3d& wall, double half, const Eigen::Vector3d& ball,
+                             double radius, int levels) {
+    Mesh mesh;
+    add_quad(mesh, wall, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), half);
+    add_icosphere(mesh, ball, radius, levels);
+    return mesh;
+}
+
 }  // namespace rgbd::synth::testing

@@ -1,4 +1,4 @@
-// Benchmarks of the adaptive noise filters (ALGORITHMS.md §4, §8):
+// Benchmarks of the adaptive noise filters (docs/algorithms.md §4, §8):
 // - BM_DistanceKinectV2View: remove_distance_outliers (rgbd-clean --distance) on one organised
 //   Kinect v2 view (512x424) on one core;
 // - BM_DensityMerged8Views: remove_density_outliers (rgbd-clean --density) on the 8 aligned

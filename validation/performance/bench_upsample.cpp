@@ -1,4 +1,4 @@
-// Benchmark of upsample_view (ALGORITHMS.md §5): 8- and 4-neighbour super-resolution of one
+// Benchmark of upsample_view (docs/algorithms.md §5): 8- and 4-neighbour super-resolution of one
 // Kinect v2 view on one core. Frame: RGBD_UPSAMPLE_CAPTURE (a capture folder, sensor = first
 // of rig.json, first frame), else a synthetic 512x424 frame with a sphere of 0.2 m radius at
 // 1.5 m (about the point count of a bust view).

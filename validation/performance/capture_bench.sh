@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Capture network benchmark (DESIGN.md §5, issue 8):
+# Capture network benchmark (docs/algorithms.md §1, issue 8):
 #  1. RVL vs PNG (bench_rvl, Google Benchmark): compression ratio and encode time per frame,
 #     as ratios to PNG, on full-frame Kinect v2 like depth (the synthetic sensor recorded through
 #     rgbd-node -> rgbd-capture), on the 8-Kinect rgbd-synth ring capture (object only, so

@@ -14,7 +14,6 @@ tests/workflows/collection_test.py (10 x 7 x 16 cm), --rig turntable --stops 12
 With --out, the table also goes to OUT/<date>-collection-parallel-<commit>.md.
 """
 import argparse
-import datetime
 import os
 import shutil
 import subprocess
@@ -25,7 +24,9 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, os.path.join(SRC, "tests", "workflows"))
+sys.path.insert(0, os.path.join(SRC, "validation", "quality", "common"))
 from collection_test import write_ellipsoid  # noqa: E402
+from rgbd_stream import publish, run_stamp  # noqa: E402
 
 
 def sh(cmd, cwd=None):
@@ -84,9 +85,7 @@ def main():
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
-    commit = subprocess.run(["git", "-C", SRC, "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-    date = datetime.date.today().isoformat()
+    date, commit = run_stamp(SRC)
     ratio = t_wf / t_loop
     lines = [
         f"# Collection workflow vs a loop ({date}, commit {commit})",
@@ -108,13 +107,7 @@ def main():
         f"Ratio workflow / loop: **{ratio:.2f}** (target <= 1: "
         f"{'met' if ratio <= 1.0 else 'NOT met'}).",
     ]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if a.out:
-        path = os.path.join(a.out, f"{date}-collection-parallel-{commit}.md")
-        with open(path, "w") as f:
-            f.write(text)
-        print(f"written {path}")
+    publish("\n".join(lines) + "\n", a.out, "collection-parallel", date, commit)
     return 0 if ok == a.n else 1
 
 

@@ -9,7 +9,7 @@ default crop, rgbd-align without --merge), times on the same merged cloud, alter
   points (call only, the cloud already in memory; and with o3d.io.read_point_cloud of the same
   points as one binary PLY, so both sides pay for reading the input).
 Prints medians over --repeat runs and the ratios Open3D / ours (> 1: ours faster; the target
-is >= 2). Timings vary by up to 30% between identical runs (PEERS.md): compare ratios of the
+is >= 2). Timings vary by up to 30% between identical runs on this machine: compare ratios of the
 same run.
 
 Usage: denoise_vs_open3d.py [--bin BUILD/bin] [--work DIR] [--repeat N] [--seed S]

@@ -18,13 +18,12 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "quality",
                                 "common"))
-from rgbd_stream import o3d_view_cloud, pose_of, read_stream, run  # noqa: E402
+from rgbd_stream import o3d_view_cloud, pose_of, read_stream, run, work_folder  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MESH = os.path.join(HERE, "..", "..", "..", "shared", "data", "meshes", "max_planck",
@@ -57,11 +56,8 @@ def main():
     ap.add_argument("--distance", type=float, default=0.012)
     ap.add_argument("--voxel", type=float, default=0.005)
     a = ap.parse_args()
-    if not os.path.exists(MESH):
-        sys.exit(f"icp_vs_open3d: {MESH} not found (../shared/data beside the repository)")
+    work = work_folder("icp_vs_open3d", a.work, needs=MESH)
     import open3d as o3d
-    work = a.work or tempfile.mkdtemp(prefix="icp_vs_open3d_")
-    os.makedirs(work, exist_ok=True)
     build = os.path.abspath(a.build)
     run(f"cmake --build {build} --target icp_pair_timer rgbd-synth rgbd-cloud rgbd-clean "
         f"> {work}/build.log 2>&1")

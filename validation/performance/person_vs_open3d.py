@@ -36,14 +36,14 @@ import os
 import re
 import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "quality", "common"))
-from rgbd_stream import optimise, pose_of, read_stream, rgb_of, xyz_of  # noqa: E402
+from open3d_peer import merge_views, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from rgbd_stream import argument_parser, optimise, pose_of, read_stream, run_stamp, work_folder  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "data", "multiview",
                                        "uva_cv2_person_kinect1"))
@@ -89,18 +89,7 @@ def o3d_job(views_path, out_mesh, out_json):
     t = {}
     t0 = time.perf_counter()
     docs = read_stream(views_path)
-    full, small = [], []
-    for _, doc in docs:
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
-        rgb = rgb_of(doc)
-        if rgb is not None:
-            pc.colors = o3d.utility.Vector3dVector(rgb)
-        pc, _ = pc.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
-        s = pc.voxel_down_sample(0.002)
-        s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.008, max_nn=30))
-        s.orient_normals_towards_camera_location(np.zeros(3))
-        full.append(pc)
-        small.append(s)
+    full, small = prepare_views([doc for _, doc in docs], 0.002)
     t["load_clean_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     n = len(docs)
@@ -110,12 +99,7 @@ def o3d_job(views_path, out_mesh, out_json):
     edges = []
     for i in range(n if n > 2 else n - 1):
         j = (i + 1) % n  # source j onto target i, from the identity
-        tr = np.eye(4)
-        for dist, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
-            tr = reg.registration_icp(small[j], small[i], dist, tr,
-                                      reg.TransformationEstimationPointToPlane(),
-                                      reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
-        info = reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, tr)
+        tr, info = pair_icp(small, i, j, np.eye(4))
         if j != 0:
             chained.append(chained[-1] @ tr)
             graph.nodes.append(reg.PoseGraphNode(chained[-1]))
@@ -127,22 +111,10 @@ def o3d_job(views_path, out_mesh, out_json):
     poses = [np.asarray(node.pose) for node in graph.nodes]
     t["pose_graph_s"] = time.perf_counter() - t2
     t3 = time.perf_counter()
-    merged = o3d.geometry.PointCloud()
-    for pc, pose in zip(full, poses):
-        w = o3d.geometry.PointCloud(pc)
-        w.transform(pose)
-        w.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.01, max_nn=30))
-        w.orient_normals_towards_camera_location(pose[:3, 3])
-        merged += w
-    merged = merged.voxel_down_sample(0.002)
-    merged, _ = merged.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
-    merged.normalize_normals()
+    merged = merge_views(full, poses)
     t["merge_s"] = time.perf_counter() - t3
     t4 = time.perf_counter()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-            merged, depth=9, width=0, scale=1.1, linear_fit=False)
-    dens = np.asarray(dens)
+    mesh, dens = screened_poisson(merged, 9)
     mesh.remove_vertices_by_mask(dens < np.quantile(dens, 0.02))
     t["poisson_s"] = time.perf_counter() - t4
     t["total_s"] = time.perf_counter() - t0
@@ -237,9 +209,7 @@ def read_stream_header_size(header):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--out", default=None, help="markdown file (default validation/results/"
                     "DATE-person-vs-open3d-COMMIT.md)")
     ap.add_argument("--frames", default="0:50", help="frame positions of the main comparison")
@@ -251,16 +221,11 @@ def main():
     if a.o3d_child:
         o3d_job(*a.o3d_child)
         return
-    if not os.path.isdir(PERSON):
-        sys.exit(f"person_vs_open3d: {PERSON} not found (../shared/data beside the repository)")
     b = os.path.abspath(a.bin)
     if not os.path.exists(f"{b}/rgbd-reconstruct"):
         sys.exit(f"person_vs_open3d: {b}/rgbd-reconstruct not found (build first, or --bin)")
-    work = a.work or tempfile.mkdtemp(prefix="person_vs_open3d_")
-    os.makedirs(work, exist_ok=True)
-    commit = subprocess.run("git rev-parse --short HEAD", shell=True, capture_output=True,
-                            text=True, cwd=HERE).stdout.strip() or "unknown"
-    today = datetime.date.today().isoformat()
+    work = work_folder("person_vs_open3d", a.work, needs=PERSON)
+    today, commit = run_stamp(HERE)
     lines = [f"# Person: rgbd-reconstruct against Open3D 0.16 ({today})", "",
              f"- commit {commit}; machine: {os.cpu_count()} cores (nproc), shared; work {work}",
              f"- command: `{' '.join(sys.argv)}`", ""]

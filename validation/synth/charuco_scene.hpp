@@ -3,8 +3,9 @@
 // sensor of the virtual ring (depth and colour with the usual noise; the board is printed on one
 // side only, so in each frame set only the sensors in front of it see it), with the usual wrong
 // rig.json. gt/world_from_depth.json has the true sensor poses, gt/board_poses.json the true
-// world_from_board per frame set, gt/board.json the board. ALGORITHMS.md §0.5, §6.3.
-// See also: synthesize.hpp (the ring, the noise, the folder), algorithms/calibration/.
+// world_from_board per frame set, gt/board.json the board. docs/algorithms.md, synthetic ground
+// truth, and §6. See also: synthesize.hpp (the ring, the noise, the folder),
+// algorithms/calibration/.
 #pragma once
 
 #include <filesystem>

@@ -2,9 +2,9 @@
 // jitter at depth edges, ToF flying pixels, grazing and random dropouts, random outliers,
 // quantisation, and colour noise; with a per-pixel label image saying what happened to each
 // pixel. Every draw comes from a counter-based generator addressed by the pixel, so results
-// depend only on the seed. Sources: ALGORITHMS.md §0.5 and §2.3 (Kinect v2 model recalled
-// from Fankhauser et al., ICAR 2015), PEERS.md "The captures", shared/data/README.md
-// "Recommendation: simulating a multi-sensor rig". See also: rasterizer.hpp, synthesize.hpp.
+// depend only on the seed. Sources: docs/algorithms.md, synthetic ground truth and §4 (Kinect v2
+// model recalled from Fankhauser et al., ICAR 2015), the README of the team's test data
+// ("Recommendation: simulating a multi-sensor rig"). See also: rasterizer.hpp, synthesize.hpp.
 #pragma once
 
 #include <cstdint>
@@ -17,7 +17,7 @@
 
 namespace rgbd::synth {
 
-/// Per-pixel labels written to gt/<sensor>/labels/ (DESIGN.md §3).
+/// Per-pixel labels written to gt/<sensor>/labels/ (docs/formats.md).
 enum class PixelLabel : std::uint8_t {
     kNoReturn = 0,  ///< nothing hit, or the depth is outside the sensor range
     kSurface = 1,   ///< a measurement of the surface (with axial noise)
@@ -48,7 +48,7 @@ struct DepthSensorTraits {
     double quantum_m = 0.001;  ///< depth quantisation step (Kinect v2 1 mm, SR300 1/8 mm)
 };
 
-/// Which noise to inject; defaults are the PEERS.md capture noise. Written to gt/scene.json.
+/// Which noise to inject; defaults are the noise of the peer comparisons. Written to gt/scene.json.
 struct NoiseOptions {
     bool axial = true;                ///< Gaussian noise along the ray, sigma_z(z, theta)
     bool lateral = true;              ///< lateral jitter of pixels in the depth-edge band

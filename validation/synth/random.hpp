@@ -9,21 +9,16 @@
 #include <cstdint>
 #include <numbers>
 
-namespace rgbd::synth {
+#include "toolkit/random.hpp"
 
-/// SplitMix64 finaliser: a bijective 64-bit mix.
-inline std::uint64_t mix64(std::uint64_t x) {
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
+namespace rgbd::synth {
 
 /// Derives an independent seed from a parent seed and up to three integers (sensor, frame, ...).
 inline std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t a, std::uint64_t b = 0,
                                  std::uint64_t c = 0) {
-    return mix64(mix64(mix64(seed ^ mix64(a + 1)) ^ mix64(b + 0x51ed27ULL)) ^
-                 mix64(c + 0x2545fULL));
+    return splitmix64(
+        splitmix64(splitmix64(seed ^ splitmix64(a + 1)) ^ splitmix64(b + 0x51ed27ULL)) ^
+        splitmix64(c + 0x2545fULL));
 }
 
 /// A deterministic random stream addressed by (seed, stream, index): draw k of an element.
@@ -33,11 +28,11 @@ public:
 
     /// 64 random bits for element `index` in stream `stream`.
     std::uint64_t bits(std::uint64_t stream, std::uint64_t index) const {
-        return mix64(mix64(seed_ ^ (stream * 0xd1342543de82ef95ULL)) + index);
+        return splitmix64(splitmix64(seed_ ^ (stream * 0xd1342543de82ef95ULL)) + index);
     }
     /// Uniform in [0, 1) (53 bits).
     double uniform(std::uint64_t stream, std::uint64_t index) const {
-        return static_cast<double>(bits(stream, index) >> 11) * 0x1.0p-53;
+        return unit_interval(bits(stream, index));
     }
     /// Standard normal (Box-Muller on two sub-streams).
     double normal(std::uint64_t stream, std::uint64_t index) const {

@@ -199,50 +199,44 @@ UpAxis parse_up_axis(const std::string& name) {
 
 // ---------------------------------------------------------------- sensors and rig
 
-io::SensorSpec kinect_v2_spec(const std::string& id) {
+namespace {
+
+/// A sensor of the synthetic rigs: `model` names it and its noise model; colour_offset_m is
+/// the colour camera's position in the depth camera's frame (no rotation between them).
+io::SensorSpec synthetic_spec(const std::string& id, const std::string& model,
+                              const PinholeIntrinsics& depth, const PinholeIntrinsics& color,
+                              double depth_scale, double range_min_m, double range_max_m,
+                              const Eigen::Vector3d& colour_offset_m) {
     io::SensorSpec s;
     s.id = id;
-    s.model = "kinect_v2";
-    s.depth.width = 512;
-    s.depth.height = 424;
-    s.depth.fx = s.depth.fy = 365.5;
-    s.depth.cx = 256.0;
-    s.depth.cy = 212.0;
-    s.color.width = 1920;
-    s.color.height = 1080;
-    s.color.fx = s.color.fy = 1081.37;
-    s.color.cx = 959.5;
-    s.color.cy = 539.5;
-    s.depth_scale = 1000.0;
-    s.range_min_m = 0.5;
-    s.range_max_m = 4.5;
+    s.model = model;
+    s.depth = depth;
+    s.color = color;
+    s.depth_scale = depth_scale;
+    s.range_min_m = range_min_m;
+    s.range_max_m = range_max_m;
     s.color_from_depth = Pose::Identity();
-    s.color_from_depth.translation() = Eigen::Vector3d(0.052, 0, 0);
-    s.noise_model = "kinect_v2";
+    s.color_from_depth.translation() = colour_offset_m;
+    s.noise_model = model;
     return s;
 }
 
+}  // namespace
+
+io::SensorSpec kinect_v2_spec(const std::string& id) {
+    return synthetic_spec(
+        id, "kinect_v2",
+        {.width = 512, .height = 424, .fx = 365.5, .fy = 365.5, .cx = 256.0, .cy = 212.0},
+        {.width = 1920, .height = 1080, .fx = 1081.37, .fy = 1081.37, .cx = 959.5, .cy = 539.5},
+        1000.0, 0.5, 4.5, Eigen::Vector3d(0.052, 0, 0));
+}
+
 io::SensorSpec sr300_spec(const std::string& id) {
-    io::SensorSpec s;
-    s.id = id;
-    s.model = "sr300";
-    s.depth.width = 640;
-    s.depth.height = 480;
-    s.depth.fx = s.depth.fy = 475.9;
-    s.depth.cx = 310.7;
-    s.depth.cy = 245.2;
-    s.color.width = 1920;
-    s.color.height = 1080;
-    s.color.fx = s.color.fy = 1386.0;
-    s.color.cx = 959.5;
-    s.color.cy = 539.5;
-    s.depth_scale = 8000.0;  // 1/8 mm
-    s.range_min_m = 0.2;
-    s.range_max_m = 1.5;
-    s.color_from_depth = Pose::Identity();
-    s.color_from_depth.translation() = Eigen::Vector3d(0.0257, -0.00073, 0.00394);
-    s.noise_model = "sr300";
-    return s;
+    return synthetic_spec(
+        id, "sr300",
+        {.width = 640, .height = 480, .fx = 475.9, .fy = 475.9, .cx = 310.7, .cy = 245.2},
+        {.width = 1920, .height = 1080, .fx = 1386.0, .fy = 1386.0, .cx = 959.5, .cy = 539.5},
+        8000.0 /* 1/8 mm */, 0.2, 1.5, Eigen::Vector3d(0.0257, -0.00073, 0.00394));
 }
 
 DepthSensorTraits traits_of(const io::SensorSpec& spec) {
@@ -252,23 +246,6 @@ DepthSensorTraits traits_of(const io::SensorSpec& spec) {
     t.range_max_m = spec.range_max_m;
     t.quantum_m = 1.0 / spec.depth_scale;
     return t;
-}
-
-Pose look_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
-             const Eigen::Vector3d& up) {
-    const Eigen::Vector3d d = target - position;
-    RGBD_CHECK(d.norm() > 1e-9, "look_at: position and target coincide");
-    const Eigen::Vector3d z = d.normalized();
-    const Eigen::Vector3d xr = z.cross(up);
-    RGBD_CHECK(xr.norm() > 1e-9, "look_at: view direction parallel to up");
-    const Eigen::Vector3d x = xr.normalized();
-    const Eigen::Vector3d y = z.cross(x);
-    Pose p = Pose::Identity();
-    p.linear().col(0) = x;
-    p.linear().col(1) = y;
-    p.linear().col(2) = z;
-    p.translation() = position;
-    return p;
 }
 
 PlacedMesh place_mesh(const Mesh& input, double height_m, UpAxis up,

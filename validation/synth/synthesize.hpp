@@ -1,8 +1,8 @@
-// Synthetic RGB-D captures with ground truth ("virtual ring", ALGORITHMS.md §0.5): places a
-// mesh in the world, builds a ring of Kinect v2 sensors or one SR300-like sensor in front of a
-// turntable, renders depth and colour by rasterisation, injects sensor noise, calibration
-// error and clock offsets, and writes a capture folder v1 with gt/ (DESIGN.md §3, §6).
-// See also: rasterizer.hpp, noise.hpp, texture.hpp, validation/rgbd_synth.cpp (the tool).
+// Synthetic RGB-D captures with ground truth ("virtual ring", docs/algorithms.md, synthetic ground
+// truth): places a mesh in the world, builds a ring of Kinect v2 sensors or one SR300-like sensor
+// in front of a turntable, renders depth and colour by rasterisation, injects sensor noise,
+// calibration error and clock offsets, and writes a capture folder v1 with gt/ (docs/formats.md,
+// §6). See also: rasterizer.hpp, noise.hpp, texture.hpp, validation/rgbd_synth.cpp (the tool).
 #pragma once
 
 #include <Eigen/Core>
@@ -40,7 +40,7 @@ enum class MotionKind {
             ///< t / motion_period_s)
 };
 
-/// Everything that defines a synthetic capture. Defaults are the PEERS.md captures.
+/// Everything that defines a synthetic capture. Defaults are the captures of the peer comparisons.
 struct SynthOptions {
     RigKind rig = RigKind::kRing;  ///< ring or turntable
     int sensors = 8;               ///< ring: number of sensors, 360/N degrees apart
@@ -90,18 +90,15 @@ std::string to_string(RigKind rig);
 RigKind parse_rig_kind(const std::string& name);
 UpAxis parse_up_axis(const std::string& name);
 
-/// Kinect v2 (ALGORITHMS.md §0.5) and SR300-like (shared/data/README.md) sensor specs with
+/// Kinect v2 (docs/algorithms.md, synthetic ground truth) and SR300-like sensor specs with
 /// identity poses and zero clock offset.
 io::SensorSpec kinect_v2_spec(const std::string& id);
 io::SensorSpec sr300_spec(const std::string& id);
 /// Noise traits (model, range, quantum) for a spec made by the functions above.
 DepthSensorTraits traits_of(const io::SensorSpec& spec);
 
-/// Camera pose at `position` looking at `target` (OpenCV frame: x right, y down, z forward),
-/// with `up` the world up direction. Throws InputError when the two coincide or the view
-/// direction is parallel to `up`.
-Pose look_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
-             const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
+/// Camera pose at a position looking at a target (toolkit/pose.hpp).
+using rgbd::look_at;
 
 /// The input mesh scaled and placed in the world (z up, bbox centre at `centre`).
 struct PlacedMesh {

@@ -1,8 +1,9 @@
 // Procedural solid texture of synthetic objects: the true colour of any surface point, as a
 // function of the point in the object frame (metres, z up, origin at the bounding-box centre).
 // A smooth hue gradient along the height times a 3D checker of a few centimetres, so that
-// colour carries information at a finer scale than the depth pixels (ALGORITHMS.md §0.5, §5).
-// See also: rasterizer.hpp (colour rendering), synthesize.hpp (gt/scene.json).
+// colour carries information at a finer scale than the depth pixels (docs/algorithms.md, synthetic
+// ground truth, and §5). See also: rasterizer.hpp (colour rendering), synthesize.hpp
+// (gt/scene.json).
 #pragma once
 
 #include <Eigen/Core>

@@ -1,4 +1,4 @@
-// Tests of the adaptive density-based filter (ALGORITHMS.md §8): two aligned views of a plane
+// Tests of the adaptive density-based filter (docs/algorithms.md §8): two aligned views of a plane
 // with floating clusters and sparse outliers, the sensors and local references, mark ==
 // delete, errors, empty views, thread-count determinism.
 #include "algorithms/denoise/density_outliers.hpp"

@@ -1,4 +1,4 @@
-// Tests of the adaptive distance-based filter (ALGORITHMS.md §4) on synthetic organised
+// Tests of the adaptive distance-based filter (docs/algorithms.md §4) on synthetic organised
 // frames with known answers: flying pixels between a foreground and a background, speckles,
 // a plane tilted 70 degrees, the same scene at 1 m and 3 m, mark == delete, errors, threads.
 #include "algorithms/denoise/distance_outliers.hpp"
@@ -117,32 +117,36 @@ TEST(DistanceOutliers, RemovesFlyingPixelsSpecklesAndOutliers) {
     EXPECT_GT(r["speckle"].get<int>(), 0);
 }
 
+/// A plane through (0, 0, 1.5) whose normal is tilted by `tilt_deg` about the y axis: each
+/// pixel's depth from its ray-plane intersection plus the Kinect v2 axial noise at that depth
+/// and incidence; pixels outside [z_min, z_max] and a share `dropout` of the others stay empty.
+Frame tilted_plane(double tilt_deg, double z_min, double z_max, double dropout,
+                   std::uint64_t seed) {
+    Frame f = empty_frame();
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    const double tilt = tilt_deg * std::numbers::pi / 180.0;
+    const Eigen::Vector3d normal(std::sin(tilt), 0.0, -std::cos(tilt));
+    const Eigen::Vector3d origin(0.0, 0.0, 1.5);
+    const auto k = intrinsics();
+    for (int row = 0; row < kH; ++row)
+        for (int col = 0; col < kW; ++col) {
+            const Eigen::Vector3d ray = k.unproject(col, row, 1.0);  // z = 1: t is the depth
+            const double z = normal.dot(origin) / normal.dot(ray);
+            if (z < z_min || z > z_max || (dropout > 0 && uniform(rng) < dropout)) continue;
+            const double theta = std::acos(std::abs(normal.dot(ray.normalized())));
+            std::normal_distribution<double> noise(0.0, sigma_z_m(NoiseModel::kKinectV2, z, theta));
+            add(f, col, row, z + noise(rng), false);
+        }
+    return f;
+}
+
 TEST(DistanceOutliers, KeepsAPlaneTiltedSeventyDegrees) {
-    for (double tilt_deg : {70.0}) {
-        Frame f = empty_frame();
-        std::mt19937_64 rng(5);
-        const double tilt = tilt_deg * std::numbers::pi / 180.0;
-        // Plane through (0, 0, 1.5) with normal rotated by `tilt` about the y axis: depth along
-        // each pixel ray from the ray-plane intersection.
-        const Eigen::Vector3d normal(std::sin(tilt), 0.0, -std::cos(tilt));
-        const Eigen::Vector3d origin(0.0, 0.0, 1.5);
-        const auto k = intrinsics();
-        for (int row = 0; row < kH; ++row)
-            for (int col = 0; col < kW; ++col) {
-                const Eigen::Vector3d ray = k.unproject(col, row, 1.0);
-                const double t = normal.dot(origin) / normal.dot(ray);
-                const double z = t;  // ray has z = 1
-                if (z < 0.5 || z > 4.5) continue;
-                const double theta = std::acos(std::abs(normal.dot(ray.normalized())));
-                std::normal_distribution<double> noise(0.0,
-                                                       sigma_z_m(NoiseModel::kKinectV2, z, theta));
-                add(f, col, row, z + noise(rng), false);
-            }
-        PointCloud cloud = f.cloud;
-        const Report r = remove_distance_outliers(cloud, DistanceOptions{});
-        const double loss = 1.0 - double(cloud.size()) / double(f.surface);
-        EXPECT_LE(loss, 0.02) << r.dump();
-    }
+    const Frame f = tilted_plane(70.0, 0.5, 4.5, 0.0, 5);
+    PointCloud cloud = f.cloud;
+    const Report r = remove_distance_outliers(cloud, DistanceOptions{});
+    const double loss = 1.0 - double(cloud.size()) / double(f.surface);
+    EXPECT_LE(loss, 0.02) << r.dump();
 }
 
 // Spikes inside a dense surface: single pixels 20-35 mm off a wall that fills the frame
@@ -277,22 +281,7 @@ TEST(DistanceOutliers, SphereBeforeAWallFarFlyingPixelsGoSurfaceStays) {
 // fail the support and line tests; their 5 nearest 3D points stay within 3 footprints, so the
 // kNN keep test keeps them.
 TEST(DistanceOutliers, KnnKeepTestKeepsNoisyGrazingSurface) {
-    Frame f = empty_frame();
-    std::mt19937_64 rng(9);
-    std::uniform_real_distribution<double> uniform(0.0, 1.0);
-    const double tilt = 78.0 * std::numbers::pi / 180.0;
-    const Eigen::Vector3d normal(std::sin(tilt), 0.0, -std::cos(tilt));
-    const Eigen::Vector3d origin(0.0, 0.0, 1.5);
-    const auto k = intrinsics();
-    for (int row = 0; row < kH; ++row)
-        for (int col = 0; col < kW; ++col) {
-            const Eigen::Vector3d ray = k.unproject(col, row, 1.0);
-            const double z = normal.dot(origin) / normal.dot(ray);
-            if (z < 1.0 || z > 2.0 || uniform(rng) < 0.35) continue;
-            const double theta = std::acos(std::abs(normal.dot(ray.normalized())));
-            std::normal_distribution<double> noise(0.0, sigma_z_m(NoiseModel::kKinectV2, z, theta));
-            add(f, col, row, z + noise(rng), false);
-        }
+    const Frame f = tilted_plane(78.0, 1.0, 2.0, 0.35, 9);
     ASSERT_GT(f.surface, 3000u);
     PointCloud with_keep = f.cloud, without_keep = f.cloud;
     const Report r = remove_distance_outliers(with_keep, DistanceOptions{});
@@ -417,7 +406,7 @@ TEST(DistanceOutliers, OneAndTwoThreadsAgree) {
 
 TEST(SensorNoise, KinectV2AtOnePointFiveMetres) {
     EXPECT_NEAR(sigma_z_m(NoiseModel::kKinectV2, 1.5), 0.0014, 0.0001);
-    // dz_max(1.5 m) ~ 4.1 mm * 3.73 + 3 * 1.4 mm ~ 19.5 mm (ALGORITHMS.md §4).
+    // dz_max(1.5 m) ~ 4.1 mm * 3.73 + 3 * 1.4 mm ~ 19.5 mm (docs/algorithms.md §4).
     EXPECT_NEAR(max_depth_step_m(NoiseModel::kKinectV2, 1.5, kF, 75 * std::numbers::pi / 180),
                 0.0195, 0.001);
     EXPECT_EQ(parse_noise_model("sr300"), NoiseModel::kSr300);

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <numbers>
 
 #include "tests/validation/synth_test_shapes.hpp"
 #include "toolkit/error.hpp"
@@ -17,14 +18,8 @@
 namespace rgbd::evaluation {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-/// Icosphere of the given radius: icosahedron subdivided `levels` times (20 * 4^levels faces).
-Mesh icosphere(double radius, int levels) {
-    Mesh mesh;
-    synth::testing::add_icosphere(mesh, Eigen::Vector3d::Zero(), radius, levels);
-    return mesh;
-}
+constexpr double kPi = std::numbers::pi;
+using synth::testing::icosphere;
 
 /// Adds a triangle (three new vertices) to `mesh`.
 void add_triangle(Mesh& mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

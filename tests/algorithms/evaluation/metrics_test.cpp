@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <numbers>
 
 #include "tests/validation/synth_test_shapes.hpp"
 #include "toolkit/error.hpp"
@@ -16,14 +17,8 @@
 namespace rgbd::evaluation {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-/// Icosphere of the given radius: icosahedron subdivided `levels` times (20 * 4^levels faces).
-Mesh icosphere(double radius, int levels) {
-    Mesh mesh;
-    synth::testing::add_icosphere(mesh, Eigen::Vector3d::Zero(), radius, levels);
-    return mesh;
-}
+constexpr double kPi = std::numbers::pi;
+using synth::testing::icosphere;
 
 double face_area(const Mesh& mesh, Mesh::Face_index f) {
     std::vector<Eigen::Vector3d> c;

@@ -19,32 +19,29 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-PinholeIntrinsics depth_camera(bool distorted, int scale = 1) {
+/// A centred pinhole camera of width x height pixels and focal length f, times `scale`, with
+/// Brown distortion `coeffs` when `distorted`.
+PinholeIntrinsics camera(int width, int height, double f, int scale, bool distorted,
+                         const std::vector<double>& coeffs) {
     PinholeIntrinsics k;
-    k.width = 160 * scale;
-    k.height = 120 * scale;
-    k.fx = k.fy = 130.0 * scale;
+    k.width = width * scale;
+    k.height = height * scale;
+    k.fx = k.fy = f * scale;
     k.cx = (k.width - 1) / 2.0;
     k.cy = (k.height - 1) / 2.0;
     if (distorted) {
         k.distortion.model = "brown";
-        k.distortion.coeffs = {0.05, -0.02, 0.001, -0.0005, 0.0};
+        k.distortion.coeffs = coeffs;
     }
     return k;
 }
 
+PinholeIntrinsics depth_camera(bool distorted, int scale = 1) {
+    return camera(160, 120, 130.0, scale, distorted, {0.05, -0.02, 0.001, -0.0005, 0.0});
+}
+
 PinholeIntrinsics color_camera(bool distorted, int scale = 1) {
-    PinholeIntrinsics k;
-    k.width = 480 * scale;
-    k.height = 360 * scale;
-    k.fx = k.fy = 390.0 * scale;
-    k.cx = (k.width - 1) / 2.0;
-    k.cy = (k.height - 1) / 2.0;
-    if (distorted) {
-        k.distortion.model = "brown";
-        k.distortion.coeffs = {-0.03, 0.01, 0.0, 0.0, 0.0};
-    }
-    return k;
+    return camera(480, 360, 390.0, scale, distorted, {-0.03, 0.01, 0.0, 0.0, 0.0});
 }
 
 /// Smooth texture of the plane, a function of the depth-frame 3D point.

@@ -1,4 +1,4 @@
-// The space the sensors saw empty (ALGORITHMS.md §12.4) with a known answer: a plane seen by
+// The space the sensors saw empty (docs/algorithms.md §12) with a known answer: a plane seen by
 // one sensor (points in front of it are free space, behind it or beside its line of sight
 // not); and a bust-like body of revolution seen by a level ring above it, whose base flares
 // out under an overhang that no sensor sees: the large-hole fill may cut the unseen concave

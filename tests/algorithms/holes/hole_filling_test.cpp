@@ -116,8 +116,9 @@ FillStats run(const Scene& s, FillMechanism mechanism) {
 class Mechanisms : public ::testing::TestWithParam<FillMechanism> {};
 
 TEST_P(Mechanisms, FillSmallHolesOnAHeadShapeWithinOneMillimetre) {
-    // The synthetic bust's head (ALGORITHMS.md §0.5): semi-axes 8 / 11 / 9 cm, ~2 mm spacing,
-    // 0.4 mm noise along the normal, four cut caps of 4 - 12 mm radius (all small holes).
+    // The synthetic bust's head (docs/algorithms.md, synthetic ground truth): semi-axes 8 / 11 / 9
+    // cm, ~2 mm spacing, 0.4 mm noise along the normal, four cut caps of 4 - 12 mm radius (all
+    // small holes).
     const Scene s = ellipsoid({0.08, 0.11, 0.09}, 28000, 0.0004);
     const auto before = rgbd::holes::detect_boundaries(s.points, {}, BoundaryOptions{});
     ASSERT_EQ(before.loops.size(), 4u);

@@ -138,7 +138,7 @@ TEST(BodyAxis, WithoutSensorsTheNarrowEndIsUp) {
 // §13 test: ellipsoid head (semi-axes 7.5 x 8.5 cm, 11 cm tall), 0.3 mm noise, cut below the
 // jaw (open bottom); a level ring at the top of the head never sees normals steeper than 35
 // degrees from up: that crown is missing. Chamfer of the filled points to the true crown
-// < 3 mm at a 2 mm spacing (ALGORITHMS.md §13).
+// < 3 mm at a 2 mm spacing (docs/algorithms.md §13).
 TEST(HeadTop, FillsTheCrownARingNeverSees) {
     const Eigen::Vector3d axes(0.075, 0.085, 0.11);
     const double crown_cos = std::cos(35 * M_PI / 180);

@@ -3,19 +3,27 @@
 #pragma once
 
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "toolkit/point_cloud.hpp"
 
 namespace rgbd::test {
 
-inline PointCloud coloured_sphere(int n, double radius, bool with_synthetic = false) {
+/// An empty view 0 in the world frame with normal and colour maps, to be filled.
+inline PointCloud empty_world_view() {
     PointCloud cloud;
     cloud.view.id = 0;
-    cloud.view.sensor = "merged";
     cloud.view.frame = ViewFrame::kWorld;
     cloud.points.add_normal_map();
-    auto colors = cloud.add_colors();
+    cloud.add_colors();
+    return cloud;
+}
+
+inline PointCloud coloured_sphere(int n, double radius, bool with_synthetic = false) {
+    PointCloud cloud = empty_world_view();
+    cloud.view.sensor = "merged";
+    auto colors = cloud.colors();
     std::optional<PointCloud::Uint8Map> synthetic;
     if (with_synthetic) synthetic = cloud.add_flag(prop::kSynthetic);
     const double golden = M_PI * (3.0 - std::sqrt(5.0));
@@ -34,20 +42,13 @@ inline PointCloud coloured_sphere(int n, double radius, bool with_synthetic = fa
     return cloud;
 }
 
-}  // namespace rgbd::test
-
-namespace rgbd::test {
-
 /// Fibonacci sphere samples (radius `radius`, outward normals, grey) with Gaussian noise of
 /// `sigma` metres along the normal (seeded), without the points above z = cap_z * radius
 /// (cap_z >= 1 keeps the whole sphere) nor those below z = base_z * radius.
 inline PointCloud noisy_sphere(int n, double radius, double sigma, double cap_z = 1.0,
                                unsigned seed = 1, double base_z = -1.0) {
-    PointCloud cloud;
-    cloud.view.id = 0;
-    cloud.view.frame = ViewFrame::kWorld;
-    cloud.points.add_normal_map();
-    auto colors = cloud.add_colors();
+    PointCloud cloud = empty_world_view();
+    auto colors = cloud.colors();
     std::mt19937 rng(seed);
     std::normal_distribution<double> noise(0.0, sigma);
     const double golden = M_PI * (3.0 - std::sqrt(5.0));
@@ -68,11 +69,8 @@ inline PointCloud noisy_sphere(int n, double radius, double sigma, double cap_z 
 /// noise of `sigma` along the normal. Top (z > 0) red, bottom blue, rim green.
 inline PointCloud thin_plate(double a, double b, double t, double step, double sigma,
                              unsigned seed = 1) {
-    PointCloud cloud;
-    cloud.view.id = 0;
-    cloud.view.frame = ViewFrame::kWorld;
-    cloud.points.add_normal_map();
-    auto colors = cloud.add_colors();
+    PointCloud cloud = empty_world_view();
+    auto colors = cloud.colors();
     std::mt19937 rng(seed);
     std::normal_distribution<double> noise(0.0, sigma);
     std::uniform_real_distribution<double> jitter(-0.25 * step, 0.25 * step);

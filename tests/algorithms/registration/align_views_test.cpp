@@ -96,7 +96,7 @@ TEST(AlignViews, LargeCalibrationErrorIsRecoveredByThePairwiseStage) {
 
 TEST(AlignViews, TexturedCylinderIsLockedByColour) {
     // Two views 40 degrees apart of a textured cylinder seen side-on: the second view's pose is
-    // off by 5 degrees about the axis, which geometry cannot see (ALGORITHMS.md §6.2 test).
+    // off by 5 degrees about the axis, which geometry cannot see (docs/algorithms.md §6 test).
     const rgbd::test::TexturedCylinder cyl;
     const auto paint = [&](const Eigen::Vector3d& p) { return cyl.colour(p); };
     std::vector<PointCloud> views;

@@ -13,6 +13,7 @@
 #include <random>
 
 #include "toolkit/point_cloud.hpp"
+#include "toolkit/pose.hpp"
 
 namespace rgbd::test {
 
@@ -61,15 +62,7 @@ struct TexturedCylinder {
 
 /// Camera looking at `target` from `eye`, with world "up" = +y (image y = down).
 inline Pose look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-    const Eigen::Vector3d z = (target - eye).normalized();
-    const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitY()).normalized();  // right
-    const Eigen::Vector3d y = z.cross(x);                                      // down
-    Pose pose = Pose::Identity();
-    pose.linear().col(0) = x;
-    pose.linear().col(1) = y;
-    pose.linear().col(2) = z;
-    pose.translation() = eye;
-    return pose;
+    return rgbd::look_at(eye, target, Eigen::Vector3d::UnitY());
 }
 
 /// Ray-cast view of the surface from the camera at `world_from_sensor`; every `stride`-th pixel.

@@ -10,6 +10,7 @@
 #include <random>
 
 #include "toolkit/error.hpp"
+#include "toolkit/pose.hpp"
 #include "toolkit/types.hpp"
 
 using namespace rgbd;
@@ -22,15 +23,7 @@ constexpr double kPi = std::numbers::pi;
 /// tilted by the 10 deg down-look).
 Pose camera_at(double az) {
     const Eigen::Vector3d pos(0.55 * std::cos(az), 0.55 * std::sin(az), 0.1);
-    const Eigen::Vector3d z = (-pos).normalized();
-    const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-    const Eigen::Vector3d y = z.cross(x);
-    Pose p = Pose::Identity();
-    p.linear().col(0) = x;
-    p.linear().col(1) = y;
-    p.linear().col(2) = z;
-    p.translation() = pos;
-    return p;
+    return look_at(pos, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
 }
 
 struct Scene {

@@ -1,4 +1,4 @@
-// Tests of upsample_view (ALGORITHMS.md §5) on synthetic frames with known answers: a tilted
+// Tests of upsample_view (docs/algorithms.md §5) on synthetic frames with known answers: a tilted
 // plane (new points on the plane, exact colour pixels), a step edge (nothing in the gap),
 // counts for 4 and 8 neighbours, flags and confidence, the midpoint variant, errors, and
 // determinism for 1 and 2 threads.

@@ -18,7 +18,7 @@ Variants (--variants):
 - skip-distance, skip-upsample, skip-density, skip-fill: the same with --skip STAGE (on the
   person, skip-upsample is the default's run: Kinect v1 colour has the depth's pixel count, so
   upsampling never runs);
-- o3d-spr, o3d-spr-trim: PEERS.md's Open3D 0.16 pipeline on the views of rgbd-cloud: per-view
+- o3d-spr, o3d-spr-trim: the Open3D 0.16 peer pipeline of docs/method.md on the views of rgbd-cloud: per-view
   statistical outlier removal (k 20, std 2), 5 mm voxels + normals for point-to-plane ICP
   between neighbouring views (48/24/12/6 mm, 40/40/40/30 iterations) from the rig's
   (camera.xml) poses, Open3D pose graph (Levenberg-Marquardt, closing edge uncertain), merge of
@@ -71,7 +71,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "common"))
-from rgbd_stream import BUSTS, DATA, optimise, pose_of, read_stream, rgb_of, xyz_of  # noqa: E402
+from open3d_peer import merge_views, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from rgbd_stream import BUSTS, DATA, optimise, pose_of, read_stream  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1"))
 CGAL_DATA = "/usr/share/doc/libcgal-dev/data.tar.gz"
@@ -169,25 +170,13 @@ def ours(obj, variant, cap, b, d, chain, frames, seed):
 
 
 def o3d_pipeline(views, out_untrimmed, out_trimmed, depth=9, trim=0.02):
-    """PEERS.md's Open3D pipeline on sensor-frame views [(comments, records)]; returns
+    """The Open3D peer pipeline (docs/method.md) on sensor-frame views [(comments, records)]; returns
     (seconds, world_from_sensor poses after the pose graph)."""
     import open3d as o3d
     reg = o3d.pipelines.registration
     t0 = time.perf_counter()
-    full, small, init = [], [], []
-    for comments, doc in views:
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
-        rgb = rgb_of(doc)
-        if rgb is not None:
-            pc.colors = o3d.utility.Vector3dVector(rgb)
-        pc, _ = pc.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
-        s = pc.voxel_down_sample(0.005)
-        s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=30))
-        s.orient_normals_towards_camera_location(np.zeros(3))
-        full.append(pc)
-        small.append(s)
-        p = pose_of(comments)
-        init.append(p if p is not None else np.eye(4))
+    full, small = prepare_views([doc for _, doc in views], 0.005)
+    init = [p if p is not None else np.eye(4) for p in (pose_of(c) for c, _ in views)]
     n = len(views)
     graph = reg.PoseGraph()
     for p in init:
@@ -195,31 +184,13 @@ def o3d_pipeline(views, out_untrimmed, out_trimmed, depth=9, trim=0.02):
     edges = range(n) if n > 2 else range(n - 1)
     for i in edges:
         j = (i + 1) % n  # source j onto target i; the closing edge (j = 0) is uncertain
-        t = np.linalg.inv(init[i]) @ init[j]
-        for dist, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
-            t = reg.registration_icp(small[j], small[i], dist, t,
-                                     reg.TransformationEstimationPointToPlane(),
-                                     reg.ICPConvergenceCriteria(1e-6, 1e-6, it)).transformation
-        info = reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, t)
+        t, info = pair_icp(small, i, j, np.linalg.inv(init[i]) @ init[j])
         graph.edges.append(reg.PoseGraphEdge(j, i, t, info, uncertain=(j == 0)))
     optimise(graph)
     poses = [np.asarray(node.pose) for node in graph.nodes]
-    merged = o3d.geometry.PointCloud()
-    for pc, pose in zip(full, poses):
-        w = o3d.geometry.PointCloud(pc)
-        w.transform(pose)
-        w.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.01, max_nn=30))
-        w.orient_normals_towards_camera_location(pose[:3, 3])
-        merged += w
-    merged = merged.voxel_down_sample(0.002)
-    merged, _ = merged.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
-    merged.normalize_normals()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-            merged, depth=depth, width=0, scale=1.1, linear_fit=False)
+    mesh, dens = screened_poisson(merge_views(full, poses), depth)
     seconds = time.perf_counter() - t0
     o3d.io.write_triangle_mesh(out_untrimmed, mesh)
-    dens = np.asarray(dens)
     mesh.remove_vertices_by_mask(dens < np.quantile(dens, trim))
     o3d.io.write_triangle_mesh(out_trimmed, mesh)
     return seconds, poses

@@ -8,7 +8,7 @@ erroneous rig poses as initial poses). Methods, timed in the same run:
 - ours: rgbd-align (pairwise stage with FPFH + RANSAC hypotheses, pose graph, joint rounds);
 - o3d-p2plane: Open3D point-to-plane ICP between ring neighbours from the rig poses
   (coarse to fine 48/24/12/6 mm, 40/40/40/30 iterations, 5 mm voxel), then Open3D's pose graph
-  (global_optimization, Levenberg-Marquardt, edge prune 0.25, reference node 0): PEERS.md's
+  (global_optimization, Levenberg-Marquardt, edge prune 0.25, reference node 0): the peer pipeline's
   pipeline;
 - o3d-colored: the same with registration_colored_icp (3 scales, 20/10/5 mm voxel, 50/30/14
   iterations, the Open3D tutorial schedule).
@@ -26,19 +26,17 @@ ground truth (median, p90) and the 360-degree loop closure before / after.
 Usage: measure_align.py [--bin build/bin] [--work DIR] [--seeds 20] [--calib-deg 5]
                         [--calib-mm 50] [--busts max_planck,bust_man_wreath] [--uva]
 """
-import argparse
 import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import (BUSTS, DATA, meta, o3d_view_cloud, optimise, pose_of, read_stream, run,  # noqa: E402
-                         xyz_of)
+from rgbd_stream import (argument_parser, BUSTS, DATA, meta, o3d_view_cloud, optimise,  # noqa: E402
+                         pose_of, read_stream, run, work_folder, xyz_of)
 
 
 
@@ -76,7 +74,7 @@ def pose_errors(est, truth, pts):
 
 
 def o3d_p2plane(src, tgt, t):
-    """PEERS.md's coarse-to-fine point-to-plane ICP: 48/24/12/6 mm, 40/40/40/30 iterations."""
+    """The peer pipeline's coarse-to-fine point-to-plane ICP: 48/24/12/6 mm, 40/40/40/30 iterations."""
     reg = o3d.pipelines.registration
     for d, it in [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]:
         t = reg.registration_icp(src, tgt, d, t, reg.TransformationEstimationPointToPlane(),
@@ -200,9 +198,7 @@ def uva(b, work):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--calib-deg", type=float, default=5.0)
@@ -211,10 +207,7 @@ def main():
     ap.add_argument("--no-peers", action="store_true", help="skip the Open3D runs")
     ap.add_argument("--uva", action="store_true", help="also the real person sequence")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_align: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_align_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_align", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     print(f"work dir {work}; calibration error {a.calib_deg} deg / {a.calib_mm} mm, "
           f"seeds {a.first_seed}..{a.first_seed + a.seeds - 1}")

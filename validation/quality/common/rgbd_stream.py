@@ -1,9 +1,13 @@
 """Small helpers shared by the validation scripts: the PLY view-stream reader, view metadata,
 poses and a shell runner. numpy only (Debian's /usr/bin/python3)."""
+import argparse
+import datetime
+import json
 import os
 import re
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 
@@ -75,6 +79,52 @@ def rgb_of(doc):
     return np.stack([doc["red"], doc["green"], doc["blue"]], 1).astype(np.float64) / 255.0
 
 
+def argument_parser(doc):
+    """The measurement scripts' command line: `doc` (the script's docstring) as its help, --bin
+    (the built tools) and --work (the scratch folder of work_folder())."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--bin", default="build/bin", help="folder of the built rgbd-* tools")
+    ap.add_argument("--work", default=None, help="scratch folder (default: a new temporary one)")
+    return ap
+
+
+def work_folder(script, work=None, needs=None):
+    """A script's scratch folder: `work` (made when missing) or a new temporary one named after
+    the script. With `needs`, first exits naming that path when it is absent (test data that
+    lives in ../shared/data beside the repository)."""
+    if needs is not None and not os.path.exists(needs):
+        sys.exit(f"{script}: {needs} not found (../shared/data beside the repository)")
+    work = work or tempfile.mkdtemp(prefix=script + "_")
+    os.makedirs(work, exist_ok=True)
+    return work
+
+
+def write_json_lines(path, rows):
+    """One JSON object per line (the --out files of the measurement scripts)."""
+    with open(path, "w") as f:
+        for r in rows:
+            f.write(json.dumps(r) + "\n")
+
+
+def run_stamp(folder):
+    """(today's ISO date, the short commit of the checkout that holds `folder`, or "unknown"):
+    what names a results file."""
+    commit = subprocess.run(["git", "-C", folder, "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip() or "unknown"
+    return datetime.date.today().isoformat(), commit
+
+
+def publish(text, out_dir, name, date, commit):
+    """Prints a results table and, with `out_dir`, writes it to out_dir/<date>-<name>-<commit>.md
+    (validation/results/ keeps them)."""
+    print(text)
+    if out_dir:
+        path = os.path.join(out_dir, f"{date}-{name}-{commit}.md")
+        with open(path, "w") as f:
+            f.write(text)
+        print(f"written {path}", file=sys.stderr)
+
+
 def run(cmd, **kw):
     r = subprocess.run(cmd, shell=True, capture_output=True, text=True, **kw)
     if r.returncode != 0:
@@ -85,19 +135,12 @@ def run(cmd, **kw):
 def o3d_view_cloud(doc, voxel):
     """Open3D cloud of one sensor-frame document: voxel-down-sampled, normals (hybrid radius 4
     voxels, 30 neighbours) turned towards the camera at the origin, colours when present."""
-    import open3d as o3d
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
-    rgb = rgb_of(doc)
-    if rgb is not None:
-        pc.colors = o3d.utility.Vector3dVector(rgb)
-    pc = pc.voxel_down_sample(voxel)
-    pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
-    pc.orient_normals_towards_camera_location(np.zeros(3))
-    return pc
+    from open3d_peer import downsampled_with_normals, o3d_cloud
+    return downsampled_with_normals(o3d_cloud(doc), voxel)
 
 
 def optimise(graph):
-    """Open3D's pose graph (PEERS.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
+    """Open3D's pose graph (the peer pipeline of docs/method.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
     import open3d as o3d
     reg = o3d.pipelines.registration
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):

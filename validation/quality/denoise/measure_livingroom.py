@@ -97,7 +97,7 @@ def main():
         if "--smooth" in extra:
             moved[label] = [xyz_of(d[1]) for d in docs]
 
-    # --density judges the 5 posed frames together (ALGORITHMS.md §8; trajectory.log poses).
+    # --density judges the 5 posed frames together (docs/algorithms.md §8; trajectory.log poses).
     out = os.path.join(work, "density.ply")
     t = time.perf_counter()
     run(f"{b}/rgbd-clean --density --noise-model kinect_v1 --mark -q {noisy} > {out}")

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Hole-rim (boundary) detection on meshes with known holes (ALGORITHMS.md §10), ours against the
+"""Hole-rim (boundary) detection on meshes with known holes (docs/algorithms.md §10), ours against the
 peers in the same run.
 
 Meshes: shared/data/meshes/cgal_with_holes/{head,holes,mech-holes-shark}.off and the Stanford
@@ -26,7 +26,6 @@ Usage: validation/quality/holes/measure_boundary.py [--build build] [--points 30
        [--out results.jsonl]
 """
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -175,9 +174,7 @@ def main():
             print(f"  target (recall >= 0.95, false <= 0.02): "
                   f"{'met' if row['target_met'] else 'NOT met'}")
     if args.out:
-        with open(args.out, "w") as f:
-            for r in results:
-                f.write(json.dumps(r) + "\n")
+        rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
-"""Small-hole filling (ALGORITHMS.md §11) on a bust with holes cut on purpose: the four
+"""Small-hole filling (docs/algorithms.md §11) on a bust with holes cut on purpose: the four
 mechanisms of rgbd-fill measured against the true surface, in one run.
 
-Bust: shared/data/meshes/max_planck/max-planck.obj scaled to 0.45 m height (as in PEERS.md),
+Bust: shared/data/meshes/max_planck/max-planck.obj scaled to 0.45 m height (as in the peer comparisons),
 sampled with Open3D's Poisson-disk sampling (--points, fixed seed; about 2 mm spacing at the
 default), optionally with Gaussian noise along the normal (--noise-mm), coloured by a smooth procedural texture of the position. Holes: --holes balls of
 radius 3 - 7 spacings around sample points (fixed seed), all points inside removed: small holes
@@ -202,9 +202,7 @@ def main():
     print(f"within 1 mm RMS: {', '.join(r['mechanism'] for r in ok) or 'none'}"
           f"; best (closure >= 0.95 first, then RMS): {best['mechanism']}")
     if args.out:
-        with open(args.out, "w") as f:
-            for r in results:
-                f.write(json.dumps(r) + "\n")
+        rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":

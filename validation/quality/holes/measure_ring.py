@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Large holes and the head top (ALGORITHMS.md §12, §13) on 8-Kinect ring captures of the busts,
+"""Large holes and the head top (docs/algorithms.md §12, §13) on 8-Kinect ring captures of the busts,
 against Open3D Screened Poisson and CGAL's hole filling, in one run (issue 6).
 
 For every bust: rgbd-synth renders an 8-Kinect-v2 ring capture (default noise, rig poses off by
@@ -50,11 +50,8 @@ cyan), in --work.
 
 Usage: measure_ring.py [--bin build/bin] [--work DIR] [--busts max_planck,bust_man_wreath]
 """
-import argparse
-import json
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -63,7 +60,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import BUSTS, DATA, read_stream, run, write_points, xyz_of  # noqa: E402
+from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, run, work_folder,  # noqa: E402
+                         write_points, xyz_of)
 
 TAU = 0.005
 VARIANTS = [("small only", "--no-large --no-head-top"), ("+ head top", "--no-large"),
@@ -197,19 +195,14 @@ def picture(b, filled, work, tag):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--busts", default="max_planck,bust_man_wreath")
     ap.add_argument("--depths", default="8,9,10")
     ap.add_argument("--samples", type=int, default=200000)
     ap.add_argument("--fill-args", default="", help="extra rgbd-fill options for every variant")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_ring: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_ring_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_ring", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     print(f"work dir {work}; seed {a.seed}; Open3D {o3d.__version__}")

@@ -2,7 +2,7 @@
 """Surface reconstruction of rgbd-mesh against Open3D 0.16 Screened Poisson (issue 7).
 
 For every bust: rgbd-synth renders an 8-Kinect-v2 ring capture (default noise, rig poses off by
-1.5 degrees / 15 mm as in PEERS.md), and our pipeline builds the cloud:
+1.5 degrees / 15 mm as in docs/method.md), and our pipeline builds the cloud:
     rgbd-cloud | rgbd-clean --distance | rgbd-align | rgbd-clean --density
 (estimated poses, not the true ones: the meshers see the alignment error too). The aligned views
 carry normals oriented towards their sensors; their concatenation (world frame, with normals and
@@ -11,7 +11,7 @@ colours) is written to one point file for Open3D, and the SAME oriented points g
   poses, from which --watertight knows up; each method given by --methods, plus --watertight
   variants);
 - Open3D 0.16 create_from_point_cloud_poisson at depth 8, 9, 10 (scale 1.1, width 0,
-  linear_fit False; PEERS.md), untrimmed and trimmed at the 2% density quantile.
+  linear_fit False; docs/method.md), untrimmed and trimmed at the 2% density quantile.
 Every mesh is scored by rgbd-eval against the capture's true mesh: F-score at 2 mm, Chamfer,
 invented surface (share of the area farther than 5 mm); manifoldness by Open3D (edge- and
 vertex-manifold) and closedness (edge-manifold without boundary edges). Time: ours is the
@@ -28,12 +28,10 @@ SP's time at that depth.
 Usage: measure_mesh.py [--bin build/bin] [--work DIR] [--busts max_planck,...]
                        [--methods default,poisson,advancing-front] [--seed 1]
 """
-import argparse
 import json
 import os
 import resource
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -44,7 +42,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import BUSTS, DATA, read_stream, rgb_of, run, xyz_of  # noqa: E402
+from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, rgb_of, run,  # noqa: E402
+                         work_folder, xyz_of)
 
 BUSTS = dict(BUSTS)  # the validation busts, plus the bunny
 BUSTS.update({
@@ -133,9 +132,7 @@ def children_cpu():
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--bin", default="build/bin")
-    ap.add_argument("--work", default=None)
+    ap = argument_parser(__doc__)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--busts", default="max_planck,bust_man_wreath,stanford_bunny")
     ap.add_argument("--methods", default="default,poisson",
@@ -146,10 +143,7 @@ def main():
     ap.add_argument("--clean-args", default="",
                     help="extra options of the per-view rgbd-clean --distance (e.g. --smooth)")
     a = ap.parse_args()
-    if not os.path.isdir(DATA):
-        sys.exit(f"measure_mesh: {DATA} not found (../shared/data beside the repository)")
-    work = a.work or tempfile.mkdtemp(prefix="measure_mesh_")
-    os.makedirs(work, exist_ok=True)
+    work = work_folder("measure_mesh", a.work, needs=DATA)
     b = os.path.abspath(a.bin)
     print(f"work dir {work}; seed {a.seed}; Open3D {o3d.__version__}")
     summary = []

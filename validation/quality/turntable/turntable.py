@@ -23,7 +23,6 @@ Targets (issue 23): F@1mm >= 0.90, invented <= 1% (at 5 mm and, stricter, at 1 m
 completeness mean <= 0.5 mm.
 """
 import argparse
-import datetime
 import json
 import os
 import subprocess
@@ -33,6 +32,8 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.normpath(os.path.join(HERE, "..", "..", ".."))
 DATA = os.path.normpath(os.path.join(SRC, "..", "shared", "data", "meshes"))
+sys.path.insert(0, os.path.join(HERE, "..", "common"))
+from rgbd_stream import publish, run_stamp  # noqa: E402
 OBJECTS = {
     "max_planck": ("max_planck/max-planck.obj", "y"),
     "bust_man_wreath": ("danish_statues/BustManWreath_welded.ply", "y"),
@@ -97,9 +98,7 @@ def main():
             r = run_one(b, obj, stops, a.seed, work)
             rows.append(r)
             print(json.dumps(r), file=sys.stderr)
-    commit = subprocess.run(["git", "-C", SRC, "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-    date = datetime.date.today().isoformat()
+    date, commit = run_stamp(SRC)
     ok = lambda c: "" if c else " **x**"  # noqa: E731
     lines = [
         f"# Turntable benchmark ({date}, commit {commit})", "",
@@ -126,13 +125,7 @@ def main():
               and r["stand"] for r in rows)
     lines += ["", f"All targets (F@1mm, completeness, invented at 5 mm, closed, stand): "
               f"{'met' if met else 'NOT met'}."]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if a.out:
-        path = os.path.join(a.out, f"{date}-turntable-{commit}.md")
-        with open(path, "w") as f:
-            f.write(text)
-        print(f"written {path}", file=sys.stderr)
+    publish("\n".join(lines) + "\n", a.out, "turntable", date, commit)
     return 0
 
 

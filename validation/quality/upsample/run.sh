@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Colour-guided super-resolution (ALGORITHMS.md §5), issue 4 acceptance run.
+# Colour-guided super-resolution (docs/algorithms.md §5), issue 4 acceptance run.
 #  1. 8-Kinect ring captures of the two busts (rgbd-synth): rgbd-upsample 8/4 and midpoints vs
 #     CGAL edge_aware_upsample_point_set on the same views, measured by the same code
 #     (upsample_quality), all on one thread; PCL MLS upsampling (pcl-tools) where it can.

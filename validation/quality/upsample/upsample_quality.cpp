@@ -1,5 +1,5 @@
 // upsample_quality: error of super-resolved points against a synthetic capture's truth
-// (validation of ALGORITHMS.md §5). Reads a view stream (sensor frame) whose new points carry
+// (validation of docs/algorithms.md §5). Reads a view stream (sensor frame) whose new points carry
 // prop::kSynthetic, brings every view into the world with the TRUE pose (gt/world_from_depth
 // .json), and prints one JSON line: point ratio, RMS distance to gt/mesh.ply of original and
 // new points, share of new points farther than 3 sigma_z(z) = 3 * 0.0015 (z/1.5)^2 m, mean
@@ -44,6 +44,7 @@
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/order_statistics.hpp"
 #include "validation/synth/texture.hpp"
 
 using namespace rgbd;
@@ -109,9 +110,7 @@ double run_cgal(PointCloud& cloud, const RgbdFrame& frame, double factor) {
 
 double quantile(std::vector<double> v, double q) {
     if (v.empty()) return 0.0;
-    const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return v[k];
+    return rank_quantile(v, q);
 }
 
 /// Splats points (sensor frame) into a size x size image of a virtual pinhole camera looking

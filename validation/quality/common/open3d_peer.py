@@ -1,0 +1,81 @@
+"""The Open3D pipeline of the peer comparisons (docs/method.md, the Open3D 0.16 chain),
+shared by validation/performance/person_vs_open3d.py and validation/quality/ablation/ablation.py:
+per view statistical outlier removal and a down-sampled copy with normals, pairwise multi-scale
+point-to-plane ICP, the merged world-frame cloud and Screened Poisson. Open3D is imported by
+each function, so the module loads without it."""
+import numpy as np
+
+from rgbd_stream import rgb_of, xyz_of
+
+# Coarse to fine: (max correspondence distance m, iterations) of the pairwise ICP.
+ICP_SCALES = [(0.048, 40), (0.024, 40), (0.012, 40), (0.006, 30)]
+
+
+def o3d_cloud(doc):
+    """Open3D cloud of a document's points, with its colours when it has them."""
+    import open3d as o3d
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz_of(doc)))
+    rgb = rgb_of(doc)
+    if rgb is not None:
+        pc.colors = o3d.utility.Vector3dVector(rgb)
+    return pc
+
+
+def downsampled_with_normals(pc, voxel):
+    """A voxel-down-sampled copy of a sensor-frame cloud with normals (hybrid radius 4 voxels,
+    30 neighbours) turned towards the camera at the origin."""
+    import open3d as o3d
+    s = pc.voxel_down_sample(voxel)
+    s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
+    s.orient_normals_towards_camera_location(np.zeros(3))
+    return s
+
+
+def prepare_views(docs, voxel):
+    """Per sensor-frame document: statistical outlier removal (20 neighbours, 2 sigma) and the
+    down-sampled copy with normals for the registration. Returns (full clouds, small clouds)."""
+    full, small = [], []
+    for doc in docs:
+        pc, _ = o3d_cloud(doc).remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
+        full.append(pc)
+        small.append(downsampled_with_normals(pc, voxel))
+    return full, small
+
+
+def pair_icp(small, i, j, start):
+    """Multi-scale point-to-plane ICP of view j onto view i from `start` (4x4 target_from_source,
+    ICP_SCALES); returns (transformation, information matrix at 12 mm)."""
+    import open3d as o3d
+    reg = o3d.pipelines.registration
+    t = start
+    for dist, iterations in ICP_SCALES:
+        t = reg.registration_icp(small[j], small[i], dist, t,
+                                 reg.TransformationEstimationPointToPlane(),
+                                 reg.ICPConvergenceCriteria(1e-6, 1e-6, iterations)).transformation
+    return t, reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, t)
+
+
+def merge_views(full, poses):
+    """The views in the world frame, each with normals (radius 10 mm, 30 neighbours) turned
+    towards its camera, merged, down-sampled to 2 mm and cleaned (20 neighbours, 2 sigma)."""
+    import open3d as o3d
+    merged = o3d.geometry.PointCloud()
+    for pc, pose in zip(full, poses):
+        w = o3d.geometry.PointCloud(pc)
+        w.transform(pose)
+        w.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.01, max_nn=30))
+        w.orient_normals_towards_camera_location(pose[:3, 3])
+        merged += w
+    merged = merged.voxel_down_sample(0.002)
+    merged, _ = merged.remove_statistical_outlier(nb_neighbors=20, std_ratio=2.0)
+    merged.normalize_normals()
+    return merged
+
+
+def screened_poisson(merged, depth):
+    """Open3D's Screened Poisson (width 0, scale 1.1, no linear fit); returns (mesh, densities)."""
+    import open3d as o3d
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+            merged, depth=depth, width=0, scale=1.1, linear_fit=False)
+    return mesh, np.asarray(dens)
