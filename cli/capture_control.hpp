@@ -272,7 +272,7 @@ private:
             std::llround(1e9 / (s.rate_hz > 0 && s.rate_hz <= 1000 ? s.rate_hz : 30.0)));
     }
 
-    /// The common start (ALGORITHMS.md §1 step 3): once every rig sensor's latest session has
+    /// The common start (docs/algorithms.md §1): once every rig sensor's latest session has
     /// a clock (or start_wait_ns after the first had one), all of them start on one instant
     /// start_lead_ns ahead; a session ready later starts on the next instant of that frame
     /// grid, so a latecomer or a restarted node captures in phase with the others.

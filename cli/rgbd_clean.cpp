@@ -8,6 +8,7 @@
 #include "algorithms/denoise/distance_outliers.hpp"
 #include "algorithms/denoise/statistical_outliers.hpp"
 #include "cli/common/tool.hpp"
+#include "pipeline/stages.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -75,8 +76,10 @@ int main(int argc, char** argv) {
                 "radius-spacing", cli::value<double>(4.0, "X"),
                 "--radius: radius as a multiple of the robust point spacing (when --radius-m is "
                 "not given)")(
-                "noise-model", cli::value<std::string>("kinect_v2", "NAME"),
-                "--distance/--density: sensor noise model kinect_v2, kinect_v1, sr300 or generic")(
+                "noise-model", cli::value<std::string>("auto", "NAME"),
+                "--distance/--density: sensor noise model kinect_v2, kinect_v1, sr300 or "
+                "generic; auto: the one the views' metadata names (rgbd-cloud writes the rig "
+                "sensor's; --density: when all views agree), else kinect_v2")(
                 "theta-max-deg", cli::value<double>("DEG"),
                 "--distance/--density: steepest incidence angle of a real surface (default 70 for "
                 "--distance, 75 for --density)")(
@@ -150,6 +153,7 @@ int main(int argc, char** argv) {
         denoise::DistanceOptions distance;
         denoise::DensityOptions density;
         denoise::SmoothOptions smoothing;
+        bool noise_given = false;  // else each view's (or the stream's) own, rgbd-cloud's tag
         try {
             const bool has_k = vm.count("k") > 0;
             statistical.k = has_k ? ctx.get<int>("k") : 20;
@@ -170,8 +174,12 @@ int main(int argc, char** argv) {
             radius_options.mark = mark;
             radius_options.convention = statistical.convention;
 
-            const auto model = denoise::parse_noise_model(ctx.get<std::string>("noise-model"));
-            distance.noise_model = density.noise_model = smoothing.noise_model = model;
+            const std::string noise_name = ctx.get<std::string>("noise-model");
+            if (noise_name != "auto") {
+                const auto model = denoise::parse_noise_model(noise_name);
+                distance.noise_model = density.noise_model = smoothing.noise_model = model;
+                noise_given = true;
+            }
             if (vm.count("theta-max-deg"))
                 distance.theta_max_deg = density.theta_max_deg = ctx.get<double>("theta-max-deg");
             distance.k = has_k ? ctx.get<int>("k") : 16;
@@ -228,6 +236,7 @@ int main(int argc, char** argv) {
                     views.push_back(std::move(documents[d].cloud));
                     slots.push_back(d);
                 }
+            if (!noise_given) density.noise_model = pipeline::stream_noise_model(views);
             Report report = denoise::remove_density_outliers(views, density, bar.callback());
             ctx.add_document_metrics(report);
             ctx.info("density: " + report.dump());
@@ -263,6 +272,9 @@ int main(int argc, char** argv) {
                     fallback_noted = true;
                 }
             }
+            if (!noise_given)
+                distance.noise_model = smoothing.noise_model =
+                    pipeline::view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
             Report report;
             switch (use) {
                 case Method::kDistance:

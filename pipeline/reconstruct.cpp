@@ -16,25 +16,6 @@ std::size_t count_points(const std::vector<PointCloud>& views) {
     return n;
 }
 
-/// The noise model of the rig's sensors (their noise.model, else their model) when they all
-/// agree on one the denoisers know, else Kinect v2 (rgbd-clean's default).
-denoise::NoiseModel rig_noise_model(const io::Rig& rig) {
-    std::optional<denoise::NoiseModel> found;
-    for (const auto& sensor : rig.sensors) {
-        std::optional<denoise::NoiseModel> model;
-        for (const std::string& name : {sensor.noise_model, sensor.model}) {
-            if (name.empty() || model) continue;
-            try {
-                model = denoise::parse_noise_model(name);
-            } catch (const InputError&) {
-            }
-        }
-        if (!model || (found && *found != *model)) return denoise::NoiseModel::kKinectV2;
-        found = model;
-    }
-    return found ? *found : denoise::NoiseModel::kKinectV2;
-}
-
 /// A stage's progress: stage_begin on construction, stage_end on destruction.
 class StageScope {
 public:
@@ -136,13 +117,10 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
                            const std::vector<PointCloud>& views) {
         if (hooks.views_after) hooks.views_after(index, stage, views);
     };
-    const denoise::NoiseModel model =
-        options.noise_model ? *options.noise_model : rig_noise_model(capture.rig);
-    report["noise_model"] = denoise::to_string(model);
+    // The noise model: the option, else the one each view's sensor names (the stream's
+    // metadata, as rgbd-clean --noise-model auto reads it down the pipe).
     denoise::DistanceOptions distance_options = options.distance;
-    distance_options.noise_model = model;
     denoise::DensityOptions density_options = options.density;
-    density_options.noise_model = model;
     density_options.seed = options.seed;
 
     // 1. clouds, 2. distance-based cleaning and 3. super-resolution, one view at a time.
@@ -159,6 +137,12 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
             const RgbdFrame frame = io::load_frame(capture, id, position);
             PointCloud cloud = view_from_frame(frame, static_cast<int>(views.size()), options.cloud,
                                                centre, options.extraction, v);
+            for (const auto& sensor : capture.rig.sensors)
+                if (sensor.id == id) tag_noise_model(cloud, sensor);
+            distance_options.noise_model =
+                options.noise_model
+                    ? *options.noise_model
+                    : view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
             cloud_points += cloud.size();
             if (!skip.count("distance")) {
                 Stopwatch clean_watch;
@@ -196,6 +180,9 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
         if (upsample_views == 0 && hooks.info)
             hooks.info("upsample: no view has a colour camera finer than its depth camera");
     }
+    density_options.noise_model =
+        options.noise_model ? *options.noise_model : stream_noise_model(views);
+    report["noise_model"] = denoise::to_string(density_options.noise_model);
     if (hooks.info) hooks.info("clouds: " + std::to_string(views.size()) + " views");
     views_after(1, "views", views);
 

@@ -43,12 +43,61 @@ std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig) {
     return frames::axes_convergence_point(poses);
 }
 
+namespace {
+constexpr const char* kNoiseKey = "rgbd:sensor.noise_model ";
+}  // namespace
+
+std::optional<denoise::NoiseModel> sensor_noise_model(const io::SensorSpec& sensor) {
+    for (const std::string& name : {sensor.noise_model, sensor.model}) {
+        if (name.empty()) continue;
+        try {
+            return denoise::parse_noise_model(name);
+        } catch (const InputError&) {
+        }
+    }
+    return std::nullopt;
+}
+
+void tag_noise_model(PointCloud& view, const io::SensorSpec& sensor) {
+    auto& extra = view.view.extra_comments;
+    extra.erase(std::remove_if(extra.begin(), extra.end(),
+                               [](const std::string& c) { return c.rfind(kNoiseKey, 0) == 0; }),
+                extra.end());
+    if (const auto model = sensor_noise_model(sensor))
+        extra.push_back(kNoiseKey + denoise::to_string(*model));
+}
+
+std::optional<denoise::NoiseModel> view_noise_model(const PointCloud& view) {
+    for (const auto& c : view.view.extra_comments) {
+        if (c.rfind(kNoiseKey, 0) != 0) continue;
+        try {
+            return denoise::parse_noise_model(c.substr(std::string(kNoiseKey).size()));
+        } catch (const InputError&) {
+            return std::nullopt;  // a model this build does not know: the default
+        }
+    }
+    return std::nullopt;
+}
+
+denoise::NoiseModel stream_noise_model(const std::vector<PointCloud>& views) {
+    std::optional<denoise::NoiseModel> found;
+    for (const auto& v : views) {
+        const auto model = view_noise_model(v);
+        if (!model || (found && *found != *model)) return denoise::NoiseModel::kKinectV2;
+        found = model;
+    }
+    return found ? *found : denoise::NoiseModel::kKinectV2;
+}
+
 PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,
                      const ExtractionOptions& extraction, Report& report) {
-    return view_from_frame(io::load_frame(capture, sensor_id, position), view_id, cloud_options,
-                           centre, extraction, report);
+    PointCloud view = view_from_frame(io::load_frame(capture, sensor_id, position), view_id,
+                                      cloud_options, centre, extraction, report);
+    for (const auto& sensor : capture.rig.sensors)
+        if (sensor.id == sensor_id) tag_noise_model(view, sensor);
+    return view;
 }
 
 PointCloud view_from_frame(const RgbdFrame& frame, int view_id,

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/denoise/sensor_noise.hpp"
 #include "algorithms/evaluation/metrics.hpp"
 #include "algorithms/frames/depth_to_cloud.hpp"
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
@@ -43,7 +44,22 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
                            const std::optional<Eigen::Vector3d>& centre,
                            const ExtractionOptions& extraction, Report& report);
 
-/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame).
+/// The denoisers' noise model of a rig sensor: its noise.model, else its model, when the
+/// denoisers know the name; nullopt otherwise.
+std::optional<denoise::NoiseModel> sensor_noise_model(const io::SensorSpec& sensor);
+/// Writes the sensor's noise model (sensor_noise_model) into the view's metadata
+/// (`rgbd:sensor.noise_model NAME`), so that the denoisers down a pipe know it (nothing when
+/// it is unknown).
+void tag_noise_model(PointCloud& view, const io::SensorSpec& sensor);
+/// The noise model a view's metadata names, else nullopt.
+std::optional<denoise::NoiseModel> view_noise_model(const PointCloud& view);
+/// The noise model the denoisers use on views whose model is not given (rgbd-clean
+/// --noise-model auto, rgbd-reconstruct --noise-model auto): the one every view names when
+/// they agree, else Kinect v2. One view: its own.
+denoise::NoiseModel stream_noise_model(const std::vector<PointCloud>& views);
+
+/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame,
+/// then tag_noise_model).
 PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,

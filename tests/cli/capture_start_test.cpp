@@ -1,4 +1,4 @@
-// The common start instant (issue 20 item 2, ALGORITHMS.md §1 step 3): the hub starts every
+// The common start instant (issue 20 item 2, docs/algorithms.md §1): the hub starts every
 // node of the rig on one future instant once all have joined, so the first frame set is
 // complete even when the nodes' clocks are +-500 ms off; a node that joins late starts on the
 // same frame grid. Checked against the nodes' true capture instants (--truth), not wall time.
