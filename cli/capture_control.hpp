@@ -136,6 +136,7 @@ public:
                                           {"at_hub_ns", at},
                                           {"bursts", s.clock.bursts()},
                                           {"last_round_trip_ns", s.clock.last_round_trip_ns()},
+                                          {"max_round_trip_ns", s.clock.max_round_trip_ns()},
                                           {"sessions", count},
                                           {"session", session},
                                           {"bye", s.bye}};

@@ -8,6 +8,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -94,6 +95,20 @@ inline std::vector<Truth> read_truth(const fs::path& path) {
 }
 
 inline json read_json(const fs::path& p) { return json::parse(slurp(p)); }
+
+/// The largest error (ns) the hub's clock estimate of one sensor can be shown to have, from
+/// the sensor's `clock` object in the hub's --metrics: the capture network's 1 ms target, or,
+/// when the probes' round trips are too long for that (a loaded machine), what they allow.
+/// Each kept probe's offset is within half its round trip of the true offset (the one-way
+/// delays are unknown but not negative), i.e. within max_round_trip_ns / 2. A frame's time is
+/// mapped through the least-squares line over those samples, evaluated at most about one
+/// probe interval after the newest: for n >= 2 about equally spaced samples the line's
+/// weights have sum |w_i| <= 3 there (3 at n = 2, 7/3 at n = 3, 2 from n = 4 on), so the
+/// error is within 1.5 max_round_trip_ns. While the line is still flat (samples spread over
+/// under a second) the unmodelled drift adds at most 50 ppm x 2 s = 0.1 ms.
+inline double clock_error_bound_ns(const json& clock) {
+    return std::max(1e6, 1.5 * clock.at("max_round_trip_ns").get<double>() + 0.1e6);
+}
 
 /// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
 /// test in its own process: the capture is rendered once per rgbd-synth build into a shared
