@@ -140,3 +140,24 @@ TEST(FuzzRegression, RedwoodIntrinsicSizeBeyond32BitsIsAnErrorNotWrappedAround) 
         }
     }
 }
+
+TEST(FuzzRegression, RigJsonWithANumberBeyondDoubleIsAnErrorNotAnEscapedException) {
+    // Found by fuzz_capture_folder: nlohmann's parser reports a number too large for a double
+    // as out_of_range, not parse_error, and read_rig caught only parse_error, so the exception
+    // escaped every reader's contract (and ended rgbd-* tools with "internal error").
+    namespace fs = std::filesystem;
+    const fs::path root = fs::temp_directory_path() / "rgbd_fuzz_regression_test" / "bigrig";
+    fs::remove_all(root);
+    fs::create_directories(root);
+    for (const char* text : {"19999999999999999929999E99999999999900000000000009632337040367573019",
+                             R"({"format": "rgbd-capture", "version": 1e400})"}) {
+        SCOPED_TRACE(text);
+        std::ofstream(root / "rig.json") << text;
+        try {
+            io::open_capture(root);
+            ADD_FAILURE() << "accepted";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("rig.json"), std::string::npos) << e.what();
+        }
+    }
+}
