@@ -143,10 +143,10 @@ cv::Mat board_image(const BoardSpec& board, double pixels_per_m) {
 }
 
 void DetectionOptions::check() const {
-    RGBD_CHECK(min_corners >= 4, "minimum corners must be >= 4");
-    RGBD_CHECK(std::isfinite(max_rms_px) && max_rms_px > 0, "maximum RMS must be > 0 px");
+    RGBD_CHECK(min_corners >= 4, "detection: min_corners must be >= 4");
+    RGBD_CHECK(std::isfinite(max_rms_px) && max_rms_px > 0, "detection: max_rms_px must be > 0");
     RGBD_CHECK(std::isfinite(min_spread) && min_spread >= 0 && min_spread <= 1,
-               "minimum spread must be in [0, 1]");
+               "detection: min_spread must be in [0, 1]");
 }
 
 DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,

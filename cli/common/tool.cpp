@@ -355,6 +355,48 @@ std::vector<double> parse_doubles(const std::string& text, const std::string& op
 
 // ---------------------------------------------------------------- run_tool
 
+std::string option_named_by(const std::string& message, const po::variables_map& vm) {
+    if (message.find("--") != std::string::npos) return "";
+    std::vector<std::string> identifiers;  // the message's words (field names have '_')
+    for (std::size_t i = 0; i < message.size();) {
+        std::size_t j = i;
+        while (j < message.size() &&
+               (std::isalnum(static_cast<unsigned char>(message[j])) || message[j] == '_'))
+            ++j;
+        if (j > i) identifiers.push_back(message.substr(i, j - i));
+        i = std::max(j, i + 1);
+    }
+    const auto up_to_underscore = [](const std::string& longer, const std::string& shorter) {
+        return longer.size() > shorter.size() && longer.compare(0, shorter.size(), shorter) == 0 &&
+               longer[shorter.size()] == '_';
+    };
+    std::vector<std::string> by_value, by_field, by_word, by_prefix;
+    for (const auto& [name, value] : vm) {
+        // Given options with a value; not flags (--statistical names a mode, not a value).
+        if (value.defaulted() || name == "input" || value.value().empty() ||
+            value.value().type() == typeid(bool) ||
+            value.value().type() == typeid(std::vector<bool>))
+            continue;
+        if (const auto* text = boost::any_cast<std::string>(&value.value()))
+            if (!text->empty() && message.find("'" + *text + "'") != std::string::npos)
+                by_value.push_back(name);
+        std::string snake = name;
+        std::replace(snake.begin(), snake.end(), '-', '_');
+        if (std::find(identifiers.begin(), identifiers.end(), snake) != identifiers.end())
+            (snake.find('_') != std::string::npos ? by_field : by_word).push_back(name);
+        else
+            for (const std::string& id : identifiers)
+                if (id.find('_') != std::string::npos &&
+                    (up_to_underscore(id, snake) || up_to_underscore(snake, id))) {
+                    by_prefix.push_back(name);
+                    break;
+                }
+    }
+    for (const auto* found : {&by_value, &by_field, &by_word, &by_prefix})
+        if (!found->empty()) return found->size() == 1 ? " (--" + found->front() + ")" : "";
+    return "";
+}
+
 namespace {
 
 std::string help_text(const ToolSpec& spec, const po::options_description& visible) {
@@ -449,7 +491,7 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
         return 0;
     } catch (const UsageError& e) {
         if (debug) throw;
-        return fail(2, e.what());
+        return fail(2, e.what() + option_named_by(e.what(), vm));
     } catch (const po::error& e) {
         if (debug) throw;
         return fail(2, e.what());

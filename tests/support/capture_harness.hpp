@@ -110,6 +110,17 @@ inline double clock_error_bound_ns(const json& clock) {
     return std::max(1e6, 1.5 * clock.at("max_round_trip_ns").get<double>() + 0.1e6);
 }
 
+/// The same for the drift (ppm) the hub estimated over a run of about `seconds`: the test's
+/// 10 ppm, or what the round trips allow. The least-squares slope through n samples spread
+/// evenly over T seconds, each off by at most max_round_trip_ns / 2, is off by at most
+/// (max_round_trip_ns / 2) sum |t_i - mean| / sum (t_i - mean)^2 ~ 1.5 max_round_trip_ns / T
+/// (sum |t_i - mean| = n T / 4, sum (t_i - mean)^2 = n T^2 / 12); the samples start a moment
+/// after the nodes do, so T is taken as 80% of the run.
+inline double drift_error_bound_ppm(const json& clock, double seconds) {
+    const double span_ns = 0.8 * seconds * 1e9;
+    return std::max(10.0, 1.5 * clock.at("max_round_trip_ns").get<double>() / span_ns * 1e6);
+}
+
 /// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
 /// test in its own process: the capture is rendered once per rgbd-synth build into a shared
 /// cache folder (rendered beside it, then renamed into place) and linked into the scratch

@@ -35,10 +35,10 @@ for t in EightNodesOnLoopbackLoseNothingAndStayInSync KilledNodeRestartsAndTheGa
     fi
     skipped=$(grep -c "\[  SKIPPED \]" "$LOG/$t.$i" || true)
     detail=$(grep -h -o "worst frame time error.*\|round trips up to [0-9]* ns" "$LOG/$t.$i" |
-      head -2 | tr '\n' ' ')
-    [ "$skipped" != "0" ] && verdict=skipped
+      head -2 | tr '\n' ' ' || true)
+    if [ "$skipped" != "0" ]; then verdict=skipped; fi
     echo "$t run $i: $verdict (load $(cut -d' ' -f1 /proc/loadavg)) $detail"
-    [ "$verdict" = FAIL ] && grep -h -B2 -A6 "Failure" "$LOG/$t.$i" | head -30
+    if [ "$verdict" = FAIL ]; then grep -h -B2 -A6 "Failure" "$LOG/$t.$i" | head -30 || true; fi
   done
   echo "$t: $pass of $RUNS passed"
 done
