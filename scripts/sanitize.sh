@@ -8,9 +8,9 @@
 # RVL, the capture network's messages, clock sync, frame grouping, playback) and the tool
 # driver's progress/stderr test (cli/progress_bar_test). None of them needs rgbd_algorithms,
 # so CI builds no CGAL translation unit under ASan: those are most of the whole build and
-# take 2.5 times as long to compile with it (measured). The whole suite under the sanitizers does not fit CI's
-# 60-minute budget on 2 cores (validation/robustness/README.md says why, with figures);
-# `--all` builds and runs it: run it by hand before a release.
+# take 2.5 times as long to compile with it (measured). The whole suite under the
+# sanitizers does not fit CI's 60-minute budget on 2 cores (validation/robustness/README.md
+# says why, with figures); `--all` builds and runs it: run it by hand before a release.
 # Usage: bash scripts/sanitize.sh [--all]
 set -euo pipefail
 if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
