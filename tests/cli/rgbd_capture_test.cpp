@@ -12,6 +12,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -124,8 +125,8 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
 
     const json hub = read_json(dir / "hub8.json");
     EXPECT_EQ(hub["dropped_messages"], 0);
-    // A frame that reaches the hub after --latency-ms (2 s) is recorded but misses its frame
-    // set; on a quiet machine none does, under heavy load a few may (counted below).
+    // A frame that reaches the hub after --latency-ms (2 s) is recorded but in no frame set;
+    // on a quiet machine none is, under heavy load (20 processes on 2 cores) some are.
     const std::int64_t late = hub["late_frames"].get<std::int64_t>();
     const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec8");
     ASSERT_EQ(cap.rig.sensors.size(), 8u);
@@ -204,11 +205,13 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
             incomplete_inside += present != 8;
         }
     }
-    for (int s = 0; s < 8; ++s) EXPECT_EQ(used[id(s)].size(), static_cast<std::size_t>(frames));
+    // Every frame is in one set, but for late ones (recorded, in no set).
+    std::size_t in_sets = 0;
+    for (int s = 0; s < 8; ++s) in_sets += used[id(s)].size();
+    EXPECT_EQ(static_cast<std::int64_t>(in_sets) + late, 8 * frames);
     EXPECT_GT(inside, static_cast<std::size_t>(frames) / 2);
-    // Complete while all eight streamed, but for sets a late frame touched (it leaves its own
-    // set incomplete and may form a set of its own).
-    EXPECT_LE(incomplete_inside, 2 * late) << late << " late frames";
+    // Complete while all eight streamed, but for sets a late frame left.
+    EXPECT_LE(incomplete_inside, late) << late << " late frames";
     RecordProperty("worst_offset_error_us", std::to_string(worst_offset_ns / 1e3));
     RecordProperty("worst_frame_time_error_us", std::to_string(worst_frame_ns / 1e3));
     RecordProperty("worst_probe_round_trip_us", std::to_string(worst_rtt_ns / 1e3));
@@ -236,7 +239,11 @@ TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" + hub_at +
                   " --clock-offset-ms " + std::to_string(100 * s - 100) + " --metrics node_kill_" +
                   std::to_string(s) + ".json");
-    std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+    // Kill node 1 once the hub has recorded half a second of its frames (on a loaded machine
+    // a fixed wait could end before the node streamed at all, and there would be no gap).
+    const fs::path frames_csv = dir / "rec_kill" / id(1) / "frames.csv";
+    for (int k = 0; k < 600 && rgbd::test::line_count(slurp(frames_csv)) < 16; ++k)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
     ASSERT_EQ(::kill(pid_of(dir, "node_kill_1"), SIGKILL), 0);
     EXPECT_NE(wait_for(dir, "node_kill_1", 10), 0);
     std::this_thread::sleep_for(std::chrono::milliseconds(1000));
@@ -499,7 +506,9 @@ TEST_F(RgbdCapture, LossAndDelayBetweenNetworkNamespaces) {
         const double true_offset =
             node["clock_offset_ns"].get<double>() + node["clock_drift_ppm"].get<double>() * 1e-6 *
                                                         (at - node["clock_epoch_ns"].get<double>());
-        const double bound = clock_error_bound_ns(clock);
+        // The proxy holds every probe and reply 200 ms: only the round trip beyond 400 ms is
+        // unknown delay (the 1 ms target holds unless the machine adds more than ~1.3 ms).
+        const double bound = clock_error_bound_ns(clock, 200e6);
         worst_bound_ns = std::max(worst_bound_ns, bound);
         worst_rtt_ns = std::max(worst_rtt_ns, clock["max_round_trip_ns"].get<double>());
         EXPECT_LT(std::abs(clock["offset_ns"].get<double>() - true_offset), bound)
