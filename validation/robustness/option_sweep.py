@@ -18,6 +18,7 @@ import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -58,12 +59,18 @@ def ellipsoid_off(path, nu=32, nv=16, rx=0.3, ry=0.5, rz=0.25):
 
 
 def sh(cmd, cwd, timeout):
+    """Runs `cmd`; on timeout ends its whole process group (the tool, not only the shell: a
+    tool left running would write its output during the next run)."""
     t = time.time()
+    p = subprocess.Popen(cmd, shell=True, cwd=cwd, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, errors="replace",
+                         start_new_session=True)
     try:
-        p = subprocess.run(cmd, shell=True, cwd=cwd, capture_output=True, text=True,
-                           timeout=timeout, errors="replace")
-        return p.returncode, p.stdout, p.stderr, time.time() - t
+        out, err = p.communicate(timeout=timeout)
+        return p.returncode, out, err, time.time() - t
     except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
         return None, "", "", time.time() - t
 
 
