@@ -13,6 +13,7 @@
 #include <csignal>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -54,15 +55,23 @@ struct HubOptions {
     std::int64_t probe_interval_ns = 1'000'000'000;
     double drift_window_s = 60;
     std::int64_t probe_timeout_ns = 500'000'000;
+    /// Least time between two probes of a burst: a burst then spans about two frame periods,
+    /// so that its least-queued probe falls between the nodes' frame bursts.
+    std::int64_t probe_spacing_ns = 4'000'000;
+    /// The common start instant lies this far after the moment the last node's clock is known
+    /// (the start message must reach every node before it).
+    std::int64_t start_lead_ns = 300'000'000;
+    /// Start the nodes that are ready when not every rig sensor has joined this long after the
+    /// first one was ready.
+    std::int64_t start_wait_ns = 10'000'000'000;
+    /// JSON of the start message to the node of rig sensor k (none, or empty: frames).
+    std::function<std::string(std::size_t)> start_json;
 };
 
 // ---------------------------------------------------------------------------------- control
 
-inline net::ControlMessage start_message() {
-    net::ControlMessage m;
-    m.type = net::ControlType::kStart;
-    return m;
-}
+/// Probe bursts a node's clock gets before it may start.
+inline constexpr std::size_t kBurstsBeforeStart = 3;
 
 /// One node run (session): its clock estimate and the probe schedule.
 struct Session {
@@ -76,7 +85,9 @@ struct Session {
     std::int64_t sent_at = 0;  ///< hub time of the outstanding probe
     std::int64_t next_at = 0;  ///< hub time of the next probe
     int timeouts = 0;          ///< consecutive timeouts
+    bool ready = false;        ///< the clock is known (first burst kept)
     bool started = false, bye = false;
+    std::int64_t start_hub_ns = 0;       ///< its first frame's instant, hub time
     std::int64_t frames_announced = -1;  ///< from bye
 };
 
@@ -121,6 +132,11 @@ public:
         return true;
     }
     std::int64_t malformed() const { return malformed_; }
+    /// The rig's common start instant (hub time), 0 before it is fixed.
+    std::int64_t common_start_ns() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return common_start_ns_;
+    }
     std::int64_t refused() const { return refused_; }
 
     /// Per sensor: clock estimate at hub time `at`, sessions, probes.
@@ -139,6 +155,7 @@ public:
                                           {"max_round_trip_ns", s.clock.max_round_trip_ns()},
                                           {"sessions", count},
                                           {"session", session},
+                                          {"start_hub_ns", s.start_hub_ns},
                                           {"bye", s.bye}};
         }
         return r;
@@ -168,7 +185,7 @@ private:
             if (sessions_.count(m.session)) {
                 Session& s = sessions_.at(m.session);
                 s.routing_id = routing_id;
-                if (s.started) send(routing_id, start_message());
+                if (s.started) send_start(s);
                 return;
             }
             nlohmann::json hello = nlohmann::json::parse(m.json, nullptr, false);
@@ -224,15 +241,69 @@ private:
 
     void finish_probe(Session& s, std::int64_t now) {
         if (++s.burst_count < options_.probes) {
-            s.next_at = now;
+            s.next_at = std::max(now, s.sent_at + options_.probe_spacing_ns);
             return;
         }
         s.burst_count = 0;
         s.clock.end_burst();
         s.next_at = now + options_.probe_interval_ns;
-        if (!s.started && s.clock.ready()) {
+        // Before its start a node gets kBurstsBeforeStart bursts back to back: the first frames
+        // are mapped through a fit of several bursts (weighted by round trip), not through one
+        // burst that may have met a busy moment.
+        if (!s.ready && s.clock.bursts() >= kBurstsBeforeStart) {
+            s.ready = true;
+            if (first_ready_ns_ == 0) first_ready_ns_ = now;
+        } else if (!s.ready) {
+            s.next_at = now;
+        }
+    }
+
+    /// Start message of a started session: its instant in the node's clock.
+    void send_start(const Session& s) {
+        net::ControlMessage m;
+        m.type = net::ControlType::kStart;
+        m.t0 = s.start_hub_ns +
+               static_cast<std::int64_t>(std::llround(s.clock.offset_ns_at(s.start_hub_ns)));
+        m.t1 = period_ns(s);
+        if (options_.start_json) m.json = options_.start_json(s.sensor);
+        send(s.routing_id, m);
+    }
+    static std::int64_t period_ns(const Session& s) {
+        return static_cast<std::int64_t>(
+            std::llround(1e9 / (s.rate_hz > 0 && s.rate_hz <= 1000 ? s.rate_hz : 30.0)));
+    }
+
+    /// The common start (ALGORITHMS.md §1 step 3): once every rig sensor's latest session has
+    /// a clock (or start_wait_ns after the first had one), all of them start on one instant
+    /// start_lead_ns ahead; a session ready later starts on the next instant of that frame
+    /// grid, so a latecomer or a restarted node captures in phase with the others.
+    void try_start(std::int64_t now) {
+        if (common_start_ns_ == 0) {
+            if (first_ready_ns_ == 0) return;
+            std::size_t ready = 0;
+            for (const auto& [sensor, session] : latest_) {
+                const Session& s = sessions_.at(session);
+                ready += s.ready && !s.bye;
+            }
+            if (ready == 0) return;
+            if (ready < rig_.sensors.size() && now - first_ready_ns_ < options_.start_wait_ns)
+                return;
+            common_start_ns_ = now + options_.start_lead_ns;
+            for (auto& [id, s] : sessions_)
+                if (s.ready && !s.started && !s.bye) {
+                    s.started = true;
+                    s.start_hub_ns = common_start_ns_;
+                    send_start(s);
+                }
+            return;
+        }
+        for (auto& [id, s] : sessions_) {
+            if (!s.ready || s.started || s.bye) continue;
+            const std::int64_t period = period_ns(s);
+            const std::int64_t ahead = now + options_.start_lead_ns - common_start_ns_;
             s.started = true;
-            send(s.routing_id, start_message());
+            s.start_hub_ns = common_start_ns_ + (ahead + period - 1) / period * period;
+            send_start(s);
         }
     }
 
@@ -255,6 +326,7 @@ private:
                 send(s.routing_id, probe);
             }
         }
+        try_start(now);
     }
 
     void run() {
@@ -294,6 +366,8 @@ private:
     std::mutex mutex_;
     std::map<std::uint64_t, Session> sessions_;
     std::map<std::size_t, std::uint64_t> latest_;  ///< sensor -> its latest session
+    std::int64_t first_ready_ns_ = 0;              ///< when the first clock was known
+    std::int64_t common_start_ns_ = 0;             ///< the rig's start instant (0: not yet)
     std::atomic<std::int64_t> malformed_{0}, refused_{0};
     std::atomic<bool> stop_{false};
     std::thread thread_;

@@ -21,8 +21,7 @@ namespace fs = std::filesystem;
 FrameHistory::FrameHistory(std::size_t sensors, std::int64_t window_ns)
     : window_ns_(window_ns), frames_(sensors) {}
 
-void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
-                         const cv::Mat& depth, const std::uint8_t* jpeg, std::size_t jpeg_bytes) {
+LiveFrame& FrameHistory::slot(std::size_t sensor, std::int64_t index, std::int64_t hub_ns) {
     auto& list = frames_.at(sensor);
     while (!list.empty() && list.front()->hub_ns < hub_ns - window_ns_) {
         free_.push_back(std::move(list.front()));
@@ -37,9 +36,24 @@ void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hu
     }
     frame->index = index;
     frame->hub_ns = hub_ns;
-    depth.copyTo(frame->depth);  // same size and type: the buffer is reused
-    frame->jpeg.assign(jpeg, jpeg + jpeg_bytes);
     list.push_back(std::move(frame));
+    return *list.back();
+}
+
+void FrameHistory::store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                         const cv::Mat& depth, const std::uint8_t* jpeg, std::size_t jpeg_bytes) {
+    LiveFrame& frame = slot(sensor, index, hub_ns);
+    frame.is_view = false;
+    depth.copyTo(frame.depth);  // same size and type: the buffer is reused
+    frame.jpeg.assign(jpeg, jpeg + jpeg_bytes);
+}
+
+void FrameHistory::store_view(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                              const io::ColoredPoints& points) {
+    LiveFrame& frame = slot(sensor, index, hub_ns);
+    frame.is_view = true;
+    frame.points.xyz.assign(points.xyz.begin(), points.xyz.end());
+    frame.points.rgb.assign(points.rgb.begin(), points.rgb.end());
 }
 
 const LiveFrame* FrameHistory::find(std::size_t sensor, std::int64_t index) const {
@@ -55,14 +69,30 @@ const LiveFrame* FrameHistory::find(std::size_t sensor, std::int64_t index) cons
 
 // ------------------------------------------------------------------------------ LiveStream
 
-namespace {
-
 void copy_frame(const LiveFrame& from, LiveFrame& to) {
     to.index = from.index;
     to.hub_ns = from.hub_ns;
     from.depth.copyTo(to.depth);
     to.jpeg.assign(from.jpeg.begin(), from.jpeg.end());
+    to.is_view = from.is_view;
+    to.points.xyz.assign(from.points.xyz.begin(), from.points.xyz.end());
+    to.points.rgb.assign(from.points.rgb.begin(), from.points.rgb.end());
 }
+
+RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv::Mat& color) {
+    const std::string what = "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
+    color.release();
+    if (!frame.jpeg.empty()) {
+        color = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
+        if (color.empty()) throw InputError(what + ": cannot decode the colour JPEG");
+    }
+    RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color, what);
+    rgbd.frame_index = frame.index;
+    rgbd.timestamp_ns = frame.hub_ns;
+    return rgbd;
+}
+
+namespace {
 
 /// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
 bool is_special(const std::string& path) {
@@ -80,7 +110,8 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
       context_(context),
       on_disk_(std::move(on_disk)),
       depth_file_(std::move(depth_file)),
-      centre_(object_centre(rig)) {
+      centre_(object_centre(rig)),
+      worker_([this](LiveSet& set) { take(set); }) {
     if (options_.path == "-") {
         out_ = &std::cout;
     } else {
@@ -98,17 +129,10 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
         if (!file_->good()) throw IoError("--live " + options_.path + ": cannot open for writing");
         out_ = file_.get();
     }
-    thread_ = std::thread([this] { run(); });
 }
 
 LiveStream::~LiveStream() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-        has_pending_ = false;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
+    worker_.stop(false);
     if (!temp_path_.empty()) {
         std::error_code ec;
         fs::remove(temp_path_, ec);  // finish() did not put it in place: no half-written file
@@ -122,39 +146,25 @@ void LiveStream::offer(const io::FrameSet& set, std::int64_t ordinal, const Fram
             ++incomplete_;
             return;
         }
-    staging_.frames.resize(rig_.sensors.size());
+    LiveSet& staging = worker_.staging();
+    staging.frames.resize(rig_.sensors.size());
     for (std::size_t s = 0; s < set.frames.size(); ++s) {
         const LiveFrame* frame = history.find(s, set.frames[s]);
         if (!frame) {  // older than the history window: cannot happen with matching latency
             ++incomplete_;
             return;
         }
-        copy_frame(*frame, staging_.frames[s]);
+        copy_frame(*frame, staging.frames[s]);
     }
-    staging_.set = set;
-    staging_.ordinal = ordinal;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (has_pending_) ++skipped_;
-        std::swap(staging_, pending_);
-        has_pending_ = true;
-    }
-    wake_.notify_one();
+    staging.set = set;
+    staging.ordinal = ordinal;
+    worker_.commit();
 }
 
-void LiveStream::run() {
-    for (;;) {
-        {
-            std::unique_lock<std::mutex> lock(mutex_);
-            wake_.wait(lock, [&] { return has_pending_ || stop_; });
-            if (!has_pending_) return;
-            std::swap(pending_, working_);
-            has_pending_ = false;
-        }
-        if (finished_) continue;
-        emit(working_);
-        if (options_.max_sets > 0 && emitted_ >= options_.max_sets) finished_ = true;
-    }
+void LiveStream::take(LiveSet& set) {
+    if (finished_) return;
+    emit(set);
+    if (options_.max_sets > 0 && emitted_ >= options_.max_sets) finished_ = true;
 }
 
 void LiveStream::emit(const LiveSet& live) {
@@ -173,14 +183,7 @@ void LiveStream::emit(const LiveSet& live) {
         io::Document document;
         Report report;
         try {
-            color_.release();
-            if (!frame.jpeg.empty()) {
-                color_ = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
-                if (color_.empty()) throw InputError(what + ": cannot decode the colour JPEG");
-            }
-            RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color_, what);
-            rgbd.frame_index = frame.index;
-            rgbd.timestamp_ns = frame.hub_ns;
+            RgbdFrame rgbd = rgbd_from_live(spec, frame, color_);
             if (on_disk == 1) rgbd.source = depth_file_(spec.id, frame.index);
             document.cloud = view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
                                              options_.extraction, report);
@@ -213,12 +216,7 @@ void LiveStream::emit(const LiveSet& live) {
 }
 
 void LiveStream::finish() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-    }
-    wake_.notify_one();
-    if (thread_.joinable()) thread_.join();
+    worker_.stop(true);
     if (file_) {
         file_->close();
         if (!temp_path_.empty()) {
@@ -236,7 +234,7 @@ void LiveStream::finish() {
 
 Report LiveStream::metrics() const {
     return Report{{"sets_emitted", emitted_.load()},
-                  {"sets_skipped", skipped_.load()},
+                  {"sets_skipped", worker_.skipped()},
                   {"sets_incomplete", incomplete_.load()},
                   {"views", views_.load()},
                   {"reader_closed", closed_.load()}};

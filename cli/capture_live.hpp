@@ -21,7 +21,9 @@
 #include <vector>
 
 #include "cli/common/stages.hpp"
+#include "cli/newest_worker.hpp"
 #include "io/capture_folder.hpp"
+#include "io/video.hpp"
 #include "toolkit/report.hpp"
 
 namespace rgbd::cli {
@@ -34,6 +36,8 @@ struct LiveFrame {
     std::int64_t hub_ns = 0;         ///< hub time
     cv::Mat depth;                   ///< CV_16UC1, the sensor's depth_scale units
     std::vector<std::uint8_t> jpeg;  ///< colour as received (empty = none)
+    bool is_view = false;            ///< a node's view (--fuse-on nodes): points, no depth
+    io::ColoredPoints points;        ///< the view's points, world frame
 };
 
 /// The frames of every sensor received in the last `window_ns` of hub time. Buffers are
@@ -44,6 +48,9 @@ public:
     /// Copies a frame in; forgets the sensor's frames older than its newest minus the window.
     void store(std::size_t sensor, std::int64_t index, std::int64_t hub_ns, const cv::Mat& depth,
                const std::uint8_t* jpeg, std::size_t jpeg_bytes);
+    /// Copies a node's view in (rgbd-capture --video --fuse-on nodes).
+    void store_view(std::size_t sensor, std::int64_t index, std::int64_t hub_ns,
+                    const io::ColoredPoints& points);
     /// The sensor's frame with that index, or nullptr when it is not (or no longer) here.
     const LiveFrame* find(std::size_t sensor, std::int64_t index) const;
 
@@ -51,7 +58,15 @@ private:
     std::int64_t window_ns_;
     std::vector<std::deque<std::unique_ptr<LiveFrame>>> frames_;  ///< per sensor, by index
     std::vector<std::unique_ptr<LiveFrame>> free_;
+    LiveFrame& slot(std::size_t sensor, std::int64_t index, std::int64_t hub_ns);
 };
+
+/// Copies a frame (buffers of `to` reused).
+void copy_frame(const LiveFrame& from, LiveFrame& to);
+
+/// A received frame as an RgbdFrame of `spec` (colour JPEG decoded into `color`, reused),
+/// frame index and hub time set. Throws InputError naming the frame and sensor.
+RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv::Mat& color);
 
 /// A frame set with copies of its frames (in Rig::sensors order).
 struct LiveSet {
@@ -95,7 +110,7 @@ public:
     Report metrics() const;
 
 private:
-    void run();
+    void take(LiveSet& set);
     void emit(const LiveSet& set);
 
     const io::Rig& rig_;
@@ -108,14 +123,10 @@ private:
     std::unique_ptr<std::ofstream> file_;
     std::string temp_path_;  ///< non-empty when writing a regular file atomically
 
-    LiveSet staging_, pending_, working_;  ///< hub-owned, shared, stream-owned
-    bool has_pending_ = false, stop_ = false;
-    std::mutex mutex_;
-    std::condition_variable wake_;
     std::atomic<bool> finished_{false}, closed_{false};
-    std::atomic<std::int64_t> emitted_{0}, skipped_{0}, incomplete_{0}, views_{0};
-    cv::Mat color_;  ///< decoded colour, reused
-    std::thread thread_;
+    std::atomic<std::int64_t> emitted_{0}, incomplete_{0}, views_{0};
+    cv::Mat color_;                 ///< decoded colour, reused
+    NewestWorker<LiveSet> worker_;  ///< last: stopped before the members it uses go
 };
 
 }  // namespace rgbd::cli

@@ -1,7 +1,9 @@
 // rgbd-calibrate: the sensor network's extrinsics (rig.json) from a capture of a ChArUco board
-// carried through the ring, or refined on whatever the sensors see (--refine). DESIGN.md §2,
-// ALGORITHMS.md §6.3, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint solve:
-// algorithms/calibration/rig_solver.hpp; refinement: registration::align_views.
+// carried through the ring, or refined on whatever the sensors see (--refine).
+// docs/algorithms.md §6b, issue 19. Board: algorithms/calibration/charuco_board.hpp; joint
+// solve: algorithms/calibration/rig_solver.hpp; refinement: algorithms/calibration/
+// rig_refinement.hpp and registration::align_views.
+#include <malloc.h>
 #include <tbb/parallel_for.h>
 
 #include <cmath>
@@ -11,8 +13,10 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <opencv2/imgcodecs.hpp>
 
 #include "algorithms/calibration/charuco_board.hpp"
+#include "algorithms/calibration/rig_refinement.hpp"
 #include "algorithms/calibration/rig_solver.hpp"
 #include "algorithms/denoise/distance_outliers.hpp"
 #include "algorithms/registration/icp.hpp"
@@ -64,6 +68,38 @@ struct Job {
     std::size_t position = 0;
 };
 
+/// The images of one frame that board detection needs: the colour image decoded as grey
+/// (libjpeg then skips the chroma planes and the colour conversion: about half the decoding
+/// time of BGR) and the depth in metres. Errors name the file.
+struct BoardImages {
+    cv::Mat grey;   ///< CV_8UC1, colour camera grid; empty when the frame has no colour
+    cv::Mat depth;  ///< CV_32FC1 metres, NaN = invalid
+};
+
+BoardImages load_board_images(const io::Capture& capture, const io::SensorSpec& spec,
+                              std::size_t position) {
+    const io::FrameRecord& r = capture.frames.at(spec.id).at(position);
+    auto resolve = [&](const std::string& p) {
+        const fs::path path(p);
+        return (path.is_absolute() ? path : capture.root / spec.id / path).string();
+    };
+    const std::string depth_file = resolve(r.depth);
+    const cv::Mat raw = cv::imread(depth_file, cv::IMREAD_UNCHANGED);
+    RGBD_CHECK(!raw.empty(), depth_file + ": missing or undecodable depth image");
+    BoardImages out;
+    out.depth = io::frame_from_stored(spec, raw, cv::Mat(), depth_file).depth;
+    if (!r.color.empty()) {
+        const std::string color_file = resolve(r.color);
+        out.grey = cv::imread(color_file, cv::IMREAD_GRAYSCALE);
+        RGBD_CHECK(!out.grey.empty(), color_file + ": missing or undecodable colour image");
+        RGBD_CHECK(out.grey.cols == spec.color.width && out.grey.rows == spec.color.height,
+                   color_file + ": colour image is " + std::to_string(out.grey.cols) + "x" +
+                       std::to_string(out.grey.rows) + ", rig.json says " +
+                       std::to_string(spec.color.width) + "x" + std::to_string(spec.color.height));
+    }
+    return out;
+}
+
 struct Found {
     Job job;
     calibration::DetectionOutcome outcome;
@@ -98,6 +134,12 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
             if (position) jobs.push_back({s, set.set, *position});
         }
     RGBD_CHECK(!jobs.empty(), capture.root.string() + ": the frame sets name no frames");
+    // Every image allocates a few buffers of 2-6 MB (decoding, thresholds, contours). glibc
+    // maps blocks that large with mmap and unmaps them on free, so each image paid its pages'
+    // faults again: 30% of the CPU time of 8 sensors x 40 frame sets went to the kernel. Keep
+    // them in the heap instead (the two threads' buffers are reused image after image).
+    mallopt(M_MMAP_THRESHOLD, 64 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
     std::vector<Found> found(jobs.size());
     auto bar = ctx.progress("detect");
     std::mutex mutex;
@@ -105,10 +147,10 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
     tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t i) {
         const Job& job = jobs[i];
         const auto& spec = rig.sensors[job.sensor];
-        const RgbdFrame frame = io::load_frame(capture, spec.id, job.position);
+        const BoardImages frame = load_board_images(capture, spec, job.position);
         found[i].job = job;
-        if (!frame.color.empty())
-            found[i].outcome = calibration::detect_board(frame.color, spec.color, board, detection);
+        if (!frame.grey.empty())
+            found[i].outcome = calibration::detect_board(frame.grey, spec.color, board, detection);
         if (found[i].outcome.observation && !frame.depth.empty()) {
             const Pose depth_from_board =
                 spec.color_from_depth.inverse() * found[i].outcome.observation->camera_from_board;
@@ -239,7 +281,24 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
     ctx.metrics()["left_out_off_plane"] = off_plane;
 }
 
-/// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of one frame set.
+/// Depth images of `sensor` (index s) in up to `count` frame sets from `first` on (the frames
+/// those sets name; sets that miss the sensor are skipped), as positions in its frame list.
+std::vector<std::size_t> sensor_positions(const io::Capture& capture, std::size_t s,
+                                          std::size_t first_position, long long first, int count) {
+    std::vector<std::size_t> out{first_position};
+    const std::string& id = capture.rig.sensors[s].id;
+    for (long long k = first + 1; k < static_cast<long long>(capture.framesets.size()) &&
+                                  static_cast<int>(out.size()) < count;
+         ++k) {
+        const io::FrameSet& set = capture.framesets[k];
+        if (s >= set.frames.size() || set.frames[s] < 0) continue;
+        if (const auto position = capture.find_frame(id, set.frames[s])) out.push_back(*position);
+    }
+    return out;
+}
+
+/// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of the sensors' views,
+/// each the per-pixel median depth of up to --sets frame sets (docs/algorithms.md §6b).
 void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor) {
     const io::Rig& rig = capture.rig;
     for (const auto& s : rig.sensors)
@@ -247,8 +306,10 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
                    capture.root.string() + "/rig.json: sensor " + s.id +
                        " has no world_from_depth (--refine starts from the rig's poses)");
     RGBD_CHECK(rig.sensors.size() >= 2, capture.root.string() + ": --refine needs 2+ sensors");
-    const auto jobs =
-        cli::select_frames(capture, ctx.get<long long>("frameset"), std::string(), {}, &ctx);
+    const int sets = ctx.get<int>("sets");
+    if (sets < 1 || sets > 1000) throw cli::UsageError("--sets must be in [1, 1000]");
+    const long long frameset = ctx.get<long long>("frameset");
+    const auto jobs = cli::select_frames(capture, frameset, std::string(), {}, &ctx);
     const auto centre = cli::object_centre(capture, jobs);
     frames::CloudOptions cloud_options;
     cli::ExtractionOptions extraction;
@@ -256,16 +317,29 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     std::vector<PointCloud> views;
     std::vector<int> view_sensor;
     int fixed = -1;
+    std::size_t most_sets = 0;
     for (const auto& [id, position] : jobs) {
         Report report;
-        PointCloud view = cli::load_view(capture, id, position, static_cast<int>(views.size()),
-                                         cloud_options, centre, extraction, report);
+        const int s = sensor_index(rig, id);
+        const std::vector<std::size_t> positions =
+            capture.framesets.empty()
+                ? std::vector<std::size_t>{position}
+                : sensor_positions(capture, static_cast<std::size_t>(s), position, frameset, sets);
+        most_sets = std::max(most_sets, positions.size());
+        RgbdFrame frame = io::load_frame(capture, id, position);
+        if (positions.size() > 1) {
+            std::vector<cv::Mat> depths{frame.depth};
+            for (std::size_t k = 1; k < positions.size(); ++k)
+                depths.push_back(io::load_frame(capture, id, positions[k]).depth);
+            frame.depth = calibration::median_depth(depths);
+        }
+        PointCloud view = cli::view_from_frame(frame, static_cast<int>(views.size()), cloud_options,
+                                               centre, extraction, report);
         denoise::remove_distance_outliers(view, distance);
         if (view.empty()) {
             ctx.warn(id + ": no points on the object; its pose is kept");
             continue;
         }
-        const int s = sensor_index(rig, id);
         if (s == anchor) fixed = static_cast<int>(views.size());
         view_sensor.push_back(s);
         views.push_back(std::move(view));
@@ -273,9 +347,10 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     RGBD_CHECK_AS(AlgorithmError, fixed >= 0,
                   "the anchor " + rig.sensors[anchor].id + " sees nothing in this frame set");
     RGBD_CHECK_AS(AlgorithmError, views.size() >= 2, "fewer than 2 sensors see the object");
-    registration::MultiViewOptions options;
-    options.fixed_view = static_cast<std::size_t>(fixed);
-    options.seed = ctx.seed();
+    ctx.note("depth: per-pixel median of " + std::to_string(most_sets) + " frame set" +
+             (most_sets == 1 ? "" : "s") + " from frame set " + std::to_string(frameset));
+    const registration::MultiViewOptions options =
+        calibration::rig_refinement_options(static_cast<std::size_t>(fixed), ctx.seed());
     auto bar = ctx.progress("refine");
     const auto result = registration::align_views(views, options, bar.callback());
     io::Rig out = rig;
@@ -306,6 +381,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
         throw AlgorithmError("refinement not trusted for " + failed + "; rig.json not written");
     io::write_rig(ctx.output_path(), out);
     ctx.metrics()["mode"] = "refine";
+    ctx.metrics()["framesets_combined"] = most_sets;
     ctx.metrics()["sensors"] = sensors;
     ctx.metrics()["alignment"] = result.to_json();
 }
@@ -317,7 +393,7 @@ int main(int argc, char** argv) {
     spec.name = "rgbd-calibrate";
     spec.usage =
         "rgbd-calibrate CAPTURE -o rig.json [--board FILE.json] [--anchor ID]\n"
-        "       rgbd-calibrate CAPTURE --refine -o rig.json [--frameset N]";
+        "       rgbd-calibrate CAPTURE --refine -o rig.json [--frameset N] [--sets N]";
     spec.description =
         "Calibrates the extrinsics of a sensor network and writes rig.json (every other field\n"
         "kept from the capture's rig.json; the anchor sensor keeps its pose).\n"
@@ -332,9 +408,11 @@ int main(int argc, char** argv) {
         "and the change from the capture's rig.json at the ring centre. Fails (exit 1, no\n"
         "output) when no board is visible or naming the sensors it cannot connect.\n"
         "With --refine: starts from the capture's rig.json and refines the poses on whatever\n"
-        "the sensors see in one frame set (a person, a bust) with the toolkit's multi-view\n"
-        "registration (rgbd-align's align_views); prints the change per sensor and writes\n"
-        "nothing (exit 1) unless every sensor's alignment verdict is PASS.\n"
+        "the sensors see (a person standing still, a bust) with the toolkit's multi-view\n"
+        "registration (rgbd-align's align_views, joint rounds from the rig's poses); each\n"
+        "sensor's depth is the per-pixel median of --sets frame sets (one frame's noise leaves\n"
+        "~0.3 deg on a rounded object). Prints the change per sensor and writes nothing (exit 1)\n"
+        "unless every sensor's alignment verdict is PASS.\n"
         "Board file: {\"squares_x\": 7, \"squares_y\": 5, \"square_m\": 0.08, \"marker_m\": 0.06,\n"
         "\"dictionary\": \"DICT_5X5_100\"} (these are the defaults).";
     spec.example =
@@ -351,7 +429,10 @@ int main(int argc, char** argv) {
             "sensor whose pose is fixed (default: the first in rig.json)")(
             "refine", "refine the capture's rig.json on the object instead of a board")(
             "frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
-            "--refine: the frame set to register")(
+            "--refine: the first frame set to register")(
+            "sets", cli::po::value<int>()->default_value(8)->value_name("N"),
+            "--refine: frame sets (from --frameset on) whose depth is combined by a per-pixel "
+            "median; the scene must stand still (pixels that change are left out)")(
             "min-corners", cli::po::value<int>()->default_value(6)->value_name("N"),
             "board views with fewer corners are not used")(
             "max-rms-px", cli::po::value<double>()->default_value(2.0, "2")->value_name("PX"),

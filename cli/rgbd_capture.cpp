@@ -25,7 +25,10 @@
 #include "cli/capture_control.hpp"
 #include "cli/capture_live.hpp"
 #include "cli/capture_recorder.hpp"
+#include "cli/capture_video.hpp"
 #include "cli/common/tool.hpp"
+#include "cli/node_views.hpp"
+#include "cli/view_server.hpp"
 #include "io/capture_folder.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/clock_sync.hpp"
@@ -69,8 +72,46 @@ void run_capture(cli::Context& ctx) {
         throw cli::UsageError("unexpected argument '" + ctx.inputs().front() + "'");
     if (!ctx.has("rig")) throw cli::UsageError("--rig FILE is required");
     const bool live = ctx.has("live");
-    if (ctx.output_path().empty() && !live)
-        throw cli::UsageError("-o FOLDER is required (or --live to stream without recording)");
+    const bool video = ctx.has("video");
+    if (ctx.output_path().empty() && !live && !video)
+        throw cli::UsageError(
+            "-o FOLDER is required (or --live to stream views, or --video DIR for a 3D video)");
+    cli::VideoOptions video_options;
+    cli::ViewServerOptions serve_options;
+    if (video) {
+        video_options.dir = ctx.get<std::string>("video");
+        const std::string placement = ctx.get<std::string>("fuse-on");
+        if (placement != "nodes" && placement != "hub")
+            throw cli::UsageError("--fuse-on must be nodes or hub");
+        video_options.fuse_on_nodes = placement == "nodes";
+        if (video_options.fuse_on_nodes && (live || !ctx.output_path().empty()))
+            throw cli::UsageError(
+                "--fuse-on nodes: the nodes send views, not frames; -o and --live need "
+                "--fuse-on hub");
+        if (!ctx.output_path().empty() && fs::path(video_options.dir).lexically_normal() ==
+                                              fs::path(ctx.output_path()).lexically_normal())
+            throw cli::UsageError("--video and -o name the same folder");
+        video_options.fusion.voxel_m = ctx.get<double>("voxel-mm") * 1e-3;
+        video_options.fusion.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
+        video_options.fusion.clean = !ctx.has("no-clean");
+        video_options.draco.position_quantum_m = ctx.get<double>("draco-quantum-mm") * 1e-3;
+        video_options.draco.color_bits = ctx.get<int>("draco-color-bits");
+        video_options.draco.speed = ctx.get<int>("draco-speed");
+        try {
+            video_options.fusion.check();
+            video_options.draco.check();
+        } catch (const InputError& e) {
+            throw cli::UsageError(e.what());
+        }
+    } else if (ctx.has("serve")) {
+        throw cli::UsageError("--serve needs --video");
+    }
+    if (ctx.has("serve")) {
+        serve_options.port = ctx.get<int>("serve");
+        serve_options.bind = ctx.get<std::string>("bind");
+        if (serve_options.port < 0 || serve_options.port > 65535)
+            throw cli::UsageError("--serve must be a port 0..65535");
+    }
     cli::LiveOptions live_options;
     if (live) {
         live_options.path = ctx.get<std::string>("live");
@@ -94,6 +135,14 @@ void run_capture(cli::Context& ctx) {
     options.probes = ctx.get<int>("probes");
     const double interval_ms = ctx.get<double>("probe-interval-ms");
     options.drift_window_s = ctx.get<double>("drift-window-s");
+    const double start_wait_s = ctx.get<double>("start-wait-s");
+    if (!(start_wait_s >= 0 && start_wait_s <= 3600))
+        throw cli::UsageError("--start-wait-s must be in [0, 3600]");
+    options.start_wait_ns = static_cast<std::int64_t>(start_wait_s * 1e9);
+    const double start_lead_ms = ctx.get<double>("start-lead-ms");
+    if (!(start_lead_ms >= 10 && start_lead_ms <= 600000))
+        throw cli::UsageError("--start-lead-ms must be in [10, 600000]");
+    options.start_lead_ns = static_cast<std::int64_t>(start_lead_ms * 1e6);
     const int png = ctx.get<int>("png-compression");
     if (!(tolerance_ms >= 0 && tolerance_ms <= 1000))
         throw cli::UsageError("--tolerance-ms must be in [0, 1000]");
@@ -122,6 +171,18 @@ void run_capture(cli::Context& ctx) {
         if (!net::curve_available())
             throw IoError("--key: this libzmq has no CURVE support (zmq_has(\"curve\") is 0)");
         keys = std::make_unique<net::CurveKeys>(net::read_key_file(ctx.get<std::string>("key")));
+    }
+    if (video && video_options.fuse_on_nodes) {
+        // The start message asks every node for views of its sensor at the rig pose.
+        const std::optional<Eigen::Vector3d> centre = pipeline::object_centre(rig);
+        options.start_json = [&rig, centre, &video_options](std::size_t sensor) {
+            cli::ViewRequest request;
+            request.world_from_sensor = rig.sensors[sensor].world_from_depth;
+            request.centre = centre;
+            request.crop_radius_m = video_options.fusion.extraction.crop_radius_m;
+            request.clean = video_options.fusion.clean;
+            return cli::view_request_to_json(request).dump();
+        };
     }
     const std::string listen = ctx.get<std::string>("listen");
     const std::string control =
@@ -154,14 +215,29 @@ void run_capture(cli::Context& ctx) {
     const std::size_t n = rig.sensors.size();
     const auto tolerance_ns = static_cast<std::int64_t>(std::llround(tolerance_ms * 1e6));
     const auto latency_ns = static_cast<std::int64_t>(std::llround(latency_ms * 1e6));
-    net::FrameGrouper grouper(n, tolerance_ns);
+    net::FrameGrouper grouper(n, tolerance_ns, /*complete_early=*/video);
     // Live stream: frames are kept as long as a set can still be formed from them.
     std::unique_ptr<cli::FrameHistory> history;
     std::unique_ptr<cli::LiveStream> stream;
+    std::unique_ptr<cli::ViewServer> server;
+    std::unique_ptr<cli::VideoStream> fusion;
     std::int64_t sets_formed = 0;
-    if (live) {
+    if (live || video)
         history =
             std::make_unique<cli::FrameHistory>(n, latency_ns + 4 * tolerance_ns + 500'000'000);
+    if (video) {
+        if (ctx.has("serve")) {
+            server = std::make_unique<cli::ViewServer>(serve_options, std::nullopt);
+            ctx.info("live 3D video at http://" + serve_options.bind + ":" +
+                     std::to_string(server->port()) + "/");
+        }
+        cli::ViewServer* page = server.get();
+        fusion = std::make_unique<cli::VideoStream>(
+            rig, video_options, ctx, [page](const cli::FusedFrame& f) {
+                if (page) page->publish(f.frame, f.info, f.points);
+            });
+    }
+    if (live) {
         stream = std::make_unique<cli::LiveStream>(
             rig, live_options, ctx,
             [&recorder](std::int64_t ordinal) {
@@ -182,6 +258,7 @@ void run_capture(cli::Context& ctx) {
     net::FrameView view;
     std::string error;
     zmq::message_t message;
+    io::ColoredPoints view_points;
 
     const auto drop = [&](const std::string& reason) {
         ++dropped[reason];
@@ -200,6 +277,25 @@ void run_capture(cli::Context& ctx) {
         if (view.header.sensor_id != spec.id) return drop("sensor id differs from the hello");
         if (view.header.width != spec.depth.width || view.header.height != spec.depth.height)
             return drop("depth size differs from the rig");
+        if (view.header.kind == net::PayloadKind::kView) {
+            // A node's fused-ready view (--fuse-on nodes): no recording, straight to the video.
+            if (!fusion || !video_options.fuse_on_nodes)
+                return drop("a view, but this hub asked for frames");
+            if (!cli::decode_view_payload(view.depth, view.header.depth_bytes, view.color,
+                                          view.header.color_bytes, view_points, error))
+                return drop(error);
+            SensorStats& st = stats[sensor];
+            const std::int64_t hub_ns = fit.to_hub(view.header.node_ns);
+            if (st.last_hub_ns != std::numeric_limits<std::int64_t>::min() &&
+                hub_ns - st.last_hub_ns > 1.5 * st.period_ns)
+                st.gaps.emplace_back(st.last_hub_ns, hub_ns);
+            st.last_hub_ns = std::max(st.last_hub_ns, hub_ns);
+            const std::int64_t index = st.recorded++;
+            grouper.add(sensor, hub_ns, index);
+            history->store_view(sensor, index, hub_ns, view_points);
+            ++received;
+            return;
+        }
         auto job = recorder.take();
         job->depth.create(spec.depth.height, spec.depth.width, CV_16UC1);
         try {
@@ -243,14 +339,17 @@ void run_capture(cli::Context& ctx) {
             job->set = set;
             recorder.push(std::move(job));
             if (stream) stream->offer(set, sets_formed, *history);
+            if (fusion) fusion->offer(set, *history);
             ++sets_formed;
         }
     };
 
     std::string stop_reason = "signal";
+    std::int64_t last_formed = monotonic_ns();
     for (;;) {
         if (g_stop) break;
         if (recorder.failed()) break;
+        if (fusion && fusion->failed()) break;
         if (duration_s > 0 &&
             monotonic_ns() - start > static_cast<std::int64_t>(duration_s * 1e9)) {
             stop_reason = "duration";
@@ -266,7 +365,8 @@ void run_capture(cli::Context& ctx) {
         }
         zmq::pollitem_t item{pull.handle(), 0, ZMQ_POLLIN, 0};
         if (!poll_once(item)) continue;
-        for (int k = 0; k < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++k) {
+        int taken = 0;
+        for (; taken < 64 && pull.recv(message, zmq::recv_flags::dontwait); ++taken) {
             if (message.more()) {
                 while (message.more() && pull.recv(message, zmq::recv_flags::none)) {
                 }
@@ -275,7 +375,14 @@ void run_capture(cli::Context& ctx) {
             }
             handle(message);
         }
-        form_sets(monotonic_ns() - latency_ns);
+        // Sets are formed once the socket is drained: a hub that falls behind (a loaded
+        // machine) reads the frames waiting for it before it closes their windows, so they are
+        // not late. It still forms them at least every latency / 2 when it never drains.
+        const std::int64_t now = monotonic_ns();
+        if (taken < 64 || now - last_formed > latency_ns / 2) {
+            form_sets(now - latency_ns);
+            last_formed = now;
+        }
     }
     if (!recorder.failed()) {
         // Drain: what the nodes already sent, until the socket is quiet for 300 ms.
@@ -302,17 +409,26 @@ void run_capture(cli::Context& ctx) {
     hub.stop();
     recorder.finish();
     if (stream) stream->finish();
+    const std::string final_reason = recorder.failed()            ? "recording failed"
+                                     : fusion && fusion->failed() ? "video write failed"
+                                                                  : stop_reason;
+    if (fusion) fusion->finish(final_reason);
+    if (server) server->stop();
     const Report clocks = hub.report(end);
 
     auto& m = ctx.metrics();
     m["output"] = ctx.output_path();
-    m["stop_reason"] = recorder.failed() ? "recording failed" : stop_reason;
+    m["stop_reason"] = final_reason;
     m["duration_s"] = 1e-9 * static_cast<double>(end - start);
     // Peak resident memory of the hub process (getrusage; Linux reports KiB): a slow --live
     // reader must not make it grow (issue 21).
     rusage usage{};
-    if (::getrusage(RUSAGE_SELF, &usage) == 0)
+    if (::getrusage(RUSAGE_SELF, &usage) == 0) {
         m["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+        // CPU of the whole hub (user + system, every thread), for the video benchmark.
+        m["cpu_s"] = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                     1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+    }
     m["frames_received"] = received;
     m["frames_recorded"] = recorder.frames_written();
     m["framesets"] = recorder.recording() ? recorder.sets_written() : sets_formed;
@@ -345,6 +461,18 @@ void run_capture(cli::Context& ctx) {
                  " skipped for newer ones, " + l["sets_incomplete"].dump() + " incomplete");
     }
 
+    if (fusion) {
+        m["video"] = fusion->metrics();
+        m["video"]["dir"] = video_options.dir;
+        m["video"]["placement"] = video_options.fuse_on_nodes ? "nodes" : "hub";
+        const Report& v = m["video"];
+        ctx.note("video: " + v["sets_fused"].dump() + " fused frame sets in " + video_options.dir +
+                 " (" + v["sets_skipped"].dump() + " skipped for newer ones, " +
+                 v["sets_thinned"].dump() + " thinned, " + v["sets_empty"].dump() + " empty)");
+        if (fusion->failed())
+            throw IoError("video stopped: " + fusion->error() + "; " + video_options.dir +
+                          " holds " + v["sets_fused"].dump() + " frames, all readable");
+    }
     if (recorder.failed())
         throw IoError("recording stopped: " + recorder.error() + "; " + recorder.root().string() +
                       " holds " + std::to_string(recorder.frames_written()) + " frames and " +
@@ -414,8 +542,13 @@ int main(int argc, char** argv) {
             "duration-s", cli::po::value<double>()->default_value(0.0),
             "stop after S seconds (0 = until a signal)")(
             "exit-after-bye", "stop when every node that joined has finished")(
-            "png-compression", cli::po::value<int>()->default_value(1),
-            "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
+            "start-lead-ms", cli::po::value<double>()->default_value(300.0),
+            "the common start instant lies this far ahead of the moment it is fixed")(
+            "start-wait-s", cli::po::value<double>()->default_value(10.0),
+            "every rig node starts on one common instant once all have joined; after this "
+            "long the ones that joined start without the others (latecomers join the frame "
+            "grid)")("png-compression", cli::po::value<int>()->default_value(1),
+                     "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
             "key", cli::po::value<std::string>()->value_name("FILE"),
             "CURVE key file: encrypt, and refuse nodes without the key")(
             "make-key", cli::po::value<std::string>()->value_name("FILE"),
@@ -425,7 +558,28 @@ int main(int argc, char** argv) {
             "makes from the recording) to FILE, a FIFO or - (stdout); a slow reader gets the "
             "newest set each time, the sets in between are skipped. Without -o nothing is "
             "recorded")("live-sets", cli::po::value<long long>()->default_value(0)->value_name("N"),
-                        "with --live: stop after streaming N frame sets (0 = no limit)");
+                        "with --live: stop after streaming N frame sets (0 = no limit)")(
+            "video", cli::po::value<std::string>()->value_name("DIR"),
+            "fuse every frame set into one coloured point cloud while capturing and write a "
+            "3D video folder (video.json + Draco frames); without -o nothing else is recorded")(
+            "fuse-on", cli::po::value<std::string>()->default_value("nodes"),
+            "where the per-view work runs: nodes (they send cleaned world-frame views, as "
+            "LiveScan3D's clients do) or hub (they send frames)")(
+            "voxel-mm", cli::po::value<double>()->default_value(0.0),
+            "voxel edge of the fused cloud (0 = the sensors' pixel footprint at the object)")(
+            "crop-radius-m", cli::po::value<double>()->default_value(0.6),
+            "keep points within this distance of the rig's object centre (0 = no crop)")(
+            "no-clean", "skip the per-view distance-based clean")(
+            "draco-quantum-mm", cli::po::value<double>()->default_value(2.0),
+            "Draco position grid of the video frames")(
+            "draco-color-bits", cli::po::value<int>()->default_value(6),
+            "colour bits per channel kept in the video frames (1-8)")(
+            "draco-speed", cli::po::value<int>()->default_value(10),
+            "Draco encoding speed (0 = smallest, 10 = fastest)")(
+            "serve", cli::po::value<int>()->value_name("PORT"),
+            "with --video: serve the live fused stream as a web page on PORT")(
+            "bind", cli::po::value<std::string>()->default_value("127.0.0.1"),
+            "address the --serve page listens on (another address lets remote viewers in)");
     };
     return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) {
         try {

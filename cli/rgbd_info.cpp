@@ -1,6 +1,8 @@
 // rgbd-info: a summary of capture folders, view streams, meshes and point files.
 #include <CGAL/Polygon_mesh_processing/border.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -8,6 +10,7 @@
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
+#include "io/video.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -100,6 +103,86 @@ Report describe_capture(const std::string& path) {
     return r;
 }
 
+double quantile(std::vector<double> v, double q) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+/// A 3D video folder (io/video.hpp): frames, timing, sizes, and every frame that cannot be
+/// played, named with its problem.
+Report describe_video(const std::string& path, cli::Context& ctx) {
+    const io::VideoInfo video = io::read_video(path);
+    Report r;
+    r["path"] = path;
+    r["kind"] = "video";
+    for (const char* key : {"placement", "voxel_m", "frame_rate_hz", "stop_reason"})
+        if (video.header.contains(key)) r[key] = video.header[key];
+    r["complete"] = video.complete;
+    if (video.header.contains("rig") && video.header["rig"].contains("sensors"))
+        r["sensors"] = video.header["rig"]["sensors"].size();
+    std::vector<double> points, bytes, hub, latency, spread;
+    Report problems = Report::array();
+    std::size_t unindexed = 0, thinned = 0;
+    const int rig_sensors = r.value("sensors", 0);
+    for (const io::VideoFrame& f : video.frames) {
+        unindexed += !f.indexed;
+        if (!f.problem.empty()) {
+            problems.push_back({{"frame", f.frame}, {"file", f.file}, {"problem", f.problem}});
+            ctx.warn(path + "/" + f.file + ": " + f.problem + " (skipped when played)");
+            continue;
+        }
+        points.push_back(static_cast<double>(f.points));
+        bytes.push_back(static_cast<double>(f.bytes));
+        if (f.indexed) {
+            hub.push_back(f.hub_ms);
+            latency.push_back(f.latency_ms);
+            spread.push_back(1e-6 * static_cast<double>(f.spread_ns));
+            thinned += f.sensors < rig_sensors;
+        }
+    }
+    r["frames"] = video.frames.size();
+    r["playable_frames"] = points.size();
+    r["frames_not_in_index"] = unindexed;
+    r["thinned_frames"] = thinned;
+    if (video.frames.size() >= 2)
+        r["duration_s"] =
+            1e-9 * static_cast<double>(video.frames.back().time_ns - video.frames.front().time_ns);
+    const auto mean = [](const std::vector<double>& v) {
+        double s = 0;
+        for (double x : v) s += x;
+        return v.empty() ? 0.0 : s / static_cast<double>(v.size());
+    };
+    r["points_mean"] = mean(points);
+    r["bytes_mean"] = mean(bytes);
+    // A binary PLY of the same points: float x y z + uchar r g b = 15 bytes per point.
+    r["bytes_per_point"] = mean(points) > 0 ? mean(bytes) / mean(points) : 0.0;
+    r["hub_ms_p50"] = quantile(hub, 0.5);
+    r["hub_ms_p95"] = quantile(hub, 0.95);
+    r["latency_ms_p50"] = quantile(latency, 0.5);
+    r["latency_ms_p95"] = quantile(latency, 0.95);
+    r["spread_ms_max"] = spread.empty() ? 0.0 : *std::max_element(spread.begin(), spread.end());
+    if (video.header.contains("counters")) r["counters"] = video.header["counters"];
+    r["problems"] = problems;
+    return r;
+}
+
+/// rgbd-info DIR --frame N: one frame of a video as a view (world frame, coloured).
+void export_video_frame(const std::string& path, long long frame, cli::Context& ctx) {
+    const io::VideoInfo video = io::read_video(path);
+    io::FrameMeta meta;
+    io::Document document;
+    document.cloud = io::to_point_cloud(io::read_video_frame(video, frame, &meta));
+    document.cloud.view.id = static_cast<int>(frame);
+    document.cloud.view.frame_index = meta.set;
+    document.cloud.view.time_ns = meta.time_ns;
+    document.cloud.view.source =
+        (std::filesystem::path(path) / io::video_frame_file(frame)).string();
+    ctx.metrics()["frame"] = frame;
+    ctx.metrics()["points"] = document.cloud.size();
+    ctx.write(document);
+}
+
 void print_text(std::ostream& os, const Report& r, const std::string& indent = "") {
     for (auto it = r.begin(); it != r.end(); ++it) {
         if (it->is_object()) {
@@ -122,21 +205,41 @@ void print_text(std::ostream& os, const Report& r, const std::string& indent = "
 int main(int argc, char** argv) {
     cli::ToolSpec spec;
     spec.name = "rgbd-info";
-    spec.usage = "rgbd-info [--json] PATH...";
+    spec.usage = "rgbd-info [--json] PATH...   |   rgbd-info VIDEO_DIR --frame N -o frame.ply";
     spec.description =
         "Prints a summary of each input: a capture folder (layout, sensors, frames, frame sets, "
         "ground truth), a view stream (per document: points, properties, metadata, bounding box, "
-        "flag counts), a mesh (vertices, faces, border edges, closed, colours) or a point file.";
+        "flag counts), a mesh (vertices, faces, border edges, closed, colours), a point file, or a "
+        "3D video folder (rgbd-capture --video: frames, duration, points and bytes per frame, "
+        "hub ms and latency p50/p95, counters, and every frame file that is missing, stale or "
+        "does not decode, by name). --frame N exports one video frame as a view for the "
+        "rest of the pipeline.";
     spec.example = "rgbd-cloud cap/ | rgbd-info --json";
     spec.writes_stream = false;
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("json", "print JSON instead of text");
+        o.add_options()("json", "print JSON instead of text")(
+            "frame", cli::po::value<long long>()->value_name("N"),
+            "with a 3D video folder: write its frame N as a view (binary PLY, world frame, "
+            "coloured) to -o FILE or stdout instead of the summary");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         Report all = Report::array();
         std::vector<std::string> inputs = ctx.inputs();
         if (inputs.empty()) inputs.push_back("-");
+        if (ctx.has("frame")) {
+            if (inputs.size() != 1 || !fs::is_directory(inputs.front()))
+                throw cli::UsageError("--frame N needs one video folder");
+            if (ctx.output_path().empty() && isatty(STDOUT_FILENO))
+                throw cli::UsageError("refusing to write binary PLY to a terminal: use -o FILE");
+            export_video_frame(inputs.front(), ctx.get<long long>("frame"), ctx);
+            return;
+        }
         for (const std::string& input : inputs) {
+            if (input != "-" && fs::is_directory(input) &&
+                fs::exists(fs::path(input) / "video.json")) {
+                all.push_back(describe_video(input, ctx));
+                continue;
+            }
             if (input != "-" && fs::is_directory(input)) {
                 all.push_back(describe_capture(input));
                 continue;

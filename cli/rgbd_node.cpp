@@ -4,6 +4,7 @@
 // ZeroMQ; a second socket answers the hub's clock probes so they never wait behind frames.
 // For tests the node can run on a deliberately wrong clock (--clock-offset-ms,
 // --clock-drift-ppm): its time stamps are then in that clock, as on a PC whose clock is off.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <csignal>
 #include <fstream>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -19,6 +21,7 @@
 #include <zmq.hpp>
 
 #include "cli/common/tool.hpp"
+#include "cli/node_views.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
 #include "sensors/network/transport.hpp"
@@ -44,6 +47,12 @@ struct NodeClock {
         return monotonic + static_cast<std::int64_t>(std::llround(offset_ns + drift));
     }
     std::int64_t now() const { return at(sensors::monotonic_ns()); }
+    /// The monotonic instant at which the node's clock reads `node_ns` (inverse of at()).
+    std::int64_t monotonic_at(std::int64_t node_ns) const {
+        std::int64_t m = node_ns - static_cast<std::int64_t>(std::llround(offset_ns));
+        for (int i = 0; i < 3; ++i) m += node_ns - at(m);
+        return m;
+    }
 };
 
 /// Answers clock probes and says hello until the hub says start; runs on its own thread with
@@ -66,6 +75,14 @@ public:
         if (thread_.joinable()) thread_.join();
     }
     bool started() const { return started_; }
+    /// The start message: first frame's instant (node clock, 0 = at once), the rig's frame
+    /// period (ns) and its JSON. Valid once started().
+    void start(std::int64_t& instant, std::int64_t& period, std::string& json) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        instant = start_ns_;
+        period = period_ns_;
+        json = start_json_;
+    }
     std::int64_t probes() const { return probes_; }
     /// Queues a bye (sent by the control thread, which owns the socket).
     /// Sent three times, 50 ms apart, so that one lost message does not keep the hub waiting.
@@ -127,7 +144,13 @@ private:
                     reply.t2 = clock_.now();
                     send(reply);
                     ++probes_;
-                } else if (in.type == net::ControlType::kStart) {
+                } else if (in.type == net::ControlType::kStart && !started_) {
+                    {
+                        std::lock_guard<std::mutex> lock(mutex_);
+                        start_ns_ = in.t0;
+                        period_ns_ = in.t1;
+                        start_json_ = in.json;
+                    }
                     started_ = true;
                 }
             }
@@ -140,6 +163,9 @@ private:
     std::atomic<bool> stop_{false}, started_{false}, bye_{false};
     std::atomic<int> byes_sent_{0};
     std::atomic<std::int64_t> probes_{0}, frames_{0};
+    std::mutex mutex_;
+    std::int64_t start_ns_ = 0, period_ns_ = 0;
+    std::string start_json_;
     std::thread thread_;
 };
 
@@ -176,6 +202,7 @@ void run_node(cli::Context& ctx) {
     open.max_frames = frames_limit;
     open.playback.loop = ctx.has("loop");
     open.playback.align_to_clock = !ctx.has("no-align");
+    open.playback.decode_color = ctx.has("views");
     auto sensor = sensors::open_sensor(ctx.get<std::string>("sensor"), open);
     const io::SensorSpec& spec = sensor->spec();
     if (spec.id.size() > net::kMaxSensorId)
@@ -235,10 +262,80 @@ void run_node(cli::Context& ctx) {
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
 
+    std::int64_t start_node_ns = 0, period_ns = 0;
+    std::string start_json;
+    channel->start(start_node_ns, period_ns, start_json);
+
+    // The hub may ask for fused-ready views instead of frames (rgbd-capture --video
+    // --fuse-on nodes): the per-view work then runs here, on the node's own CPU.
+    const std::optional<cli::ViewRequest> views = cli::view_request_from_json(start_json);
+    io::SensorSpec view_spec = spec;
+    pipeline::VideoFusionOptions fusion;
+    if (views) {
+        view_spec.world_from_depth = views->world_from_sensor;
+        view_spec.has_world_from_depth = true;
+        fusion.extraction.crop_radius_m = views->crop_radius_m;
+        fusion.clean = views->clean;
+        ctx.info("the hub asks for views: per-view work on this node");
+    }
+    const bool send_color = !ctx.has("no-color");
+    cv::Mat decoded;
+    std::int64_t view_points = 0, views_made = 0;
+    // One frame -> the view payloads (points in `xyz`, colours in `rgb`).
+    const auto make_view = [&](const sensors::SensorFrame& f, std::vector<std::uint8_t>& xyz,
+                               std::vector<std::uint8_t>& rgb) {
+        const cv::Mat* bgr = &f.color;
+        if (f.color.empty() && !f.color_jpeg.empty()) {
+            decoded = cv::imdecode(f.color_jpeg, cv::IMREAD_COLOR);
+            if (decoded.empty())
+                throw InputError("cannot decode the colour of frame " + std::to_string(f.index));
+            bgr = &decoded;
+        }
+        RgbdFrame rgbd =
+            io::frame_from_stored(view_spec, f.depth, send_color ? *bgr : cv::Mat(),
+                                  "frame " + std::to_string(f.index) + " of sensor " + spec.id);
+        rgbd.frame_index = f.index;
+        const PointCloud view = pipeline::fusion_view(rgbd, 0, fusion, views->centre);
+        cli::encode_view_payload(view, xyz, rgb);
+        ++views_made;
+    };
+    // --cache-views (benchmarks): the view of every recording position is made once, before
+    // the start (give the hub a long --start-lead-ms), and sent again on every loop, so that
+    // many nodes on one machine load the hub, not the machine.
+    const bool cache_views = views && ctx.has("cache-views");
+    std::map<std::int64_t, std::pair<std::vector<std::uint8_t>, std::vector<std::uint8_t>>> cache;
+    if (cache_views) {
+        sensors::OpenOptions all = open;
+        all.max_frames = 0;
+        all.playback.realtime = false;
+        all.playback.loop = false;
+        auto copy = sensors::open_sensor(ctx.get<std::string>("sensor"), all);
+        sensors::SensorFrame f;
+        while (!g_stop && copy->next(f)) {
+            if (f.source_position < 0)
+                throw cli::UsageError("--cache-views needs a playback sensor");
+            auto& entry = cache[f.source_position];
+            make_view(f, entry.first, entry.second);
+        }
+        ctx.info("made the views of " + std::to_string(cache.size()) + " recording positions");
+    }
+
+    // The hub's common start instant (node clock) -> this machine's monotonic clock; an
+    // instant already past (a start message sent again after a reconnect, a slow cache)
+    // moves along the frame grid to the next one ahead.
+    bool start_honoured = false;
+    std::int64_t start_monotonic = 0;
+    if (start_node_ns != 0) {
+        start_monotonic = clock.monotonic_at(start_node_ns);
+        const std::int64_t now = sensors::monotonic_ns() + 5'000'000;
+        if (start_monotonic < now && period_ns > 0)
+            start_monotonic += (now - start_monotonic + period_ns - 1) / period_ns * period_ns;
+        start_honoured = sensor->start_at(start_monotonic);
+    }
+
     sensors::SensorFrame frame;
     std::vector<std::uint8_t> rvl, jpeg, message;
     const std::vector<int> jpeg_params = {cv::IMWRITE_JPEG_QUALITY, quality};
-    const bool send_color = !ctx.has("no-color");
     std::int64_t sent = 0, raw_bytes = 0, rvl_bytes = 0, color_bytes = 0;
     double encode_s = 0;
     const std::int64_t run_start = sensors::monotonic_ns();
@@ -250,18 +347,33 @@ void run_node(cli::Context& ctx) {
         const std::int64_t t_encode = sensors::monotonic_ns();
         const std::size_t pixels = frame.depth.total();
         if (!frame.depth.isContinuous()) frame.depth = frame.depth.clone();
-        io::rvl_compress(frame.depth.ptr<std::uint16_t>(), pixels, rvl);
         const std::vector<std::uint8_t>* color = &frame.color_jpeg;
-        if (!send_color) {
-            jpeg.clear();
+        const auto cached = cache_views && frame.source_position >= 0
+                                ? cache.find(frame.source_position)
+                                : cache.end();
+        if (cached != cache.end()) {
+            rvl = cached->second.first;
+            jpeg = cached->second.second;
             color = &jpeg;
-        } else if (frame.color_jpeg.empty() && !frame.color.empty()) {
-            if (!cv::imencode(".jpg", frame.color, jpeg, jpeg_params))
-                throw AlgorithmError("cannot JPEG-encode colour frame " +
-                                     std::to_string(frame.index));
+            view_points += static_cast<std::int64_t>(rvl.size() / 12);
+        } else if (views) {
+            make_view(frame, rvl, jpeg);
             color = &jpeg;
+            view_points += static_cast<std::int64_t>(rvl.size() / 12);
+        } else {
+            io::rvl_compress(frame.depth.ptr<std::uint16_t>(), pixels, rvl);
+            if (!send_color) {
+                jpeg.clear();
+                color = &jpeg;
+            } else if (frame.color_jpeg.empty() && !frame.color.empty()) {
+                if (!cv::imencode(".jpg", frame.color, jpeg, jpeg_params))
+                    throw AlgorithmError("cannot JPEG-encode colour frame " +
+                                         std::to_string(frame.index));
+                color = &jpeg;
+            }
         }
         net::FrameHeader header;
+        header.kind = views ? net::PayloadKind::kView : net::PayloadKind::kFrame;
         header.session = session;
         header.sensor_id = spec.id;
         header.index = frame.index;
@@ -285,7 +397,8 @@ void run_node(cli::Context& ctx) {
         }
         if (truth)
             *truth << session << ',' << frame.index << ',' << frame.source_position << ','
-                   << frame.capture_ns << ',' << header.node_ns << '\n';
+                   << frame.capture_ns << ',' << header.node_ns << '\n'
+                   << std::flush;  // tests read it while the node runs
         ++sent;
         raw_bytes += static_cast<std::int64_t>(pixels * 2);
         rvl_bytes += static_cast<std::int64_t>(rvl.size());
@@ -303,12 +416,25 @@ void run_node(cli::Context& ctx) {
     m["session"] = session;
     m["frames_sent"] = sent;
     m["probes_answered"] = channel->probes();
+    m["start_monotonic_ns"] = start_monotonic;
+    m["start_honoured"] = start_honoured;
     m["clock_offset_ns"] = clock.offset_ns;
     m["clock_drift_ppm"] = clock.drift_ppm;
     m["clock_epoch_ns"] = clock.epoch_ns;
     m["rvl_ratio"] = rvl_bytes > 0 ? static_cast<double>(raw_bytes) / rvl_bytes : 0.0;
     m["color_bytes"] = color_bytes;
     m["encode_ms_per_frame"] = sent > 0 ? 1e3 * encode_s / sent : 0.0;
+    m["payload"] = views ? "views" : "frames";
+    if (views) {
+        m["view_points_per_frame"] = sent > 0 ? double(view_points) / sent : 0.0;
+        m["views_made"] = views_made;
+    }
+    // CPU of the whole node (user + system, all threads) per frame sent.
+    rusage usage{};
+    if (::getrusage(RUSAGE_SELF, &usage) == 0 && sent > 0)
+        m["cpu_ms_per_frame"] = (1e3 * (usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                                 1e-3 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec)) /
+                                static_cast<double>(sent);
     ctx.info("sent " + std::to_string(sent) + " frames");
 }
 
@@ -345,6 +471,12 @@ int main(int argc, char** argv) {
             "duration-s", cli::po::value<double>()->default_value(0.0),
             "stop after S seconds of streaming (0 = no limit)")(
             "loop", "playback: start the recording again at its end")(
+            "views",
+            "prepare for making views (rgbd-capture --video --fuse-on nodes): playback decodes "
+            "its colour once when opening; the hub's start message decides what is sent")(
+            "cache-views",
+            "benchmarks: with --views and a playback, make the view of every recording position "
+            "before the start and send it again on every loop")(
             "no-align",
             "playback: do not put frame instants on the shared monotonic-clock grid (see "
             "sensors/playback/playback_sensor.hpp)")("no-color", "send depth only")(

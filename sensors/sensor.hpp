@@ -44,6 +44,15 @@ public:
     /// Waits until the next frame is captured and fills `frame`. Returns false when the sensor
     /// has no more frames (end of a recording, frame limit). Throws rgbd::Error on failure.
     virtual bool next(SensorFrame& frame) = 0;
+    /// Asks the sensor to capture its first frame at `monotonic_ns` (this machine's monotonic
+    /// clock) and every later one on that instant's frame grid, so that the sensors of a rig
+    /// started by the hub on one common instant capture together (the software trigger of
+    /// LiveScan3D). Call before the first next(). Returns false when the sensor cannot be
+    /// told (a free-running device): it then keeps its own timing.
+    virtual bool start_at(std::int64_t monotonic_ns) {
+        (void)monotonic_ns;
+        return false;
+    }
 };
 
 }  // namespace rgbd::sensors

@@ -79,6 +79,8 @@ int main(int argc, char** argv) {
     std::string board_path;
     rgbd::synth::BoardMotion motion;
     int verbosity = 0, stops = 12;
+    std::string motion_kind = "none";
+    double fps = 30.0;
     bool quiet = false;
     po::options_description visible("Options");
     // clang-format off
@@ -113,7 +115,17 @@ int main(int argc, char** argv) {
              ->value_name("F"), "multiply the depth and colour pixel counts per side by F "
          "(0.1-4; e.g. 0.5 for fast tests)")
         ("frames", po::value(&options.frames)->default_value(1)->value_name("N"),
-         "frame sets (turntable: frames per stop); static scene, fresh noise each")
+         "frame sets (turntable: frames per stop); static scene, fresh noise each, unless "
+         "--motion")
+        ("motion", po::value(&motion_kind)->default_value("none")->value_name("none|turn|nod"),
+         "ring: the object moves rigidly over the frame sets (3D video tests): turn about the "
+         "vertical axis, or nod about a horizontal one; truth in gt/motion.json")
+        ("motion-deg", po::value(&options.motion_deg)->default_value(90.0, "90")->value_name("D"),
+         "turn: degrees per second; nod: amplitude in degrees")
+        ("motion-period-s", po::value(&options.motion_period_s)->default_value(2.0, "2")
+             ->value_name("S"), "nod: period in seconds")
+        ("fps", po::value(&fps)->default_value(30.0, "30")->value_name("F"),
+         "frame sets per second (times in frames.csv, the motion's clock)")
         ("seed", po::value(&options.seed)->default_value(1)->value_name("S"),
          "random seed (noise, calibration error, clock offsets, turntable truth)")
         ("target", po::value(&target)->default_value("object")->value_name("object|charuco"),
@@ -164,6 +176,9 @@ int main(int argc, char** argv) {
         try {
             options.rig = rgbd::synth::parse_rig_kind(rig);
             options.up = rgbd::synth::parse_up_axis(up);
+            options.motion = rgbd::synth::parse_motion_kind(motion_kind);
+            if (!(fps > 0 && fps <= 1000)) throw rgbd::InputError("--fps must be in (0, 1000]");
+            options.frame_period_s = 1.0 / fps;
             if (noise == "none")
                 options.noise = rgbd::synth::NoiseOptions::none();
             else if (noise != "default")

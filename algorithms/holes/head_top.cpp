@@ -84,6 +84,18 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
             known.at<std::uint8_t>(r, c) = 255;
         }
     }
+    // The outer surface's height per pixel without the bias of the largest of several noisy
+    // samples: the mean of the samples within two spacings below the largest (the ellipsoid's
+    // residual at the rim, step 4).
+    cv::Mat outer_sum(rows, cols, CV_64F, cv::Scalar(0.0)),
+        outer_count(rows, cols, CV_32S, cv::Scalar(0));
+    for (std::size_t i = 0; i < top.size(); ++i) {
+        const int c = static_cast<int>((top[i].x() - ou) / px);
+        const int r = static_cast<int>((top[i].y() - ov) / px);
+        if (top[i].z() < height.at<float>(r, c) - 2 * spacing_m) continue;
+        outer_sum.at<double>(r, c) += top[i].z();
+        ++outer_count.at<int>(r, c);
+    }
     // Step 3: hole = unknown pixels inside the convex hull of the known ones.
     std::vector<cv::Point> known_px, hull;
     cv::findNonZero(known, known_px);
@@ -180,26 +192,69 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
                 info["ellipsoid_semi_axes_m"] = {scale * std::sqrt(g / k[0]),
                                                  scale * std::sqrt(g / k[1]),
                                                  scale * std::sqrt(g / k[2])};
-            cv::Mat distance;
-            cv::distanceTransform(hole, distance, cv::DIST_L2, 3);
+            // The ellipsoid's height per pixel (NaN where its upper sheet does not reach).
+            const auto ellipsoid_height = [&](int r, int c2) {
+                const double u = (ou + (c2 + 0.5) * px - mean.x()) / scale;
+                const double v = (ov + (r + 0.5) * px - mean.y()) / scale;
+                // C h^2 + F h + (A u^2 + B v^2 + D u + E v - 1) = 0, upper root.
+                const double cc = k[0] * u * u + k[1] * v * v + k[3] * u + k[4] * v - 1;
+                const double disc = k[5] * k[5] - 4 * k[2] * cc;
+                if (disc < 0) return std::numeric_limits<double>::quiet_NaN();
+                return (-k[5] + std::sqrt(disc)) / (2 * k[2]) * scale + mean.z();
+            };
+            // [M] The ellipsoid gives the crown's shape, the measured rim its place: the
+            // residual (measured height - ellipsoid) of the known pixels is carried into the
+            // hole by a harmonic solve (each hole pixel a smooth average of the rim's
+            // residuals), and the crown is ellipsoid + residual. The surface meets the rim
+            // without a step and the ellipsoid's misfit at the rim (a head is no ellipsoid;
+            // the fit runs a few mm high or low there) corrects its interior too.
+            cv::Mat residual(rows, cols, CV_32F, cv::Scalar(0.0f));
+            cv::Mat no_residual(rows, cols, CV_8U, cv::Scalar(255));
+            cv::Mat surface(rows, cols, CV_32F,
+                            cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+            for (int r = 0; r < rows; ++r)
+                for (int c2 = 0; c2 < cols; ++c2) {
+                    const double h = ellipsoid_height(r, c2);
+                    surface.at<float>(r, c2) = static_cast<float>(h);
+                    if (!known.at<std::uint8_t>(r, c2) || !std::isfinite(h)) continue;
+                    residual.at<float>(r, c2) = static_cast<float>(
+                        outer_sum.at<double>(r, c2) / outer_count.at<int>(r, c2) - h);
+                    no_residual.at<std::uint8_t>(r, c2) = 0;
+                }
+            // The rim's residuals are the sensors' noise at grazing angles plus the largest
+            // height per pixel: a masked 5 x 5 median keeps the shape and drops the noise.
+            {
+                const cv::Mat raw = residual.clone();
+                std::vector<float> window;
+                for (int r = 0; r < rows; ++r)
+                    for (int c2 = 0; c2 < cols; ++c2) {
+                        if (no_residual.at<std::uint8_t>(r, c2)) continue;
+                        window.clear();
+                        for (int dr = -2; dr <= 2; ++dr)
+                            for (int dc = -2; dc <= 2; ++dc) {
+                                const int r2 = r + dr, c3 = c2 + dc;
+                                if (r2 < 0 || c3 < 0 || r2 >= rows || c3 >= cols ||
+                                    no_residual.at<std::uint8_t>(r2, c3))
+                                    continue;
+                                window.push_back(raw.at<float>(r2, c3));
+                            }
+                        std::nth_element(window.begin(), window.begin() + window.size() / 2,
+                                         window.end());
+                        residual.at<float>(r, c2) = window[window.size() / 2];
+                    }
+            }
+            telea(residual, no_residual, options.telea_radius);
+            info["residual_harmonic"] = biharmonic(residual, hole, /*harmonic=*/true);
+            // Every pixel the ellipsoid reaches takes ellipsoid + residual, the known ones too:
+            // only hole pixels become points, but their positions and normals interpolate
+            // their neighbours, which are then the smoothed rim, not its noisiest samples.
             int used = 0;
             for (int r = 0; r < rows; ++r)
                 for (int c2 = 0; c2 < cols; ++c2) {
-                    if (!hole.at<std::uint8_t>(r, c2)) continue;
-                    const double u = (ou + (c2 + 0.5) * px - mean.x()) / scale;
-                    const double v = (ov + (r + 0.5) * px - mean.y()) / scale;
-                    // C h^2 + F h + (A u^2 + B v^2 + D u + E v - 1) = 0, upper root.
-                    const double cc = k[0] * u * u + k[1] * v * v + k[3] * u + k[4] * v - 1;
-                    const double disc = k[5] * k[5] - 4 * k[2] * cc;
-                    if (disc < 0) continue;
-                    const double h = (-k[5] + std::sqrt(disc)) / (2 * k[2]) * scale + mean.z();
-                    const double w =
-                        options.blend_band > 0
-                            ? std::min(1.0, double(distance.at<float>(r, c2)) / options.blend_band)
-                            : 1.0;
-                    float& cell = height.at<float>(r, c2);
-                    cell = static_cast<float>(w * h + (1 - w) * cell);
-                    ++used;
+                    const float h = surface.at<float>(r, c2);
+                    if (!std::isfinite(h)) continue;  // keeps the inpainted height
+                    height.at<float>(r, c2) = h + residual.at<float>(r, c2);
+                    used += hole.at<std::uint8_t>(r, c2) ? 1 : 0;
                 }
             info["ellipsoid_pixels"] = used;
         }

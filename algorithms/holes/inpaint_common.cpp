@@ -40,7 +40,6 @@ void InpaintOptions::check() const {
                "inpaint: top fraction must be in (0, 0.5]");
     RGBD_CHECK(std::isfinite(top_component) && top_component >= 0 && top_component <= 1,
                "inpaint: top component share must be in [0, 1]");
-    RGBD_CHECK(blend_band >= 0 && blend_band <= 100, "inpaint: blend band must be in [0, 100]");
     RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
                    visible_max_angle_deg < 90,
                "inpaint: visibility angle must be in (0, 90) degrees");

@@ -10,10 +10,11 @@
 //   stay open. Holes whose rim does not face away from the axis (chin overhang, arms: the
 //   surface is not star-shaped there) are left alone.
 // - §13, head top: the crown that a level ring of sensors never sees. Top-down height map of the
-//   top of the body; hole = unknown pixels inside the convex hull of the known ones; height from
-//   an ellipsoid fitted to the top points, blended into the inpainted height (Telea, then a
-//   biharmonic solve) over a band at the rim; a top that is no ellipsoid stays open by default.
-//   normals from the height-map gradient.
+//   top of the body; hole = unknown pixels inside the convex hull of the known ones; height =
+//   an ellipsoid fitted to the top points plus the rim's residual (measured - ellipsoid, 5 x 5
+//   median) carried into the hole by a harmonic solve [M], so the crown has the ellipsoid's
+//   shape and meets the rim without a step; a top that is no ellipsoid stays open by default.
+//   Normals from the height-map gradient.
 // Colour (§12.2): Criminisi's exemplar-based inpainting (exemplar_inpaint.hpp) on the hole
 // pixels of both images, by default; Telea as an option (and where no exemplar fits).
 // The vertical axis comes from the sensor poses (normal of the plane through the sensor
@@ -93,7 +94,6 @@ struct InpaintOptions {
     /// §13 [M]: head-top hole components smaller than this share of the largest one are
     /// sampling gaps among seen pixels, not the crown (left to §11).
     double top_component = 0.1;
-    int blend_band = 3;     ///< §13 step 4: ellipsoid-to-Telea blending band, pixels
     bool ellipsoid = true;  ///< §13 step 4: ellipsoid height (else inpainted only)
     /// ... used only when the fit's RMS residual over the top points is at most this many
     /// spacings (a wreath or a hat is no ellipsoid).

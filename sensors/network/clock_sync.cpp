@@ -18,8 +18,8 @@ bool ClockEstimator::end_burst() {
     burst_.clear();
     last_rtt_ = best.round_trip_ns();
     max_rtt_ = std::max(max_rtt_, last_rtt_);
-    kept_.push_back(
-        {0.5 * (static_cast<double>(best.t0) + static_cast<double>(best.t3)), best.offset_ns()});
+    kept_.push_back({0.5 * (static_cast<double>(best.t0) + static_cast<double>(best.t3)),
+                     best.offset_ns(), static_cast<double>(best.round_trip_ns())});
     while (kept_.size() > 2 && kept_.back().hub_mid - kept_.front().hub_mid > window_ns_)
         kept_.pop_front();
     refit();
@@ -27,23 +27,35 @@ bool ClockEstimator::end_burst() {
 }
 
 void ClockEstimator::refit() {
-    const double n = static_cast<double>(kept_.size());
-    double mean_t = 0, mean_y = 0;
+    // Weighted least squares, weight 1 / rtt^2: a sample's offset error is bounded by half its
+    // round trip, so a burst whose best probe still queued (a loaded machine, all nodes sending
+    // a frame at once) counts little against the clean ones (floor 50 us: loopback jitter).
+    double sw = 0, mean_t = 0, mean_y = 0;
     for (const Point& p : kept_) {
-        mean_t += p.hub_mid;
-        mean_y += p.theta;
+        const double w = weight(p);
+        sw += w;
+        mean_t += w * p.hub_mid;
+        mean_y += w * p.theta;
     }
-    mean_t /= n;
-    mean_y /= n;
-    double stt = 0, sty = 0;
+    mean_t /= sw;
+    mean_y /= sw;
+    double stt = 0, sty = 0, span_lo = kept_.front().hub_mid, span_hi = span_lo;
     for (const Point& p : kept_) {
-        stt += (p.hub_mid - mean_t) * (p.hub_mid - mean_t);
-        sty += (p.hub_mid - mean_t) * (p.theta - mean_y);
+        const double w = weight(p);
+        stt += w * (p.hub_mid - mean_t) * (p.hub_mid - mean_t);
+        sty += w * (p.hub_mid - mean_t) * (p.theta - mean_y);
+        span_lo = std::min(span_lo, p.hub_mid);
+        span_hi = std::max(span_hi, p.hub_mid);
     }
     fit_.ref = mean_t;
     fit_.intercept = mean_y;
     // A drift needs samples spread over about a second or more to be meaningful.
-    fit_.slope = (kept_.size() >= 2 && stt > n * 0.25e18) ? sty / stt : 0.0;
+    fit_.slope = (kept_.size() >= 2 && span_hi - span_lo > 1e9 && stt > 0) ? sty / stt : 0.0;
+}
+
+double ClockEstimator::weight(const Point& p) {
+    const double rtt = std::max(p.rtt, 50'000.0);
+    return 1.0 / (rtt * rtt);
 }
 
 std::int64_t ClockFit::to_hub(std::int64_t node_ns) const {

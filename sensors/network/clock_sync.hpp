@@ -3,8 +3,9 @@
 // the hub receives the reply at t3. Per sample offset theta = ((t1 - t0) + (t2 - t3)) / 2 and
 // round trip delta = (t3 - t0) - (t2 - t1). Of each burst of probes the sample with the
 // smallest delta (least queueing) is kept; the kept samples of the last `window_s` seconds are
-// fitted by least squares with theta(t) = a + b (t - t_ref) (b = drift), and node stamps are
-// mapped through the fit, not through the last probe.
+// fitted by least squares with theta(t) = a + b (t - t_ref) (b = drift), each weighted by
+// 1 / rtt^2 (its offset error is bounded by rtt / 2), and node stamps are mapped through the
+// fit, not through the last probe.
 #pragma once
 
 #include <cstdint>
@@ -67,8 +68,10 @@ private:
     struct Point {
         double hub_mid;  ///< (t0 + t3) / 2
         double theta;
+        double rtt;  ///< round trip of the kept sample, ns
     };
     void refit();
+    static double weight(const Point& p);
     double window_ns_;
     std::vector<ProbeSample> burst_;
     std::deque<Point> kept_;

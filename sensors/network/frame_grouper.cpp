@@ -7,9 +7,10 @@
 
 namespace rgbd::sensors::net {
 
-FrameGrouper::FrameGrouper(std::size_t sensors, std::int64_t tolerance_ns)
+FrameGrouper::FrameGrouper(std::size_t sensors, std::int64_t tolerance_ns, bool complete_early)
     : queues_(sensors),
       tolerance_ns_(tolerance_ns),
+      complete_early_(complete_early),
       formed_until_ns_(std::numeric_limits<std::int64_t>::min()) {
     RGBD_CHECK(sensors > 0, "frame grouper: no sensors");
     RGBD_CHECK(tolerance_ns >= 0, "frame grouper: tolerance must be >= 0");
@@ -36,8 +37,12 @@ void FrameGrouper::form(std::int64_t horizon_ns, std::vector<io::FrameSet>& out)
             if (!q.empty()) t0 = std::min(t0, q.front().hub_ns);
         if (t0 == std::numeric_limits<std::int64_t>::max()) return;
         const std::int64_t window_end = t0 + tolerance_ns_;
-        if (horizon_ns != std::numeric_limits<std::int64_t>::max() && window_end >= horizon_ns)
-            return;
+        if (horizon_ns != std::numeric_limits<std::int64_t>::max() && window_end >= horizon_ns) {
+            bool complete = complete_early_;
+            for (const auto& q : queues_)
+                complete = complete && !q.empty() && q.front().hub_ns <= window_end;
+            if (!complete) return;
+        }
         io::FrameSet set;
         set.set = next_set_++;
         set.frames.assign(queues_.size(), -1);

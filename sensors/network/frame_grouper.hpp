@@ -18,7 +18,10 @@ namespace rgbd::sensors::net {
 
 class FrameGrouper {
 public:
-    FrameGrouper(std::size_t sensors, std::int64_t tolerance_ns);
+    /// `complete_early`: a window that already holds a frame of every sensor is formed at once,
+    /// without waiting for the horizon (the same set, unless a sensor's earlier frame was still
+    /// on its way: that one is then late). For live use (3D video), where latency counts.
+    FrameGrouper(std::size_t sensors, std::int64_t tolerance_ns, bool complete_early = false);
 
     /// Queues frame `index` of sensor `sensor` (0-based, rig order) at hub time `hub_ns`.
     /// Returns false (and counts it late) when its window was already formed.
@@ -37,6 +40,7 @@ private:
     };
     std::vector<std::deque<Waiting>> queues_;
     std::int64_t tolerance_ns_;
+    bool complete_early_;
     std::int64_t formed_until_ns_;  ///< frames at or before this time are late
     std::int64_t next_set_ = 0;
     std::int64_t late_ = 0;

@@ -37,8 +37,9 @@ std::uint64_t get_u64(const std::uint8_t* p) {
 constexpr std::size_t kOffMagic = 0, kOffVersion = 4, kOffHeaderSize = 6, kOffSession = 8,
                       kOffIndex = 16, kOffDevice = 24, kOffNode = 32, kOffWidth = 40,
                       kOffHeight = 42, kOffDepthBytes = 44, kOffColorBytes = 48, kOffDepthCrc = 52,
-                      kOffColorCrc = 56, kOffIdLength = 60, kOffId = 64, kOffHeaderCrc = 124;
-static_assert(kOffId + kMaxSensorId + 1 <= kOffHeaderCrc);
+                      kOffColorCrc = 56, kOffIdLength = 60, kOffId = 64, kOffKind = 112,
+                      kOffHeaderCrc = 124;
+static_assert(kOffId + kMaxSensorId + 1 <= kOffKind);
 
 }  // namespace
 
@@ -79,6 +80,7 @@ void encode_frame(FrameHeader h, const std::uint8_t* depth_rvl, std::size_t dept
     const std::size_t id_length = std::min(h.sensor_id.size(), kMaxSensorId);
     p[kOffIdLength] = static_cast<std::uint8_t>(id_length);
     std::memcpy(p + kOffId, h.sensor_id.data(), id_length);
+    p[kOffKind] = static_cast<std::uint8_t>(h.kind);
     put_u32(p + kOffHeaderCrc, crc32(p, kOffHeaderCrc));
     if (depth_bytes) std::memcpy(p + kFrameHeaderSize, depth_rvl, depth_bytes);
     if (color_bytes) std::memcpy(p + kFrameHeaderSize + depth_bytes, color_jpeg, color_bytes);
@@ -119,6 +121,11 @@ bool parse_frame(const std::uint8_t* data, std::size_t size, FrameView& out, std
         return false;
     }
     h.sensor_id.assign(reinterpret_cast<const char*>(data + kOffId), id_length);
+    if (data[kOffKind] > static_cast<std::uint8_t>(PayloadKind::kView)) {
+        error = "unknown payload kind " + std::to_string(data[kOffKind]);
+        return false;
+    }
+    h.kind = static_cast<PayloadKind>(data[kOffKind]);
     if (h.width == 0 || h.height == 0 || h.depth_bytes > kMaxPayload ||
         h.color_bytes > kMaxPayload) {
         error = "bad image size or payload size";
@@ -188,7 +195,7 @@ bool parse_control(const std::uint8_t* data, std::size_t size, ControlMessage& o
     out.t2 = static_cast<std::int64_t>(get_u64(data + 36));
     out.frames = get_u32(data + 44);
     out.json.assign(reinterpret_cast<const char*>(data + kControlFixed), size - kControlFixed);
-    if (out.type != ControlType::kHello && !out.json.empty()) {
+    if (out.type != ControlType::kHello && out.type != ControlType::kStart && !out.json.empty()) {
         error = "unexpected trailing bytes in a control message";
         return false;
     }

@@ -26,8 +26,17 @@ inline constexpr std::size_t kMaxPayload = 64u << 20;  ///< 64 MiB per payload, 
 /// CRC-32 (zlib polynomial).
 std::uint32_t crc32(const std::uint8_t* data, std::size_t size);
 
+/// What a frame message carries.
+enum class PayloadKind : std::uint8_t {
+    kFrame = 0,  ///< depth as RVL, colour as JPEG
+    kView = 1,   ///< a fused-ready view (rgbd-node --views): n points as float32 x y z (world
+                 ///< frame, metres, little-endian) in the first payload, n x 3 bytes sRGB in
+                 ///< the second; width x height is still the sensor's depth size
+};
+
 /// Fields of a frame header.
 struct FrameHeader {
+    PayloadKind kind = PayloadKind::kFrame;
     std::uint64_t session = 0;   ///< random per node run: a restart is a new session
     std::string sensor_id;       ///< at most kMaxSensorId bytes
     std::int64_t index = 0;      ///< the node's frame counter
@@ -60,7 +69,11 @@ enum class ControlType : std::uint8_t {
     kHello = 1,       ///< node -> hub: session, JSON {"sensor": rig entry, "rate_hz": f}
     kProbe = 2,       ///< hub -> node: seq, t0 (hub clock)
     kProbeReply = 3,  ///< node -> hub: seq, t0, t1 (node receipt), t2 (node reply)
-    kStart = 4,       ///< hub -> node: the clock is known, start streaming
+    kStart = 4,       ///< hub -> node: start streaming; t0 = the first frame's capture instant
+                      ///< in the node's clock (0 = at once), t1 = the rig's frame period (ns,
+                      ///< the grid a start instant already past is moved along), JSON = what
+                      ///< the node sends (empty: frames; {"views": ...}: fused-ready views,
+                      ///< cli/node_views.hpp)
     kBye = 5,         ///< node -> hub: session, frames sent; the node stops
 };
 
@@ -70,7 +83,7 @@ struct ControlMessage {
     std::uint32_t seq = 0;      ///< probe, reply
     std::int64_t t0 = 0, t1 = 0, t2 = 0;
     std::int64_t frames = 0;  ///< bye
-    std::string json;         ///< hello
+    std::string json;         ///< hello, start
 };
 
 std::vector<std::uint8_t> encode_control(const ControlMessage& message);

@@ -106,13 +106,19 @@ void PlaybackSensor::load(std::size_t position, Stored& out) const {
     out.color_jpeg.clear();
     if (!r.color.empty()) {
         const fs::path color_file = resolve(r.color);
-        if (is_jpeg(color_file)) {
+        if (is_jpeg(color_file) && !options_.decode_color) {
             out.color_jpeg = read_bytes(color_file);
         } else {
             out.color = cv::imread(color_file.string(), cv::IMREAD_COLOR);
             if (out.color.empty()) throw IoError(color_file.string() + ": cannot read colour");
         }
     }
+}
+
+bool PlaybackSensor::start_at(std::int64_t monotonic_ns) {
+    if (started_) return false;
+    start_ns_ = monotonic_ns;
+    return true;
 }
 
 bool PlaybackSensor::next(SensorFrame& frame) {
@@ -124,13 +130,17 @@ bool PlaybackSensor::next(SensorFrame& frame) {
 
     if (!started_) {
         started_ = true;
-        const std::int64_t lead = 20'000'000;  // let the caller get ready: 20 ms
-        const std::int64_t now = monotonic_ns() + lead;
-        if (options_.realtime && options_.align_to_clock) {
-            // first grid origin whose first frame is still ahead
-            origin_ns_ = (now - offset_ns_[0] + loop_ns_ - 1) / loop_ns_ * loop_ns_;
+        if (start_ns_) {
+            origin_ns_ = *start_ns_ - offset_ns_[0];
         } else {
-            origin_ns_ = now - offset_ns_[0];
+            const std::int64_t lead = 20'000'000;  // let the caller get ready: 20 ms
+            const std::int64_t now = monotonic_ns() + lead;
+            if (options_.realtime && options_.align_to_clock) {
+                // first grid origin whose first frame is still ahead
+                origin_ns_ = (now - offset_ns_[0] + loop_ns_ - 1) / loop_ns_ * loop_ns_;
+            } else {
+                origin_ns_ = now - offset_ns_[0];
+            }
         }
     }
     const std::int64_t instant = origin_ns_ + loop * loop_ns_ + offset_ns_[position];

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,10 @@ struct PlaybackOptions {
     std::int64_t max_frames = 0;
     /// Read every frame into memory when opening (steady timing, no allocation per frame).
     bool preload = true;
+    /// Deliver JPEG colour decoded (BGR in SensorFrame::color) like a device does, instead of
+    /// the file's bytes: for a node that makes views itself (rgbd-node --views). With preload
+    /// the decoding is done once when opening.
+    bool decode_color = false;
 };
 
 class PlaybackSensor final : public Sensor {
@@ -42,6 +47,9 @@ public:
     const io::SensorSpec& spec() const override { return spec_; }
     double frame_rate_hz() const override { return 1e9 / static_cast<double>(period_ns_); }
     bool next(SensorFrame& frame) override;
+    /// The first frame is delivered at `monotonic_ns` (real time), the others keep their
+    /// recorded distance from it; overrides align_to_clock.
+    bool start_at(std::int64_t monotonic_ns) override;
 
     /// Number of frames in the recording of this sensor.
     std::size_t recording_size() const { return records_.size(); }
@@ -68,6 +76,7 @@ private:
     std::int64_t origin_ns_ = 0;  ///< monotonic instant of loop 0, position offset 0
     std::int64_t produced_ = 0;
     bool started_ = false;
+    std::optional<std::int64_t> start_ns_;  ///< start_at's instant
 };
 
 }  // namespace rgbd::sensors

@@ -104,10 +104,17 @@ void SyntheticSensor::render(std::int64_t index, cv::Mat& depth, cv::Mat& color)
     }
 }
 
+bool SyntheticSensor::start_at(std::int64_t monotonic_ns) {
+    if (produced_ > 0) return false;
+    start_ns_ = monotonic_ns;
+    start_set_ = true;
+    return true;
+}
+
 bool SyntheticSensor::next(SensorFrame& frame) {
     if (options_.max_frames > 0 && produced_ >= options_.max_frames) return false;
     const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / options_.rate_hz));
-    if (produced_ == 0) start_ns_ = (monotonic_ns() / period_ns + 1) * period_ns;
+    if (produced_ == 0 && !start_set_) start_ns_ = (monotonic_ns() / period_ns + 1) * period_ns;
     const std::int64_t instant = start_ns_ + produced_ * period_ns;
     if (options_.realtime) {
         const std::int64_t wait = instant - monotonic_ns();

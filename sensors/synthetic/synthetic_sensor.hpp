@@ -28,6 +28,8 @@ public:
     const io::SensorSpec& spec() const override { return spec_; }
     double frame_rate_hz() const override { return options_.rate_hz; }
     bool next(SensorFrame& frame) override;
+    /// The first frame is captured at `monotonic_ns`, the others one period apart.
+    bool start_at(std::int64_t monotonic_ns) override;
 
     /// Renders frame `index` (deterministic) into depth (CV_16UC1 mm) and colour (BGR).
     void render(std::int64_t index, cv::Mat& depth, cv::Mat& color) const;
@@ -37,6 +39,7 @@ private:
     io::SensorSpec spec_;
     std::int64_t produced_ = 0;
     std::int64_t start_ns_ = 0;
+    bool start_set_ = false;
 };
 
 }  // namespace rgbd::sensors

@@ -22,7 +22,8 @@ RGBD_TOOL_TEST_SCRATCH("rgbd_cli_test")
 
 const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd-mesh",
                         "rgbd-eval",     "rgbd-reconstruct", "rgbd-info",  "rgbd-synth",
-                        "rgbd-upsample", "rgbd-render",      "rgbd-fill",  "rgbd-calibrate"};
+                        "rgbd-upsample", "rgbd-render",      "rgbd-fill",  "rgbd-calibrate",
+                        "rgbd-view"};
 
 /// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
 class Pipeline : public ::testing::Test {

@@ -79,6 +79,8 @@ const Case kCases[] = {
     {"rgbd-capture --rig badcap/rig.json --live out.ply", "rig.json"},
     {"rgbd-node --sensor playback:badcap --hub tcp://127.0.0.1:9", "rig.json"},
     {"rgbd-calibrate badcap -o out.json", "rig.json"},
+    {"rgbd-capture --rig badcap/rig.json --video out_video", "rig.json"},
+    {"rgbd-view no-such-video --port 0 --duration-s 1", "no-such-video"},
 };
 
 }  // namespace

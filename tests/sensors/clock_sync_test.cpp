@@ -80,6 +80,29 @@ TEST(ClockSync, ExactOnSymmetricDelaysAndLargeEpochs) {
     EXPECT_NEAR(static_cast<double>(est.last_round_trip_ns()), 100'000.0, 2.0);
 }
 
+TEST(ClockSync, ABurstThatOnlyQueuedCountsLittle) {
+    // Loopback probes (100 us round trip) every 0.5 s for 10 s, but every fourth burst meets a
+    // loaded machine: all its probes wait 3 ms on the way back (1.5 ms offset error). With an
+    // unweighted fit that moves the drift by ~100 ppm; weighted by 1 / rtt^2 it stays exact.
+    const TrueClock truth{250e6, -20e-6};
+    ClockEstimator est(60.0);
+    for (int burst = 0; burst < 20; ++burst) {
+        const double t = 1e9 + burst * 0.5e9;
+        for (int p = 0; p < 16; ++p) {
+            ProbeSample s;
+            s.t0 = static_cast<std::int64_t>(t + p * 4e6);
+            s.t1 = truth.node(s.t0 + 50e3);
+            s.t2 = truth.node(s.t0 + 60e3);
+            s.t3 = static_cast<std::int64_t>(s.t0 + 110e3 + (burst % 4 == 3 ? 3e6 : 0.0));
+            est.add_probe(s);
+        }
+        est.end_burst();
+    }
+    EXPECT_NEAR(est.drift_ppm(), -20.0, 1.0);
+    const double end = 1e9 + 10e9;
+    EXPECT_NEAR(est.offset_ns_at(static_cast<std::int64_t>(end)), truth.offset_at(end), 20e3);
+}
+
 TEST(ClockSync, OneBurstMeansNoDriftAndEmptyBurstIsRefused) {
     ClockEstimator est;
     EXPECT_FALSE(est.ready());

@@ -75,5 +75,22 @@ TEST(FrameGrouper, MissingSensorIsMarkedAndHorizonIsRespected) {
     EXPECT_EQ(g.late(), 1);
 }
 
+TEST(FrameGrouper, CompleteWindowsAreFormedEarlyWhenAsked) {
+    FrameGrouper g(2, 16 * kMs, true);
+    g.add(0, 0, 0);
+    g.add(1, 2 * kMs, 0);
+    g.add(0, 33 * kMs, 1);
+    std::vector<io::FrameSet> sets;
+    g.form(-1000 * kMs, sets);  // long before the horizon: the complete window goes at once
+    ASSERT_EQ(sets.size(), 1u);
+    EXPECT_EQ(sets[0].frames, (std::vector<std::int64_t>{0, 0}));
+    g.form(40 * kMs, sets);  // [33, 49] is incomplete and not closed: it waits
+    EXPECT_EQ(sets.size(), 1u);
+    g.add(1, 35 * kMs, 1);
+    g.form(40 * kMs, sets);
+    ASSERT_EQ(sets.size(), 2u);
+    EXPECT_EQ(sets[1].frames, (std::vector<std::int64_t>{1, 1}));
+}
+
 }  // namespace
 }  // namespace rgbd::sensors::net

@@ -102,9 +102,10 @@ inline json read_json(const fs::path& p) { return json::parse(slurp(p)); }
 /// Each kept probe's offset is within half its round trip of the true offset (the one-way
 /// delays are unknown but not negative), i.e. within max_round_trip_ns / 2. A frame's time is
 /// mapped through the least-squares line over those samples, evaluated at most about one
-/// probe interval after the newest: for n >= 2 about equally spaced samples the line's
-/// weights have sum |w_i| <= 3 there (3 at n = 2, 7/3 at n = 3, 2 from n = 4 on), so the
-/// error is within 1.5 max_round_trip_ns. While the line is still flat (samples spread over
+/// probe interval after the newest: for n >= 2 about equally spaced, equally weighted
+/// samples the line's coefficients have sum |w_i| <= 3 there (3 at n = 2, 7/3 at n = 3, 2
+/// from n = 4 on), so the error is within 1.5 max_round_trip_ns. (The hub weights samples by
+/// 1 / rtt^2, which moves the line towards the samples with the smallest error bounds.) While the line is still flat (samples spread over
 /// under a second) the unmodelled drift adds at most 50 ppm x 2 s = 0.1 ms.
 /// `min_one_way_ns`: a delay every message is known to take each way (a test's delaying
 /// proxy); only the round trip beyond twice that is unknown, so only it enters the bound.

@@ -122,6 +122,35 @@ void SynthOptions::check() const {
     RGBD_CHECK(std::isfinite(frame_period_s) && frame_period_s > 0 && frame_period_s < 3600,
                "frame period must be in (0, 3600) s");
     texture.check();
+    RGBD_CHECK(motion == MotionKind::kNone || rig == RigKind::kRing,
+               "a moving object needs the ring rig");
+    RGBD_CHECK(std::isfinite(motion_deg) && std::abs(motion_deg) <= 3600,
+               "motion must be within +-3600 deg (per second for a turn)");
+    RGBD_CHECK(std::isfinite(motion_period_s) && motion_period_s > 0 && motion_period_s < 3600,
+               "motion period must be in (0, 3600) s");
+}
+
+MotionKind parse_motion_kind(const std::string& name) {
+    if (name == "none") return MotionKind::kNone;
+    if (name == "turn") return MotionKind::kTurn;
+    if (name == "nod") return MotionKind::kNod;
+    throw InputError("unknown motion '" + name + "' (expected none, turn or nod)");
+}
+
+Pose object_motion(const SynthOptions& o, int set, const Eigen::Vector3d& centre) {
+    const double t = set * o.frame_period_s;
+    double angle_deg = 0;
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+    if (o.motion == MotionKind::kTurn) {
+        angle_deg = o.motion_deg * t;
+    } else if (o.motion == MotionKind::kNod) {
+        angle_deg = o.motion_deg * std::sin(2.0 * std::numbers::pi * t / o.motion_period_s);
+        axis = Eigen::Vector3d::UnitX();
+    }
+    Pose m = Pose::Identity();
+    m.linear() = Eigen::AngleAxisd(angle_deg * std::numbers::pi / 180.0, axis).toRotationMatrix();
+    m.translation() = centre - m.linear() * centre;
+    return m;
 }
 
 nlohmann::json SynthOptions::to_json() const {
@@ -145,6 +174,11 @@ nlohmann::json SynthOptions::to_json() const {
             {"clock_offset_max_ms", clock_offset_max_ms},
             {"frames", frames},
             {"frame_period_s", frame_period_s},
+            {"motion", motion == MotionKind::kNone   ? "none"
+                       : motion == MotionKind::kTurn ? "turn"
+                                                     : "nod"},
+            {"motion_deg", motion_deg},
+            {"motion_period_s", motion_period_s},
             {"seed", seed},
             {"background_rgb", {background.r, background.g, background.b}}};
 }
@@ -437,9 +471,13 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
     for (int set = 0; set < nsets; ++set) {
         std::vector<RenderedView> views(nsensors);
         const Stopwatch render;
+        // A moving object is rendered by moving the sensors the other way (the texture stays
+        // on the object); rig.json and the recorded poses keep the fixed sensors.
+        const Pose object_from_moved = object_motion(o, set, placed.centre).inverse();
         tbb::parallel_for(0, nsensors, [&](int i) {
             const auto& s = rig.sensors[i];
-            views[i] = render_view(scene, placed, s.spec, s.traits, s.true_world_from_depth[set], o,
+            views[i] = render_view(scene, placed, s.spec, s.traits,
+                                   object_from_moved * s.true_world_from_depth[set], o,
                                    derive_seed(o.seed, 100 + i, set));
         });
         summary.render_s += render.seconds();
@@ -494,6 +532,20 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
     }
     io::write_text_atomic(gt / "world_from_depth.json", poses.dump(2) + "\n");
     io::write_text_atomic(gt / "clock.json", clock.dump(2) + "\n");
+    if (o.motion != MotionKind::kNone) {
+        nlohmann::json per = nlohmann::json::object();
+        for (int set = 0; set < nsets; ++set)
+            per[std::to_string(set)] = pose_to_json(object_motion(o, set, placed.centre));
+        const nlohmann::json motion = {
+            {"kind", o.motion == MotionKind::kTurn ? "turn" : "nod"},
+            {"deg", o.motion_deg},
+            {"period_s", o.motion_period_s},
+            {"definition",
+             "the object at frame set k: p_world = world_from_mesh[k] * p, p a "
+             "vertex of gt/mesh.ply (the object at set 0)"},
+            {"world_from_mesh", per}};
+        io::write_text_atomic(gt / "motion.json", motion.dump(2) + "\n");
+    }
     Pose world_from_object = Pose::Identity();
     world_from_object.translation() = placed.centre;
     nlohmann::json scene_json = {

@@ -32,6 +32,14 @@ enum class RigKind {
 /// Up axis of the input mesh.
 enum class UpAxis { kY, kZ };
 
+/// A moving subject (issue 20, 3D video): the object turns or nods rigidly over the frame sets.
+enum class MotionKind {
+    kNone,  ///< static scene, fresh noise per frame set
+    kTurn,  ///< about the vertical axis through the object centre, motion_deg degrees per second
+    kNod,   ///< about the horizontal world x axis through the object centre, motion_deg * sin(2 pi
+            ///< t / motion_period_s)
+};
+
 /// Everything that defines a synthetic capture. Defaults are the PEERS.md captures.
 struct SynthOptions {
     RigKind rig = RigKind::kRing;  ///< ring or turntable
@@ -58,15 +66,24 @@ struct SynthOptions {
     double clock_offset_max_ms = 500.0;  ///< clock offsets uniform in [-max, max] per sensor
     int frames = 1;                      ///< frame sets (turntable: frames per stop)
     double frame_period_s = 1.0 / 30.0;  ///< time between frame sets
-    std::uint64_t seed = 1;              ///< seeds every random choice
-    TextureOptions texture;              ///< procedural colour
-    Rgb background{64, 64, 64};          ///< colour where the colour camera sees no object
-    std::string mesh_source;             ///< provenance written to gt/scene.json (free text)
+    MotionKind motion = MotionKind::kNone;  ///< ring: the object moves over the frame sets
+    double motion_deg = 90.0;               ///< turn: degrees per second; nod: amplitude, degrees
+    double motion_period_s = 2.0;           ///< nod: period, seconds
+    std::uint64_t seed = 1;                 ///< seeds every random choice
+    TextureOptions texture;                 ///< procedural colour
+    Rgb background{64, 64, 64};             ///< colour where the colour camera sees no object
+    std::string mesh_source;                ///< provenance written to gt/scene.json (free text)
 
     /// Throws InputError on absurd values.
     void check() const;
     nlohmann::json to_json() const;
 };
+
+/// The object's rigid motion at frame set `set` (identity at set 0): p_world(set) =
+/// object_motion(...) * p_world(0), a rotation about an axis through `centre`.
+Pose object_motion(const SynthOptions& options, int set, const Eigen::Vector3d& centre);
+/// "none" / "turn" / "nod" (InputError on others).
+MotionKind parse_motion_kind(const std::string& name);
 
 /// "ring" / "turntable", "y" / "z"; parse functions throw InputError on unknown names.
 std::string to_string(RigKind rig);

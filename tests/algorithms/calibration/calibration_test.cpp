@@ -5,10 +5,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <numbers>
 #include <random>
 
 #include "algorithms/calibration/charuco_board.hpp"
+#include "algorithms/calibration/rig_refinement.hpp"
 #include "algorithms/calibration/rig_solver.hpp"
 #include "toolkit/error.hpp"
 #include "validation/synth/charuco_scene.hpp"
@@ -120,6 +123,92 @@ TEST(DetectBoard, PoseOfARenderedBoard) {
     other.dictionary = "DICT_6X6_100";
     const cv::Mat image = render_board(b, board_in_front(1.6, 0), Pose::Identity(), k);
     EXPECT_FALSE(calibration::detect_board(image, k, other).observation);
+}
+
+TEST(DetectBoard, HalfVisibleBoard) {
+    const BoardSpec b;
+    const PinholeIntrinsics k = kinect_color();
+    // Half of the board beyond the right edge of the image (its centre on the edge): the
+    // corners of the visible half give the pose.
+    const double distance = 1.6;
+    const double edge_x = distance * (k.width - 1 - k.cx) / k.fx;
+    Pose truth = board_in_front(distance, 20.0);
+    truth.translation().x() += edge_x;
+    const auto half = calibration::detect_board(render_board(b, truth, Pose::Identity(), k), k, b);
+    ASSERT_TRUE(half.observation) << half.rejected;
+    EXPECT_GE(half.observation->ids.size(), 6u);
+    EXPECT_LT(half.observation->ids.size(), 20u);  // not the whole board
+    for (const auto& px : half.observation->pixels) EXPECT_LT(px.x(), k.width);
+    EXPECT_LT(rotation_error_deg(half.observation->camera_from_board, truth), 0.5);
+    EXPECT_LT(translation_error_m(half.observation->camera_from_board, truth), 0.015);
+    // Only a sliver in view (the last 10 cm of the board): no observation, and a reason when
+    // markers were seen.
+    Pose sliver = board_in_front(distance, 0.0);
+    sliver.translation().x() += edge_x + 0.5 * b.width_m() - 0.1;
+    const auto out = calibration::detect_board(render_board(b, sliver, Pose::Identity(), k), k, b);
+    EXPECT_FALSE(out.observation);
+    if (out.markers > 0) EXPECT_FALSE(out.rejected.empty());
+}
+
+TEST(MedianDepth, NoiseAveragedAndMovingPixelsLeftOut) {
+    // 9 frames of a plane at 1.5 m with Gaussian noise of 2 mm, random dropouts, and a strip
+    // of pixels that something moved through in 5 of the frames.
+    std::mt19937 rng(3);
+    std::normal_distribution<float> noise(0.0f, 0.002f);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::vector<cv::Mat> depths;
+    for (int f = 0; f < 9; ++f) {
+        cv::Mat d(40, 50, CV_32FC1);
+        for (int r = 0; r < d.rows; ++r)
+            for (int c = 0; c < d.cols; ++c) {
+                float z = 1.5f + noise(rng);
+                if (u(rng) < 0.1f) z = std::numeric_limits<float>::quiet_NaN();
+                if (c < 5 && f >= 2 && f < 7) z = 0.6f + 0.1f * f;  // a hand passing
+                if (c >= 45 && f < 5) z = 0.0f;                     // invalid (0) in 5 of 9 frames
+                d.at<float>(r, c) = z;
+            }
+        depths.push_back(d);
+    }
+    const cv::Mat m = calibration::median_depth(depths);
+    ASSERT_EQ(m.type(), CV_32FC1);
+    double sum = 0, sq = 0;
+    int n = 0, lost = 0;
+    for (int r = 0; r < m.rows; ++r)
+        for (int c = 0; c < m.cols; ++c) {
+            const float z = m.at<float>(r, c);
+            if (c < 5 || c >= 45) {
+                EXPECT_TRUE(std::isnan(z)) << r << " " << c << " " << z;
+                continue;
+            }
+            if (!std::isfinite(z)) {  // 5 or more of the 9 frames dropped it (p ~ 0.001)
+                ++lost;
+                continue;
+            }
+            sum += z - 1.5;
+            sq += (z - 1.5) * (z - 1.5);
+            ++n;
+        }
+    EXPECT_LE(lost, 10);
+    // The median of ~8 samples: noise down from 2 mm to ~0.8 mm, no bias.
+    EXPECT_LT(std::abs(sum / n), 2e-4);
+    EXPECT_LT(std::sqrt(sq / n), 0.0011);
+    EXPECT_GT(std::sqrt(sq / n), 0.0004);
+    // One frame comes back unchanged; bad input is an InputError.
+    const cv::Mat one = calibration::median_depth({depths[0]});
+    ASSERT_EQ(one.size(), depths[0].size());
+    EXPECT_EQ(std::memcmp(one.data, depths[0].data, one.total() * sizeof(float)), 0);
+    EXPECT_THROW(calibration::median_depth({}), InputError);
+    EXPECT_THROW(calibration::median_depth({depths[0], cv::Mat(10, 10, CV_32FC1)}), InputError);
+    EXPECT_THROW(calibration::median_depth({depths[0], depths[1]}, -1.0), InputError);
+}
+
+TEST(RigRefinement, OptionsAreValidAndJointFromTheRig) {
+    const auto o = calibration::rig_refinement_options(2, 7);
+    EXPECT_NO_THROW(o.check());
+    EXPECT_EQ(o.fixed_view, 2u);
+    EXPECT_FALSE(o.pairwise);
+    EXPECT_EQ(o.rounds, static_cast<int>(o.icp.max_distance_factors.size()));
+    EXPECT_GE(o.icp.max_distance_factors.front() * 0.004, 0.1);  // ~10 cm at a 4 mm spacing
 }
 
 TEST(CheckBoardPlane, ResidualOfADepthImage) {

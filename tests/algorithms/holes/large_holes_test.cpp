@@ -177,6 +177,78 @@ TEST(HeadTop, FillsTheCrownARingNeverSees) {
     for (const auto& p : added.position) EXPECT_GT(p.z(), 0.0);
 }
 
+/// A superquadric head (|x/a|^e + |y/b|^e + |z/c|^e = 1, e > 2: flatter on top than the
+/// ellipsoid that §13 fits), as value F(p) - 1 and gradient.
+struct Superquadric {
+    Eigen::Vector3d axes;
+    double e;
+    double f(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d q = p.cwiseQuotient(axes).cwiseAbs();
+        return std::pow(std::pow(q.x(), e) + std::pow(q.y(), e) + std::pow(q.z(), e), 1 / e);
+    }
+    Eigen::Vector3d gradient(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3d q = p.cwiseQuotient(axes);
+        const double s = std::pow(f(p), 1 - e);
+        Eigen::Vector3d g;
+        for (int i = 0; i < 3; ++i)
+            g[i] = s * std::pow(std::abs(q[i]), e - 1) * (q[i] < 0 ? -1 : 1) / axes[i];
+        return g;
+    }
+    double distance(const Eigen::Vector3d& p) const {  // first order
+        return std::abs(f(p) - 1) / gradient(p).norm();
+    }
+};
+
+// §13 on a head that is no ellipsoid, measured with noise: a superquadric (e = 2.6, semi-axes
+// 7.5 x 8.5 x 11 cm) sampled at 2 mm with 1 mm of noise along the normal (the sensors' noise
+// at the grazing angles of the crown's rim), the crown beyond 35 degrees from up unseen. The
+// fitted ellipsoid runs up to several mm off such a crown and the largest of several noisy
+// heights per pixel sits above the surface; the crown follows the ellipsoid's shape moved onto
+// the rim's smoothed residuals, so every new point lies within 3 mm of the true surface
+// (the bound for the busts' crowns; measured: max 1.9 mm, mean 0.47 mm; with the ellipsoid
+// blended into the inpainted heights over a rim band instead, max 3.2 mm, mean 1.0 mm).
+TEST(HeadTop, ACrownThatIsNoEllipsoidFollowsTheRim) {
+    const Superquadric head{Eigen::Vector3d(0.075, 0.085, 0.11), 2.6};
+    const double crown_cos = std::cos(35 * M_PI / 180);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.001);
+    std::vector<Eigen::Vector3d> xyz, normals;
+    int crown = 0;
+    const int n = 60000;
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    for (int i = 0; i < n; ++i) {
+        const double z = 1.0 - 2.0 * (i + 0.5) / n, r = std::sqrt(1.0 - z * z);
+        const Eigen::Vector3d d(r * std::cos(golden * i), r * std::sin(golden * i), z);
+        const Eigen::Vector3d p = d / head.f(d);  // radial projection onto the surface
+        const Eigen::Vector3d nrm = head.gradient(p).normalized();
+        if (p.z() <= -0.06) continue;
+        if (nrm.z() >= crown_cos) {
+            ++crown;
+            continue;
+        }
+        xyz.push_back(p + noise(rng) * nrm);
+        normals.push_back(nrm);
+    }
+    SurfacePoints s;
+    s.position = xyz;
+    const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.11));
+    rgbd::Report report;
+    const auto added = rgbd::holes::fill_head_top(s, normals, axis, kSpacing, ring(0.11),
+                                                  InpaintOptions{}, &report);
+    ASSERT_EQ(report["head_top"]["ellipsoid"], true) << report.dump();
+    ASSERT_GT(added.position.size(), 200u) << report.dump();
+    double worst = 0, sum = 0;
+    for (const auto& p : added.position) {
+        worst = std::max(worst, head.distance(p));
+        sum += head.distance(p);
+    }
+    std::cout << "superquadric crown: " << added.position.size() << " points (" << crown
+              << " crown samples), mean " << 1e3 * sum / double(added.position.size())
+              << " mm, max " << worst * 1e3 << " mm from the surface; " << report.dump() << "\n";
+    EXPECT_LT(worst, 0.003);
+    EXPECT_LT(sum / double(added.position.size()), 0.001);
+}
+
 // Without the ellipsoid the crown's height is inpainted: the biharmonic fill continues the rim's
 // slope, OpenCV's Telea averages it and flattens the dome (measured: max 7.7 vs 12.4 mm).
 TEST(HeadTop, WithoutTheEllipsoidBiharmonicBeatsTelea) {
@@ -485,7 +557,6 @@ TEST(LargeHoles, BadInputIsAnError) {
              [](InpaintOptions& o) { o.telea_radius = -1; },
              [](InpaintOptions& o) { o.top_fraction = 0.9; }, [](InpaintOptions& o) { o.step = 0; },
              [](InpaintOptions& o) { o.min_rim_radial = 2; },
-             [](InpaintOptions& o) { o.blend_band = -3; },
              [](InpaintOptions& o) { o.visible_max_angle_deg = 90; },
              [](InpaintOptions& o) { o.max_ellipsoid_rms = 0; },
              [](InpaintOptions& o) { o.top_component = 2; }}) {

@@ -1,0 +1,144 @@
+// rgbd-view (issue 20 item 4): the page, three.js from libjs-three and the frames over HTTP; a
+// corrupt frame file is answered 404 and marked in the index; in headless Chromium the page
+// draws the cloud (a screenshot shows its colour) and the frame counter advances. Skips the
+// browser part when chromium or libjs-three is missing, saying so.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "io/video.hpp"
+#include "tests/support/capture_harness.hpp"
+
+namespace {
+
+using namespace rgbd::test::capture;
+namespace fs = std::filesystem;
+using rgbd::test::Outcome;
+using rgbd::test::slurp;
+
+/// A 12-frame video of a red ball moving along x, 2000 + 100 k points in frame k.
+void write_ball_video(const fs::path& dir) {
+    fs::remove_all(dir);
+    rgbd::io::Rig rig;
+    rig.sensors.resize(1);
+    rig.sensors[0].id = "k2-0";
+    rig.sensors[0].depth = {512, 424, 365.5, 365.5, 256, 212};
+    rig.sensors[0].color = {512, 424, 365.5, 365.5, 256, 212};
+    rgbd::io::VideoWriter writer(dir, rig, 30.0, {}, {{"placement", "nodes"}});
+    for (int k = 0; k < 12; ++k) {
+        rgbd::io::ColoredPoints p;
+        const int n = 2000 + 100 * k;
+        for (int i = 0; i < n; ++i) {
+            // Fibonacci sphere of radius 0.2 m.
+            const double z = 1.0 - 2.0 * (i + 0.5) / n, r = std::sqrt(1 - z * z);
+            const double a = i * 2.399963229728653;
+            p.xyz.emplace_back(0.02f * k + 0.2f * r * std::cos(a), 0.2f * r * std::sin(a),
+                               1.0f + 0.2f * z);
+            p.rgb.push_back(rgbd::Rgb{230, 30, 30});
+        }
+        rgbd::io::VideoFrame info;
+        info.set = k;
+        info.time_ns = k * 33'333'333;
+        info.sensors = 1;
+        writer.add(p, info);
+        writer.update_last(1.0, 10.0);
+    }
+    writer.finish({{"sets_fused", 12}}, "test");
+}
+
+std::string curl(int port, const std::string& path, const std::string& extra = "") {
+    return run("curl -s --max-time 20 " + extra + " http://127.0.0.1:" + std::to_string(port) +
+               path)
+        .out;
+}
+
+TEST(RgbdView, ServesThePageThreeJsAndFramesAndSkipsACorruptOne) {
+    if (!fs::exists("/usr/share/javascript/three/build/three.min.js"))
+        GTEST_SKIP() << "libjs-three is not installed";
+    if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
+    const fs::path dir = temp_root();
+    write_ball_video(dir / "ball");
+    // Frame 5 is corrupted on disk.
+    { std::ofstream(dir / "ball" / rgbd::io::video_frame_file(5), std::ios::trunc) << "broken"; }
+    const int port = free_port();
+    start(dir, "view",
+          "$BIN/rgbd-view ball --port " + std::to_string(port) +
+              " --duration-s 120 --metrics view.json");
+    std::string page;
+    for (int i = 0; i < 200 && page.find("three.min.js") == std::string::npos; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        page = curl(port, "/");
+    }
+    ASSERT_NE(page.find("three.min.js"), std::string::npos) << slurp(dir / "view.err");
+    EXPECT_GT(curl(port, "/three.min.js").size(), 100000u);
+    EXPECT_NE(curl(port, "/OrbitControls.js").find("OrbitControls"), std::string::npos);
+    const json info = json::parse(curl(port, "/api/info"));
+    EXPECT_EQ(info["mode"], "video");
+    ASSERT_EQ(info["frames"].size(), 12u);
+    EXPECT_FALSE(info["frames"][5]["ok"].get<bool>());
+    EXPECT_TRUE(info["frames"][4]["ok"].get<bool>());
+    const std::string frame3 = curl(port, "/api/frame/3");
+    ASSERT_EQ(frame3.size(), 16u + 15u * 2300u);
+    EXPECT_EQ(frame3.substr(0, 8), "RGBDPTS1");
+    EXPECT_NE(curl(port, "/api/frame/5", "-o /dev/null -w \"%{http_code}\"").find("404"),
+              std::string::npos);
+    EXPECT_NE(curl(port, "/api/frame/99", "-o /dev/null -w \"%{http_code}\"").find("404"),
+              std::string::npos);
+
+    // The page in a browser: the cloud is drawn (red pixels) and the frame counter advances.
+    if (std::system("command -v chromium >/dev/null 2>&1") != 0) {
+        ::kill(pid_of(dir, "view"), SIGTERM);
+        GTEST_SKIP() << "chromium is not installed: the browser check is skipped";
+    }
+    const std::string chromium =
+        "chromium --headless --no-sandbox --disable-gpu --enable-unsafe-swiftshader "
+        "--use-angle=swiftshader --disable-quic --no-first-run --disable-background-networking "
+        "--disable-component-update --disable-sync --user-data-dir=$(mktemp -d) "
+        "--window-size=640,480 ";
+    const std::string url = " http://127.0.0.1:" + std::to_string(port) + "/";
+    Outcome shot = run("timeout 120 " + chromium + "--virtual-time-budget=3000 --screenshot=" +
+                       (dir / "view.png").string() + url + " 2>/dev/null");
+    ASSERT_TRUE(fs::exists(dir / "view.png")) << shot.err;
+    const cv::Mat png = cv::imread((dir / "view.png").string(), cv::IMREAD_COLOR);
+    ASSERT_FALSE(png.empty());
+    cv::Mat red;
+    cv::inRange(png, cv::Scalar(0, 0, 150), cv::Scalar(90, 90, 255), red);
+    EXPECT_GT(cv::countNonZero(red), 500) << "no red cloud in the screenshot";
+    // The page playing in real time: it asks for frame k + 1 only once it has drawn frame k,
+    // so the frames the server hands out count the frame counter's steps. No time limit but
+    // a generous one: only progress is checked.
+    start(dir, "browser", "exec timeout 300 " + chromium + url);
+    const auto served = [&] {
+        const std::string stats = curl(port, "/api/stats");
+        return stats.empty() ? -1 : json::parse(stats)["frames_served"].get<int>();
+    };
+    const int before = served();
+    int after = before;
+    for (int i = 0; i < 1200 && after < before + 6; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        after = served();
+    }
+    EXPECT_GE(after, before + 6) << "the page did not step through the frames";
+    const json stats = json::parse(curl(port, "/api/stats"));
+    EXPECT_NE(stats["last_frame"], 5) << "the corrupt frame is never drawn";
+    ::kill(pid_of(dir, "browser"), SIGTERM);
+    wait_for(dir, "browser", 30);
+    ::kill(pid_of(dir, "view"), SIGTERM);
+    EXPECT_EQ(wait_for(dir, "view", 30), 0) << slurp(dir / "view.err");
+}
+
+TEST(RgbdView, UsageAndBadFolder) {
+    Outcome r = run("$BIN/rgbd-view --help");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.out.find("Usage: "), std::string::npos);
+    r = run("$BIN/rgbd-view");
+    EXPECT_EQ(r.code, 2);
+    fs::create_directories(temp_root() / "not_a_video");
+    r = run("$BIN/rgbd-view not_a_video --port 0 --duration-s 1");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("video.json"), std::string::npos) << r.err;
+}
+
+}  // namespace
