@@ -138,6 +138,7 @@ const BadValue kBadValues[] = {
     {"rgbd-capture --rig badcap/rig.json --tolerance-ms -1 -o out_capture", "--tolerance-ms"},
     {"rgbd-capture --rig badcap/rig.json --png-compression 12 -o out_capture", "--png-compression"},
     {"rgbd-node --sensor playback:badcap --jpeg-quality 0", "--jpeg-quality"},
+    {"rgbd-view no-such-video --port 70000", "--port"},
     {"rgbd-calibrate goodcap --max-plane-mm nan -o out.json", "--max-plane-mm"},
     {"rgbd-calibrate goodcap --max-rms-px -1 -o out.json", "--max-rms-px"},
 };
