@@ -152,6 +152,7 @@ public:
                                           {"at_hub_ns", at},
                                           {"bursts", s.clock.bursts()},
                                           {"last_round_trip_ns", s.clock.last_round_trip_ns()},
+                                          {"max_round_trip_ns", s.clock.max_round_trip_ns()},
                                           {"sessions", count},
                                           {"session", session},
                                           {"start_hub_ns", s.start_hub_ns},

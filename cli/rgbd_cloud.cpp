@@ -61,8 +61,8 @@ int main(int argc, char** argv) {
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
         if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
         const std::string root = ctx.inputs().front();
-        const io::Capture capture = io::open_capture(root);
 
+        // The options first: a bad value is a usage error before any input is read.
         frames::CloudOptions options;
         options.z_min_m = ctx.get<double>("z-min");
         options.z_max_m = ctx.get<double>("z-max");
@@ -72,6 +72,10 @@ int main(int argc, char** argv) {
         } catch (const InputError& e) {
             throw cli::UsageError(e.what());
         }
+        cli::ExtractionOptions extraction;
+        extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
+        if (!(extraction.crop_radius_m >= 0)) throw cli::UsageError("--crop-radius-m must be >= 0");
+        const io::Capture capture = io::open_capture(root);
         std::vector<std::string> sensors;
         if (ctx.options().count("sensors")) {
             const auto ids = split_ids(ctx.get<std::string>("sensors"));
@@ -81,10 +85,6 @@ int main(int argc, char** argv) {
             capture, ctx.get<long long>("frameset"),
             ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), sensors,
             &ctx);
-
-        cli::ExtractionOptions extraction;
-        extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
-        if (!(extraction.crop_radius_m >= 0)) throw cli::UsageError("--crop-radius-m must be >= 0");
         const auto centre = cli::object_centre(capture, jobs);
         if (centre && extraction.crop_radius_m > 0)
             ctx.info("object centre (" + std::to_string(centre->x()) + ", " +

@@ -23,15 +23,16 @@ void run_view(cli::Context& ctx) {
     if (ctx.inputs().size() != 1)
         throw cli::UsageError("give one video folder (rgbd-capture --video DIR)");
     const std::string dir = ctx.inputs().front();
-    const io::VideoInfo video = io::read_video(dir);  // errors name the folder
-    std::size_t playable = 0;
-    for (const io::VideoFrame& f : video.frames) playable += f.problem.empty();
+    // The options first: a bad value is a usage error before the video is read.
     cli::ViewServerOptions options;
     options.port = ctx.get<int>("port");
     options.bind = ctx.get<std::string>("bind");
     if (options.port < 0 || options.port > 65535) throw cli::UsageError("--port must be 0..65535");
     const double duration_s = ctx.get<double>("duration-s");
     if (!(duration_s >= 0)) throw cli::UsageError("--duration-s must be >= 0");
+    const io::VideoInfo video = io::read_video(dir);  // errors name the folder
+    std::size_t playable = 0;
+    for (const io::VideoFrame& f : video.frames) playable += f.problem.empty();
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     cli::ViewServer server(options, std::filesystem::path(dir));

@@ -302,7 +302,7 @@ Rig read_rig(const fs::path& path) {
     json j;
     try {
         j = json::parse(read_text(path));
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for 1e99999
         fail(path, std::string("not valid JSON: ") + e.what());
     }
     const RigContext c{path, ""};

@@ -58,8 +58,12 @@ std::optional<PinholeIntrinsics> read_open3d_intrinsics(const fs::path& path) {
     const json& w = c.at(j, "width");
     const json& h = c.at(j, "height");
     if (!w.is_number_integer() || !h.is_number_integer()) c.fail("width/height must be integers");
-    k.width = w.get<int>();
-    k.height = h.get<int>();
+    // Through 64 bits and a range check: get<int>() would wrap 2^32 + 8 around to 8.
+    const std::int64_t width = w.get<std::int64_t>(), height = h.get<std::int64_t>();
+    if (width <= 0 || height <= 0 || width > 100000 || height > 100000)
+        c.fail("width and height must be in 1..100000");
+    k.width = static_cast<int>(width);
+    k.height = static_cast<int>(height);
     k.fx = c.number(m[0], "intrinsic_matrix[0]");
     k.fy = c.number(m[4], "intrinsic_matrix[4]");
     k.cx = c.number(m[6], "intrinsic_matrix[6]");

@@ -95,12 +95,20 @@ nlohmann::json BoardSpec::to_json() const {
 BoardSpec BoardSpec::from_json(const nlohmann::json& json) {
     RGBD_CHECK(json.is_object(), "board description must be a JSON object");
     BoardSpec b;
+    // A square count must be a JSON integer: get<int>() converts 7.9 to 7, wraps 2^32 + 7
+    // around to 7 and is undefined behaviour for 1e30 (issue 21).
+    const auto count = [](const std::string& key, const nlohmann::json& value) {
+        if (!value.is_number_integer()) throw InputError("key '" + key + "' must be an integer");
+        const std::int64_t n = value.get<std::int64_t>();
+        if (n < 2 || n > 40) throw InputError("key '" + key + "' must be in [2, 40]");
+        return static_cast<int>(n);
+    };
     for (const auto& [key, value] : json.items()) {
         try {
             if (key == "squares_x")
-                b.squares_x = value.get<int>();
+                b.squares_x = count(key, value);
             else if (key == "squares_y")
-                b.squares_y = value.get<int>();
+                b.squares_y = count(key, value);
             else if (key == "square_m")
                 b.square_m = value.get<double>();
             else if (key == "marker_m")
@@ -135,10 +143,10 @@ cv::Mat board_image(const BoardSpec& board, double pixels_per_m) {
 }
 
 void DetectionOptions::check() const {
-    RGBD_CHECK(min_corners >= 4, "minimum corners must be >= 4");
-    RGBD_CHECK(std::isfinite(max_rms_px) && max_rms_px > 0, "maximum RMS must be > 0 px");
+    RGBD_CHECK(min_corners >= 4, "detection: min_corners must be >= 4");
+    RGBD_CHECK(std::isfinite(max_rms_px) && max_rms_px > 0, "detection: max_rms_px must be > 0");
     RGBD_CHECK(std::isfinite(min_spread) && min_spread >= 0 && min_spread <= 1,
-               "minimum spread must be in [0, 1]");
+               "detection: min_spread must be in [0, 1]");
 }
 
 DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <sstream>
 
 #include "io/mesh_io.hpp"
@@ -18,6 +19,21 @@
 namespace rgbd::cli {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+/// Writes `text` (whole lines) to stderr in one piece: straight into std::cerr's buffer under
+/// one lock, so messages from the tool's threads (a capture hub's control and live-stream
+/// threads, a progress heartbeat) neither interleave nor race on the buffer. run_tool unties
+/// std::cerr from std::cout, so nothing here flushes stdout while another thread writes it.
+void write_stderr(const std::string& text) {
+    static std::mutex mutex;
+    std::lock_guard lock(mutex);
+    std::cerr.rdbuf()->sputn(text.data(), static_cast<std::streamsize>(text.size()));
+    std::cerr.rdbuf()->pubsync();
+}
+
+}  // namespace
 
 // ---------------------------------------------------------------- ProgressBar
 
@@ -30,7 +46,7 @@ ProgressBar::ProgressBar(std::string label, Mode mode, double heartbeat_s)
 }
 
 ProgressBar::~ProgressBar() {
-    if (mode_ == Mode::kTerminal && shown_percent_ >= 0) std::cerr << "\r\033[K" << std::flush;
+    if (mode_ == Mode::kTerminal && shown_percent_ >= 0) write_stderr("\r\033[K");
     if (mode_ != Mode::kLog) return;
     {
         std::lock_guard lock(mutex_);
@@ -44,7 +60,7 @@ ProgressBar::~ProgressBar() {
         std::snprintf(line, sizeof line, ": stopped after %.1f s\n", elapsed_s());
     else
         std::snprintf(line, sizeof line, ": done in %.1f s\n", elapsed_s());
-    std::cerr << label_ << line << std::flush;
+    write_stderr(label_ + line);
 }
 
 double ProgressBar::elapsed_s() const {
@@ -65,13 +81,10 @@ void ProgressBar::heartbeat() {
         std::snprintf(line, sizeof line,
                       started_ ? ": %d%% after %.1f s\n" : ": started, %d%% after %.1f s\n",
                       percent, elapsed_s());
-        // Straight into std::cerr's buffer, not through `std::cerr <<`: std::cerr is tied to
-        // std::cout, and its sentry would flush std::cout from this thread while the tool's
-        // thread writes its stream to it (a data race that corrupted rgbd-cloud's PLY stream
-        // in a pipe).
-        const std::string text = label_ + line;
-        std::cerr.rdbuf()->sputn(text.data(), static_cast<std::streamsize>(text.size()));
-        std::cerr.rdbuf()->pubsync();
+        // Never `std::cerr <<` from this thread: were std::cerr still tied to std::cout, its
+        // sentry would flush std::cout while the tool's thread writes its stream to it (a data
+        // race that corrupted rgbd-cloud's PLY stream in a pipe). write_stderr takes neither.
+        write_stderr(label_ + line);
         started_ = true;
         next += after(heartbeat_s_);
     }
@@ -90,8 +103,8 @@ bool ProgressBar::update(double fraction) {
     if (shown == shown_percent_) return true;
     shown_percent_ = shown;
     const int width = 30, filled = shown * width / 100;
-    std::cerr << "\r" << label_ << " [" << std::string(filled, '=')
-              << std::string(width - filled, ' ') << "] " << shown << "%" << std::flush;
+    write_stderr("\r" + label_ + " [" + std::string(filled, '=') +
+                 std::string(width - filled, ' ') + "] " + std::to_string(shown) + "%");
     return true;
 }
 
@@ -131,13 +144,13 @@ Context::~Context() {
 }
 
 void Context::warn(const std::string& message) const {
-    if (verbosity_ >= -1) std::cerr << spec_.name << ": warning: " << message << "\n";
+    if (verbosity_ >= -1) write_stderr(spec_.name + ": warning: " + message + "\n");
 }
 void Context::info(const std::string& message) const {
-    if (verbosity_ >= 1) std::cerr << spec_.name << ": " << message << "\n";
+    if (verbosity_ >= 1) write_stderr(spec_.name + ": " + message + "\n");
 }
 void Context::note(const std::string& message) const {
-    if (verbosity_ >= 0) std::cerr << spec_.name << ": " << message << "\n";
+    if (verbosity_ >= 0) write_stderr(spec_.name + ": " + message + "\n");
 }
 
 ProgressBar Context::progress(const std::string& label) const {
@@ -342,6 +355,48 @@ std::vector<double> parse_doubles(const std::string& text, const std::string& op
 
 // ---------------------------------------------------------------- run_tool
 
+std::string option_named_by(const std::string& message, const po::variables_map& vm) {
+    if (message.find("--") != std::string::npos) return "";
+    std::vector<std::string> identifiers;  // the message's words (field names have '_')
+    for (std::size_t i = 0; i < message.size();) {
+        std::size_t j = i;
+        while (j < message.size() &&
+               (std::isalnum(static_cast<unsigned char>(message[j])) || message[j] == '_'))
+            ++j;
+        if (j > i) identifiers.push_back(message.substr(i, j - i));
+        i = std::max(j, i + 1);
+    }
+    const auto up_to_underscore = [](const std::string& longer, const std::string& shorter) {
+        return longer.size() > shorter.size() && longer.compare(0, shorter.size(), shorter) == 0 &&
+               longer[shorter.size()] == '_';
+    };
+    std::vector<std::string> by_value, by_field, by_word, by_prefix;
+    for (const auto& [name, value] : vm) {
+        // Given options with a value; not flags (--statistical names a mode, not a value).
+        if (value.defaulted() || name == "input" || value.value().empty() ||
+            value.value().type() == typeid(bool) ||
+            value.value().type() == typeid(std::vector<bool>))
+            continue;
+        if (const auto* text = boost::any_cast<std::string>(&value.value()))
+            if (!text->empty() && message.find("'" + *text + "'") != std::string::npos)
+                by_value.push_back(name);
+        std::string snake = name;
+        std::replace(snake.begin(), snake.end(), '-', '_');
+        if (std::find(identifiers.begin(), identifiers.end(), snake) != identifiers.end())
+            (snake.find('_') != std::string::npos ? by_field : by_word).push_back(name);
+        else
+            for (const std::string& id : identifiers)
+                if (id.find('_') != std::string::npos &&
+                    (up_to_underscore(id, snake) || up_to_underscore(snake, id))) {
+                    by_prefix.push_back(name);
+                    break;
+                }
+    }
+    for (const auto* found : {&by_value, &by_field, &by_word, &by_prefix})
+        if (!found->empty()) return found->size() == 1 ? " (--" + found->front() + ")" : "";
+    return "";
+}
+
 namespace {
 
 std::string help_text(const ToolSpec& spec, const po::options_description& visible) {
@@ -357,6 +412,11 @@ std::string help_text(const ToolSpec& spec, const po::options_description& visib
 
 int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) {
     std::ios::sync_with_stdio(false);
+    // std::cerr is tied to std::cout by default: every `std::cerr <<` would first flush
+    // std::cout, from whichever thread writes the message, while the tool's own thread may be
+    // writing its data stream to std::cout (a data race that corrupts the stream). Errors and
+    // progress go out unbuffered anyway (std::cerr is unitbuf); stdout is flushed at exit.
+    std::cerr.tie(nullptr);
     po::options_description tool_options("Options");
     if (spec.add_options) spec.add_options(tool_options);
     po::options_description common("Common options");
@@ -387,8 +447,8 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
         if (a == "--debug") debug = true;
 
     auto fail = [&](int code, const std::string& message) {
-        std::cerr << spec.name << ": error: " << message << "\n";
-        if (code == 2) std::cerr << "Try '" << spec.name << " --help' for more information.\n";
+        write_stderr(spec.name + ": error: " + message + "\n" +
+                     (code == 2 ? "Try '" + spec.name + " --help' for more information.\n" : ""));
         return code;
     };
 
@@ -431,7 +491,7 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
         return 0;
     } catch (const UsageError& e) {
         if (debug) throw;
-        return fail(2, e.what());
+        return fail(2, e.what() + option_named_by(e.what(), vm));
     } catch (const po::error& e) {
         if (debug) throw;
         return fail(2, e.what());

@@ -17,6 +17,7 @@ bool ClockEstimator::end_burst() {
                                                });
     burst_.clear();
     last_rtt_ = best.round_trip_ns();
+    max_rtt_ = std::max(max_rtt_, last_rtt_);
     kept_.push_back({0.5 * (static_cast<double>(best.t0) + static_cast<double>(best.t3)),
                      best.offset_ns(), static_cast<double>(best.round_trip_ns())});
     while (kept_.size() > 2 && kept_.back().hub_mid - kept_.front().hub_mid > window_ns_)

@@ -59,6 +59,10 @@ public:
     const ClockFit& fit() const { return fit_; }
     /// Round trip of the last kept sample (ns).
     std::int64_t last_round_trip_ns() const { return last_rtt_; }
+    /// Largest round trip of any kept sample so far (ns). A kept sample's offset is within
+    /// half its round trip of the true offset (the two one-way delays are unknown but not
+    /// negative), so this bounds the error of every sample the fits were made of.
+    std::int64_t max_round_trip_ns() const { return max_rtt_; }
 
 private:
     struct Point {
@@ -73,6 +77,7 @@ private:
     std::deque<Point> kept_;
     ClockFit fit_;
     std::int64_t last_rtt_ = 0;
+    std::int64_t max_rtt_ = 0;
 };
 
 }  // namespace rgbd::sensors::net

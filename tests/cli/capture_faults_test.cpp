@@ -3,7 +3,9 @@
 // io::open_capture, every recorded frame loads, and a restarted hub refuses to write into
 // the old folder, leaving it byte for byte as it was, or records a new one), and a reader of
 // `--live -` that stalls for seconds (the hub skips and counts live sets, records every frame,
-// and its peak memory stays that of a run with a fast reader).
+// and its peak memory stays that of a run with a fast reader). And the tool driver's stderr
+// (cli/common/tool.cpp): the hub's control thread warns about refused nodes while its live
+// thread streams views to stdout; every warning arrives whole and the stream stays intact.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -12,10 +14,14 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
+#include <zmq.hpp>
 
 #include "io/capture_folder.hpp"
+#include "io/ply_stream.hpp"
+#include "sensors/network/protocol.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/tool_runner.hpp"
 
@@ -147,4 +153,62 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
     // Bounded: a stalled reader costs at most the blocked set in flight, not a queue of sets
     // (150 sets of two 512x424 views would be ~100 MB more).
     EXPECT_LT(slow_mb, fast_mb * 1.2 + 20) << "hub memory grew while the reader stalled";
+}
+
+TEST_F(RgbdCapture, ControlThreadWarningsLeaveTheLiveStreamOnStdoutIntact) {
+    const int port = free_port();
+    const fs::path dir = temp_root();
+    const std::string rig = rig_of(2);
+    fs::remove_all(dir / "rec_warn");
+    // start() sends the hub's stdout, the live view stream, to hub_warn.out.
+    start(dir, "hub_warn",
+          "$BIN/rgbd-capture --rig " + rig +
+              " -o rec_warn --live - --exit-after-bye --latency-ms 300 --listen tcp://127.0.0.1:" +
+              std::to_string(port) + " --metrics hub_warn.json");
+    for (int s = 0; s < 2; ++s)
+        start(dir, "node_warn" + std::to_string(s),
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
+                  " --loop --frames 90 --hub tcp://127.0.0.1:" + std::to_string(port));
+    // An intruder says hello as a sensor the rig does not have, 40 times while the hub streams:
+    // each hello makes the control thread warn on stderr.
+    zmq::context_t context(1);
+    zmq::socket_t dealer(context, zmq::socket_type::dealer);
+    dealer.set(zmq::sockopt::linger, 2000);
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(port + 1));
+    constexpr int kHellos = 40;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    for (int k = 0; k < kHellos; ++k) {
+        rgbd::sensors::net::ControlMessage hello;
+        hello.type = rgbd::sensors::net::ControlType::kHello;
+        hello.session = 9000 + static_cast<std::uint64_t>(k);
+        hello.json = R"({"sensor": "intruder", "rate_hz": 30})";
+        const auto bytes = rgbd::sensors::net::encode_control(hello);
+        dealer.send(zmq::buffer(bytes));
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    for (int s = 0; s < 2; ++s) ASSERT_EQ(wait_for(dir, "node_warn" + std::to_string(s), 60), 0);
+    ASSERT_EQ(wait_for(dir, "hub_warn", 30), 0) << slurp(dir / "hub_warn.err");
+    const json hub = read_json(dir / "hub_warn.json");
+    EXPECT_EQ(hub["refused_nodes"], kHellos);
+    // stderr: the warnings, each a whole line.
+    std::istringstream err(slurp(dir / "hub_warn.err"));
+    int warnings = 0;
+    const std::string warning =
+        "rgbd-capture: warning: refused a node: sensor 'intruder' is not in the rig";
+    for (std::string line; std::getline(err, line);) {
+        EXPECT_EQ(line.rfind("rgbd-capture: ", 0), 0u) << "a torn stderr line: " << line;
+        if (line.find("intruder") == std::string::npos) continue;  // the hub's own notes
+        EXPECT_EQ(line, warning) << "a torn warning";
+        ++warnings;
+    }
+    EXPECT_EQ(warnings, kHellos);
+    // stdout: every live set's two views, each document whole.
+    std::istringstream live(slurp(dir / "hub_warn.out"));
+    rgbd::io::PlyStreamReader reader(live, "hub_warn.out");
+    rgbd::io::Document document;
+    std::int64_t views = 0;
+    ASSERT_NO_THROW(while (reader.next(document))++ views);
+    ASSERT_GE(hub["live"]["sets_emitted"].get<std::int64_t>(), 1) << hub["live"].dump();
+    EXPECT_EQ(views, 2 * hub["live"]["sets_emitted"].get<std::int64_t>());
+    EXPECT_EQ(views, hub["live"]["views"].get<std::int64_t>());
 }

@@ -1,7 +1,9 @@
 // Issue 21 item 4, over every tool: a failed run (a missing, garbage or truncated input, a
 // broken capture folder, an output folder that does not exist) exits 1 (runtime) or 2
 // (usage), never by a signal, prints exactly one line on stderr naming the file and the
-// problem, and leaves no output file and no temporary file behind (cli/README.md).
+// problem, and leaves no output file and no temporary file behind (cli/README.md). A bad option
+// value exits 2 with one error line naming the option (and the usage hint), before any input
+// is read. validation/robustness/option_sweep.py tries every option of every tool.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -10,6 +12,7 @@
 #include <set>
 #include <string>
 
+#include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -98,6 +101,73 @@ TEST(FailureContract, EveryToolFailsWithOneLineNamingTheFileAndNoOutput) {
         for (const std::string& name : entries()) {
             if (before.count(name) || std::regex_match(name, kCaptured))
                 continue;  // the inputs and run_in's captured stdout/stderr
+            ADD_FAILURE() << "left behind: " << name;
+            fs::remove_all(temp_root() / name);
+        }
+    }
+}
+
+namespace {
+
+struct BadValue {
+    const char* command;  ///< run in temp_root() with $BIN = the tools' folder
+    const char* option;   ///< the error line must name it
+};
+
+// One or more bad values per tool. Most tools check their options before they read an
+// input; rgbd-calibrate reads the capture first, so it gets a valid one (goodcap).
+const BadValue kBadValues[] = {
+    {"rgbd-cloud badcap --crop-radius-m -1 -o out.ply", "--crop-radius-m"},
+    {"rgbd-cloud badcap --z-min -1 -o out.ply", "--z-min"},
+    {"rgbd-clean small.ply --statistical --std-ratio nan -o out.ply", "--std-ratio"},
+    {"rgbd-clean small.ply --noise-model kinect_v9 -o out.ply", "--noise-model"},
+    {"rgbd-align small.ply --voxel-m -1 -o out.ply", "--voxel-m"},
+    {"rgbd-mesh small.ply --target-faces 2 -o out.ply", "--target-faces"},
+    {"rgbd-mesh small.ply --method marching -o out.ply", "--method"},
+    {"rgbd-fill small.ply --colour-inpaint blur -o out.ply", "--colour-inpaint"},
+    {"rgbd-upsample small.ply --theta-max-deg 120 -o out.ply", "--theta-max-deg"},
+    {"rgbd-eval small.ply --reference small.ply --report-size 3x3 --report out_report -o "
+     "out.json",
+     "--report-size"},
+    {"rgbd-reconstruct badcap --stand sideways -o out.ply -q", "--stand"},
+    {"rgbd-reconstruct badcap --upsample 5 -o out.ply -q", "--upsample"},
+    {"rgbd-reconstruct badcap --skip nothing -o out.ply -q", "--skip"},
+    {"rgbd-info small.ply --threads -1", "--threads"},
+    {"rgbd-render small.ply --up 0,0,0 -o out.png", "--up"},
+    {"rgbd-synth garbage.off --rig turntable --stops 0 -o out_capture", "--stops"},
+    {"rgbd-capture --rig badcap/rig.json --tolerance-ms -1 -o out_capture", "--tolerance-ms"},
+    {"rgbd-capture --rig badcap/rig.json --png-compression 12 -o out_capture", "--png-compression"},
+    {"rgbd-node --sensor playback:badcap --jpeg-quality 0", "--jpeg-quality"},
+    {"rgbd-view no-such-video --port 70000", "--port"},
+    {"rgbd-calibrate goodcap --max-plane-mm nan -o out.json", "--max-plane-mm"},
+    {"rgbd-calibrate goodcap --max-rms-px -1 -o out.json", "--max-rms-px"},
+};
+
+}  // namespace
+
+TEST(FailureContract, BadOptionValuesAreUsageErrorsNamingTheOptionWithoutOutput) {
+    make_inputs();
+    rgbd::test::write_ellipsoid_off(temp_root() / "blob.off", 32, 16, 0.3, 0.5, 0.25);
+    const Outcome synth = run("$BIN/rgbd-synth blob.off -o goodcap --sensors 1 --frames 1 -q");
+    ASSERT_EQ(synth.code, 0) << synth.err;
+    const std::set<std::string> before = entries();
+    const std::regex kCaptured("(out|err)[0-9]+\\.txt");
+    for (const BadValue& c : kBadValues) {
+        SCOPED_TRACE(c.command);
+        const Outcome r = run(std::string("$BIN/") + c.command);
+        EXPECT_EQ(r.code, 2) << r.err;
+        // "<tool>: error: ... --option ...", then at most the usage hint.
+        const std::string tool = std::string(c.command).substr(0, std::string(c.command).find(' '));
+        const std::string first = r.err.substr(0, r.err.find('\n'));
+        EXPECT_EQ(first.rfind(tool + ": error: ", 0), 0u) << r.err;
+        EXPECT_NE(first.find(c.option), std::string::npos) << r.err;
+        EXPECT_TRUE(line_count(r.err) == 1 ||
+                    (line_count(r.err) == 2 &&
+                     r.err.find("\nTry '" + tool + " --help'") != std::string::npos))
+            << r.err;
+        EXPECT_TRUE(r.out.empty()) << r.out.substr(0, 200);
+        for (const std::string& name : entries()) {
+            if (before.count(name) || std::regex_match(name, kCaptured)) continue;
             ADD_FAILURE() << "left behind: " << name;
             fs::remove_all(temp_root() / name);
         }

@@ -6,9 +6,12 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
 
+#include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "toolkit/error.hpp"
@@ -104,4 +107,57 @@ TEST(FuzzRegression, OffCountsWhoseSumOverflowsAreTruncatedNotAHugeReserve) {
         read_file("wrap.off", "OFF\n9223372036854775807 9223372036854775807 0\n0 0 0\n", true);
     EXPECT_NE(err.find("wrap.off"), std::string::npos) << err;
     EXPECT_NE(err.find("truncated"), std::string::npos) << err;
+}
+
+TEST(FuzzRegression, RedwoodIntrinsicSizeBeyond32BitsIsAnErrorNotWrappedAround) {
+    // A Redwood folder with 8x6 images whose camera_intrinsic.json says width 2^32 + 8: the
+    // reader took get<int>(), which wraps that around to 8, and accepted the file.
+    namespace fs = std::filesystem;
+    const fs::path root = fs::temp_directory_path() / "rgbd_fuzz_regression_test" / "redwood";
+    fs::remove_all(root);
+    fs::create_directories(root / "depth");
+    fs::create_directories(root / "color");
+    cv::imwrite((root / "depth" / "000000.png").string(), cv::Mat(6, 8, CV_16UC1, cv::Scalar(900)));
+    cv::imwrite((root / "color" / "000000.png").string(), cv::Mat(6, 8, CV_8UC3, cv::Scalar(9)));
+    const auto intrinsics = [&](const std::string& width) {
+        std::ofstream(root / "camera_intrinsic.json")
+            << R"({"width": )" << width
+            << R"(, "height": 6, "intrinsic_matrix": [7, 0, 0, 0, 7, 0, 3.5, 2.5, 1]})";
+    };
+    intrinsics("8");
+    const io::Capture ok = io::open_capture(root);
+    EXPECT_EQ(ok.rig.sensors.at(0).depth.width, 8);
+    EXPECT_NO_THROW(io::load_frame(ok, ok.rig.sensors.at(0).id, 0));
+    for (const char* width : {"4294967304", "18446744073709551615", "-4294967288"}) {
+        SCOPED_TRACE(width);
+        intrinsics(width);
+        try {
+            io::open_capture(root);
+            ADD_FAILURE() << "accepted width " << width;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("camera_intrinsic.json"), std::string::npos)
+                << e.what();
+        }
+    }
+}
+
+TEST(FuzzRegression, RigJsonWithANumberBeyondDoubleIsAnErrorNotAnEscapedException) {
+    // Found by fuzz_capture_folder: nlohmann's parser reports a number too large for a double
+    // as out_of_range, not parse_error, and read_rig caught only parse_error, so the exception
+    // escaped every reader's contract (and ended rgbd-* tools with "internal error").
+    namespace fs = std::filesystem;
+    const fs::path root = fs::temp_directory_path() / "rgbd_fuzz_regression_test" / "bigrig";
+    fs::remove_all(root);
+    fs::create_directories(root);
+    for (const char* text : {"19999999999999999929999E99999999999900000000000009632337040367573019",
+                             R"({"format": "rgbd-capture", "version": 1e400})"}) {
+        SCOPED_TRACE(text);
+        std::ofstream(root / "rig.json") << text;
+        try {
+            io::open_capture(root);
+            ADD_FAILURE() << "accepted";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("rig.json"), std::string::npos) << e.what();
+        }
+    }
 }

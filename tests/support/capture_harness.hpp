@@ -8,6 +8,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -94,6 +95,35 @@ inline std::vector<Truth> read_truth(const fs::path& path) {
 }
 
 inline json read_json(const fs::path& p) { return json::parse(slurp(p)); }
+
+/// The largest error (ns) the hub's clock estimate of one sensor can be shown to have, from
+/// the sensor's `clock` object in the hub's --metrics: the capture network's 1 ms target, or,
+/// when the probes' round trips are too long for that (a loaded machine), what they allow.
+/// Each kept probe's offset is within half its round trip of the true offset (the one-way
+/// delays are unknown but not negative), i.e. within max_round_trip_ns / 2. A frame's time is
+/// mapped through the least-squares line over those samples, evaluated at most about one
+/// probe interval after the newest: for n >= 2 about equally spaced, equally weighted
+/// samples the line's coefficients have sum |w_i| <= 3 there (3 at n = 2, 7/3 at n = 3, 2
+/// from n = 4 on), so the error is within 1.5 max_round_trip_ns. (The hub weights samples by
+/// 1 / rtt^2, which moves the line towards the samples with the smallest error bounds.) While the line is still flat (samples spread over
+/// under a second) the unmodelled drift adds at most 50 ppm x 2 s = 0.1 ms.
+/// `min_one_way_ns`: a delay every message is known to take each way (a test's delaying
+/// proxy); only the round trip beyond twice that is unknown, so only it enters the bound.
+inline double clock_error_bound_ns(const json& clock, double min_one_way_ns = 0) {
+    const double unknown = clock.at("max_round_trip_ns").get<double>() - 2 * min_one_way_ns;
+    return std::max(1e6, 1.5 * std::max(unknown, 0.0) + 0.1e6);
+}
+
+/// The same for the drift (ppm) the hub estimated over a run of about `seconds`: the test's
+/// 10 ppm, or what the round trips allow. The least-squares slope through n samples spread
+/// evenly over T seconds, each off by at most max_round_trip_ns / 2, is off by at most
+/// (max_round_trip_ns / 2) sum |t_i - mean| / sum (t_i - mean)^2 ~ 1.5 max_round_trip_ns / T
+/// (sum |t_i - mean| = n T / 4, sum (t_i - mean)^2 = n T^2 / 12); the samples start a moment
+/// after the nodes do, so T is taken as 80% of the run.
+inline double drift_error_bound_ppm(const json& clock, double seconds) {
+    const double span_ns = 0.8 * seconds * 1e9;
+    return std::max(10.0, 1.5 * clock.at("max_round_trip_ns").get<double>() / span_ns * 1e6);
+}
 
 /// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
 /// test in its own process: the capture is rendered once per rgbd-synth build into a shared

@@ -27,7 +27,7 @@ export ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=0
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 failed=()
 for t in fuzz_ply_stream fuzz_mesh_readers fuzz_capture_folder fuzz_foreign_layouts fuzz_rvl \
-  fuzz_frame_message; do
+  fuzz_frame_message fuzz_calibration_board; do
   mkdir -p "$OUT/$t/corpus"
   echo "== $t: ${SECONDS_PER}s"
   if "$BUILD/bin/$t" -max_total_time="$SECONDS_PER" -timeout=10 -rss_limit_mb=4096 \

@@ -18,15 +18,30 @@
 
 namespace rgbd::fuzz {
 
-/// A folder of this process under the temporary directory, created on first use.
+/// A folder of this process in memory (/dev/shm, a tmpfs, where there is one; else the
+/// temporary directory), created on first use and removed when the process exits normally
+/// (libFuzzer's -max_total_time): the file-based targets write and read it on every input,
+/// so a disk would cost most of their time.
 inline const std::filesystem::path& scratch() {
-    static const std::filesystem::path dir = [] {
-        const auto d =
-            std::filesystem::temp_directory_path() / ("rgbd-fuzz-" + std::to_string(::getpid()));
-        std::filesystem::create_directories(d);
-        return d;
-    }();
-    return dir;
+    struct Folder {
+        std::filesystem::path path;
+        Folder() {
+            std::error_code ec;
+            const std::filesystem::path shm = "/dev/shm";
+            const auto base =
+                std::filesystem::is_directory(shm, ec) && ::access("/dev/shm", W_OK) == 0
+                    ? shm
+                    : std::filesystem::temp_directory_path();
+            path = base / ("rgbd-fuzz-" + std::to_string(::getpid()));
+            std::filesystem::create_directories(path);
+        }
+        ~Folder() {
+            std::error_code ec;
+            std::filesystem::remove_all(path, ec);
+        }
+    };
+    static const Folder folder;
+    return folder.path;
 }
 
 /// Writes `size` bytes to `path` (replacing it).

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "algorithms/calibration/charuco_board.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
@@ -139,8 +140,9 @@ void foreign_layouts(const fs::path& out) {
     c.add(2,
           "# ground truth trajectory\n1.0 0.1 0.2 0.3 0 0 0 1\n1.02 0.1 0.2 0.3 0 0 0.7071068 "
           "0.7071068\n");
-    c.add(3, R"({"width": 640, "height": 480, "intrinsic_matrix": [525.0, 0, 0, 0, 525.0, 0, )"
-             R"(319.5, 239.5, 1]})");
+    // The Redwood folder of the target has 8x6 images.
+    c.add(3,
+          R"({"width": 8, "height": 6, "intrinsic_matrix": [7.0, 0, 0, 0, 7.0, 0, 3.5, 2.5, 1]})");
     c.add(4, "0 0 1\n1 0 0 0.1\n0 1 0 0.2\n0 0 1 0.3\n0 0 0 1\n");
 }
 
@@ -190,6 +192,24 @@ void rvl_and_network(const fs::path& out) {
     f.add(std::string(cm.begin(), cm.end()));
 }
 
+/// Board files as rgbd-synth writes them (BoardSpec::to_json, indented): the default board,
+/// a portrait one with another dictionary, the smallest one, and one with only some keys.
+void calibration_board(const fs::path& out) {
+    Corpus c(out, "fuzz_calibration_board");
+    calibration::BoardSpec b;
+    c.add(b.to_json().dump(2) + "\n");
+    b.squares_x = 5;
+    b.squares_y = 8;
+    b.square_m = 0.03;
+    b.marker_m = 0.022;
+    b.dictionary = "DICT_4X4_50";
+    c.add(b.to_json().dump(2) + "\n");
+    b.squares_x = b.squares_y = 2;
+    b.dictionary = "DICT_ARUCO_ORIGINAL";
+    c.add(b.to_json().dump());
+    c.add(R"({"squares_x": 9, "square_m": 0.1})");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -207,6 +227,7 @@ int main(int argc, char** argv) {
         capture_folder(out, tmp);
         foreign_layouts(out);
         rvl_and_network(out);
+        calibration_board(out);
         fs::remove_all(tmp);
     } catch (const std::exception& e) {
         std::cerr << "make_fuzz_seeds: " << e.what() << "\n";
