@@ -226,6 +226,37 @@ def fmt(x, spec):
 # --------------------------------------------------------------------------- main
 
 
+FILL_GROUPS = [("small holes", (1, 2, 3, 4)), ("large holes", (5,)), ("head top", (6,))]
+
+
+def fill_points(stream, reference):
+    """The fill stage's added points (the documents with fill_mechanism) against the true
+    surface: per mechanism group, count, largest distance (mm) and the shares farther than 3
+    and 5 mm (Open3D RaycastingScene distances, degenerate triangles dropped)."""
+    import open3d as o3d
+    pts, mech = [], []
+    for _, v in read_stream(stream):
+        if v.dtype.names and "fill_mechanism" in v.dtype.names:
+            pts.append(np.stack([v["x"], v["y"], v["z"]], 1).astype(np.float64))
+            mech.append(v["fill_mechanism"])
+    if not pts:
+        return {}
+    pts, mech = np.concatenate(pts), np.concatenate(mech)
+    gt = o3d.io.read_triangle_mesh(reference)
+    gt.remove_degenerate_triangles()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(gt))
+    dist = scene.compute_distance(o3d.core.Tensor(pts.astype(np.float32))).numpy()
+    out = {}
+    for name, ks in FILL_GROUPS:
+        sel = np.isin(mech, ks)
+        if sel.any():
+            d = dist[sel]
+            out[name] = {"points": int(sel.sum()), "max_mm": float(1000 * d.max()),
+                         "over3": float((d > 0.003).mean()), "over5": float((d > 0.005).mean())}
+    return out
+
+
 def run_object(obj, a, b, eb, chain, rows, extra, seed):
     d = os.path.join(a.work, f"{obj}_s{seed}")
     os.makedirs(d, exist_ok=True)
@@ -306,6 +337,10 @@ def run_object(obj, a, b, eb, chain, rows, extra, seed):
             "pose_med": float(np.median(pe)) if pe is not None and len(pe) else None,
             "pose_p90": float(np.percentile(pe, 90)) if pe is not None and len(pe) else None,
         }
+        if v == "default" and reference:
+            stream = os.path.join(d, "default_stages", "04-fill.ply")
+            if os.path.exists(stream):
+                row["fill_points"] = fill_points(stream, reference)
         rows.append(row)
         extra.append({"object": obj, "variant": v, "seed": seed, "mesh": mesh, "info": info, "eval": e})
         print(table_row(row), file=sys.stderr, flush=True)
@@ -398,7 +433,7 @@ def mean_rows(rows):
         m = dict(rs[0])
         m["seed"] = f"mean of {len(rs)}"
         for k, x in rs[0].items():
-            if k in ("object", "variant", "seed") or x is None or isinstance(x, str):
+            if k in ("object", "variant", "seed") or x is None or isinstance(x, (str, dict)):
                 continue
             m[k] = float(np.mean([r[k] for r in rs]))
         out.append(m)
@@ -466,6 +501,16 @@ def main():
     shown = rows if len(a.seeds) == 1 else mean_rows(rows) + rows
     lines = [HEADER] + [table_row(r) for r in shown]
     verdict = verdicts(rows)
+    fill_lines = ["| object | seed | mechanism | points added | max distance mm | > 3 mm | > 5 mm |",
+                  "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        for name, f in (r.get("fill_points") or {}).items():
+            fill_lines.append(f"| {r['object']} | {r['seed']} | {name} | {f['points']} | "
+                              f"{f['max_mm']:.2f} | {100 * f['over3']:.2f}% | "
+                              f"{100 * f['over5']:.2f}% |")
+    if len(fill_lines) > 2:
+        lines += ["", "The fill stage's added points against the true surface (default job):", ""]
+        lines += fill_lines
     table = "\n".join(lines)
     print(table)
     print()
