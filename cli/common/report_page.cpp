@@ -244,8 +244,13 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         for (std::size_t i = 0; i < heights.size(); ++i)
             if (heights[i] >= top_quarter) top.push_back(result->vertices[i]);
         const render::Camera close = render::fit_camera(top, orientation, in.camera);
+        // The colour close-up without the heat map's distances (a geometry with scalars is
+        // drawn as a heat map whatever the options).
+        std::vector<double> scalars = std::move(result->scalars);
+        result->scalars.clear();
         images.push_back({"result_closeup.png", "result, close-up of the top quarter",
                           render::render_picture(*result, close, plain).image});
+        result->scalars = std::move(scalars);
         images.push_back({"result_closeup_error.png", "result, close-up: " + against + " (mm)",
                           render::render_picture(*result, close, heat).image});
     }
