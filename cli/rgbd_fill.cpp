@@ -78,8 +78,11 @@ int main(int argc, char** argv) {
                 "debug-colors",
                 "colour added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow, large "
                 "holes magenta, head top cyan) instead of the interpolated colour")(
-                "no-large", "do not fill large holes (§12)")("no-head-top",
-                                                             "do not fill the head top (§13)")(
+                "max-points", cli::value<int>(300000, "N"),
+                "more measured points than N (a merged sequence of many frames) are thinned to "
+                "about N, one measured point per voxel, before detection and inpainting; 0 = "
+                "never (--mark never thins)")("no-large", "do not fill large holes (§12)")(
+                "no-head-top", "do not fill the head top (§13)")(
                 "inpaint-pixel", cli::value<double>(1.5, "X"),
                 "pixel size of the inpainting images, in spacings")(
                 "telea-radius", cli::value<double>(5.0, "PX"),
@@ -222,6 +225,9 @@ int main(int argc, char** argv) {
         stage.head_top = vm.count("no-head-top") == 0;
         stage.ignore_poses = vm.count("ignore-poses") > 0;
         stage.debug_colors = vm.count("debug-colors") > 0;
+        const int max_points = ctx.get<int>("max-points");
+        if (max_points < 0) throw cli::UsageError("--max-points must be 0 or more");
+        stage.max_points = static_cast<std::size_t>(max_points);
 
         std::vector<io::Document> documents = ctx.read_all_documents();
         std::vector<PointCloud*> views;

@@ -33,8 +33,17 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
     std::vector<holes::SensorView> sensors;
     // Holes are where no sensor measured: super-resolved points (synthetic) take no part, and
     // the detection works at the sensors' own spacing (about 1/3 of it after upsampling).
-    const holes::SurfacePoints points =
+    holes::SurfacePoints points =
         holes::gather_views({views.begin(), views.end()}, &sensors, /*measured_only=*/true);
+    // Many overlapping frames (a 50-frame sequence) give points far denser than any hole the
+    // mesh can show: detect and inpaint on a thinned set (the added points join the full one).
+    report["points_measured"] = points.size();
+    if (!options.mark && options.max_points > 0 && points.size() > options.max_points) {
+        double voxel_m = 0.0;
+        points = holes::thin_points(points, options.max_points, &voxel_m);
+        report["thinned_to"] = points.size();
+        report["thinning_voxel_m"] = voxel_m;
+    }
     // The vertical axis comes from the poses even when the visibility test ignores them.
     const std::vector<holes::SensorView> ring = sensors;
     if (options.ignore_poses) sensors.clear();

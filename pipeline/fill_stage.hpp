@@ -27,6 +27,11 @@ struct FillStageOptions {
     bool head_top = true;       ///< §13 the head top
     bool ignore_poses = false;  ///< no visibility test (the vertical axis still uses the poses)
     bool debug_colors = false;  ///< colour added points by mechanism
+    /// Measured points beyond this many are thinned (holes::thin_points) before detection and
+    /// inpainting: five times the mesher's 60,000-point budget
+    /// (reconstruction::ReconstructionOptions::max_points), so every hole the mesh can show is
+    /// still found. 0 = never thin; `mark` never thins (each input point gets its own flag).
+    std::size_t max_points = 300000;
 };
 
 /// Debug colour of an added point by mechanism (M1 red, M2 green, M3 blue, M4 yellow, large

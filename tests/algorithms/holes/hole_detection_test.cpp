@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
 #include <cmath>
 #include <iostream>
+#include <limits>
+#include <map>
 #include <random>
 
 #include "toolkit/error.hpp"
@@ -251,6 +254,86 @@ TEST(HoleDetection, SameResultForOneAndManyThreads) {
     }
     const auto pn = rgbd::holes::detect_boundaries(s, {}, BoundaryOptions{}).probability;
     EXPECT_EQ(p1, pn);
+}
+
+// Six overlapping "frames" of the plane with three holes (a merged sequence: six times the
+// density of one): thinned to a one-frame budget, every kept point is a measured one with its
+// own view and colour, every input point has a kept point within a voxel diagonal, and the
+// detection on the thinned set finds the same rims as on one frame.
+TEST(ThinPoints, AMergedSequenceThinnedKeepsMeasuredPointsAndItsHoles) {
+    const double half = 0.15;
+    const std::vector<Hole> holes = {
+        {-0.07, -0.07, 5 * kSpacing}, {0.06, -0.06, 3 * kSpacing}, {0.0, 0.07, 20 * kSpacing}};
+    SurfacePoints merged;
+    std::size_t one_frame = 0;
+    for (int copy = 0; copy < 6; ++copy) {
+        const SurfacePoints s = plane(half, holes, 0.2, 10 + copy);
+        one_frame = s.size();
+        for (const auto& p : s.position) {
+            merged.position.push_back(p);
+            merged.normal.emplace_back(0.0, 0.0, 1.0);
+            merged.color.push_back({static_cast<std::uint8_t>(40 * copy), 0, 0});
+            merged.view.push_back(copy);
+        }
+    }
+    const std::size_t budget = one_frame + one_frame / 5;
+    double voxel = -1.0;
+    const SurfacePoints thin = rgbd::holes::thin_points(merged, budget, &voxel);
+    ASSERT_LE(thin.size(), budget);
+    EXPECT_GE(thin.size(), budget * 7 / 10);
+    EXPECT_GT(voxel, kSpacing);
+    ASSERT_EQ(thin.normal.size(), thin.size());
+    ASSERT_EQ(thin.color.size(), thin.size());
+    ASSERT_EQ(thin.view.size(), thin.size());
+
+    std::map<std::array<double, 3>, std::size_t> index;
+    for (std::size_t i = 0; i < merged.size(); ++i)
+        index[{merged.position[i].x(), merged.position[i].y(), merged.position[i].z()}] = i;
+    std::map<std::array<long, 2>, std::vector<std::size_t>> cells;  // kept points by voxel column
+    for (std::size_t i = 0; i < thin.size(); ++i) {
+        const auto& p = thin.position[i];
+        const auto found = index.find({p.x(), p.y(), p.z()});
+        ASSERT_NE(found, index.end()) << "kept point " << i << " is not a measured point";
+        EXPECT_EQ(thin.view[i], merged.view[found->second]);
+        EXPECT_EQ(thin.color[i].r, merged.color[found->second].r);
+        cells[{std::lround(std::floor(p.x() / voxel)), std::lround(std::floor(p.y() / voxel))}]
+            .push_back(i);
+    }
+    const double reach = voxel * std::sqrt(3.0);
+    for (std::size_t i = 0; i < merged.size(); i += 7) {
+        const auto& p = merged.position[i];
+        const long cx = std::lround(std::floor(p.x() / voxel));
+        const long cy = std::lround(std::floor(p.y() / voxel));
+        double nearest = std::numeric_limits<double>::infinity();
+        for (long dx = -2; dx <= 2; ++dx)
+            for (long dy = -2; dy <= 2; ++dy) {
+                const auto cell = cells.find({cx + dx, cy + dy});
+                if (cell == cells.end()) continue;
+                for (const std::size_t k : cell->second)
+                    nearest = std::min(nearest, (thin.position[k] - p).norm());
+            }
+        ASSERT_LE(nearest, reach) << "input point " << i << " has no kept point near it";
+    }
+
+    rgbd::Report report;
+    const auto result = rgbd::holes::detect_boundaries(thin, {}, BoundaryOptions{}, &report);
+    // The same rims as one frame: three holes plus the outer border, the two small ones small.
+    ASSERT_EQ(result.loops.size(), 4u) << report.dump();
+    int small = 0;
+    for (const auto& loop : result.loops) small += loop.small;
+    EXPECT_EQ(small, 2);
+
+    // Within the budget: returned as they are.
+    double none = -1.0;
+    const SurfacePoints same = rgbd::holes::thin_points(merged, merged.size(), &none);
+    EXPECT_EQ(none, 0.0);
+    EXPECT_EQ(same.position, merged.position);
+    // Deterministic for any thread count.
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    EXPECT_EQ(rgbd::holes::thin_points(merged, budget).position, thin.position);
+    SurfacePoints nan = merged;
+    nan.position[3].y() = std::nan("");
+    EXPECT_THROW(rgbd::holes::thin_points(nan, budget), rgbd::Error);
 }
 
 TEST(HoleDetection, RejectsBadInputAndAbsurdOptions) {
