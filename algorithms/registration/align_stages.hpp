@@ -109,7 +109,8 @@ public:
     /// After match(): matched points of view v, and the sum of their squared distances (m²).
     std::size_t matched(std::size_t v) const { return matched_[v]; }
     double sq_sum(std::size_t v) const { return sq_sum_[v]; }
-    /// After match(): share of all working points matched.
+    /// After match(): share of the sampled working points (every `stride`-th of each view)
+    /// that matched.
     double overlap() const;
 
 private:
@@ -125,6 +126,7 @@ private:
     std::vector<Match> match_;
     std::vector<std::uint64_t> hint_;  // last match (view << 32 | index) per point
     std::vector<std::size_t> matched_;
+    std::size_t sampled_ = 0;  // working points the last match() sampled
     std::vector<double> sq_sum_;
 };
 

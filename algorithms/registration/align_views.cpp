@@ -30,6 +30,13 @@ using detail::Working;
 namespace {
 
 constexpr std::size_t kMinMatches = 12;  // fewer: the view keeps its pose this iteration
+/// Strided joint rounds keep at least about this many working points of the smallest view.
+constexpr std::size_t kMinSampled = 1000;
+/// The safety net's joint rounds from the initial poses, and the overlap both starts are judged
+/// by, use every 8th working point at most finely: the overlap is a share, well estimated from
+/// such a sample (50 views of a person: 50,000 points), and a winning safety net gets the finest
+/// rounds on every point afterwards.
+constexpr std::size_t kSafetyStride = 8;
 /// Joint matches look for partners within this many pairs of the pair graph (a ring of 8 at 45
 /// degrees: the views at 45 and 90 degrees; a 50-frame turn: two frames either side).
 constexpr int kPartnerHops = 2;
@@ -211,8 +218,9 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
 
     // Joint rounds from the current poses: all rounds (coarse to fine) from the initial poses,
     // the finest two (at most 10 iterations each) after the pairwise stage and the pose graph.
-    // Progress runs from `p0` to `p1` over the rounds (never backwards).
-    auto joint_rounds = [&](bool after_pairwise, double p0, double p1) {
+    // Progress runs from `p0` to `p1` over the rounds (never backwards). No round samples more
+    // finely than every `min_stride`-th point.
+    auto joint_rounds = [&](bool after_pairwise, double p0, double p1, std::size_t min_stride) {
         const int first_round =
             after_pairwise ? std::max(0, options.rounds - std::min(options.rounds, 2)) : 0;
         for (int round = first_round; round < options.rounds; ++round) {
@@ -222,8 +230,9 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                 options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
             // Coarse rounds on every 2^k-th working point (k = rounds left, at most 3, at least
             // ~1000 points per view); the finest round on all of them.
-            std::size_t stride = std::size_t{1} << std::min(options.rounds - 1 - round, 3);
-            while (stride > 1 && smallest_view / stride < 1000) stride /= 2;
+            std::size_t stride =
+                std::max(min_stride, std::size_t{1} << std::min(options.rounds - 1 - round, 3));
+            while (stride > 1 && smallest_view / stride < kMinSampled) stride /= 2;
             for (int it = 0; it < max_it; ++it) {
                 joint.match(dmax, stride);
                 const std::optional<double> max_motion =
@@ -242,9 +251,11 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                 throw AlgorithmError("align_views: cancelled");
         }
     };
-    // Mean share of working points matched to another view at the finest distance.
-    auto overlap_score = [&]() {
-        joint.match(result.max_distances_m.back());
+    // Share of the working points (every stride-th, at least ~1000 per view) matched to another
+    // view at the finest distance.
+    auto overlap_score = [&](std::size_t stride) {
+        while (stride > 1 && smallest_view / stride < kMinSampled) stride /= 2;
+        joint.match(result.max_distances_m.back(), stride);
         return joint.overlap();
     };
 
@@ -252,19 +263,20 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         // Safety net: on smooth, nearly symmetric shapes pairs can slide where the joint
         // rounds, pinned from both sides, do not. Run those from the initial poses too and keep
         // them when they match clearly more points (the pairs then show their disagreement).
-        joint_rounds(true, 0.35, 0.6);
-        const double pair_score = overlap_score();
+        joint_rounds(true, 0.35, 0.6, 1);
+        const double pair_score = overlap_score(kSafetyStride);
         std::vector<Pose> pair_result(nv);
         for (std::size_t v = 0; v < nv; ++v) pair_result[v] = work[v].pose;
         const auto counters = std::make_pair(moved_iterations, converged);
         const int pair_iterations = result.iterations;
         for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
         std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
-        joint_rounds(false, 0.6, 0.9);
-        const double joint_score = overlap_score();
+        joint_rounds(false, 0.6, 0.8, kSafetyStride);
+        const double joint_score = overlap_score(kSafetyStride);
         result.joint_only_fitness = joint_score;
         result.pairwise_fitness = pair_score;
         if (joint_score > pair_score + 0.05) {
+            joint_rounds(true, 0.8, 0.9, 1);  // the finest rounds on every point
             result.start = "initial poses (joint rounds matched more than the pairwise stage)";
         } else {
             for (std::size_t v = 0; v < nv; ++v) work[v].pose = pair_result[v];
@@ -273,7 +285,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             result.start = "pairwise stage and pose graph";
         }
     } else {
-        joint_rounds(options.pairwise, 0.35, 0.9);
+        joint_rounds(options.pairwise, 0.35, 0.9, 1);
         result.start = options.pairwise ? "pairwise stage and pose graph" : "initial poses";
     }
 

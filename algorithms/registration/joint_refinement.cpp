@@ -143,7 +143,9 @@ void JointRefinement::match(double dmax, std::size_t stride) {
             match_[a] = m;
         }
     });
+    sampled_ = 0;
     for (std::size_t v = 0; v < nv; ++v) {
+        sampled_ += (work_[v].reg.xyz.size() + stride - 1) / std::max<std::size_t>(stride, 1);
         matched_[v] = 0;
         sq_sum_[v] = 0.0;
         for (std::size_t a = offset_[v]; a < offset_[v + 1]; ++a) {
@@ -157,7 +159,7 @@ void JointRefinement::match(double dmax, std::size_t stride) {
 double JointRefinement::overlap() const {
     std::size_t m = 0;
     for (std::size_t x : matched_) m += x;
-    return static_cast<double>(m) / static_cast<double>(std::max<std::size_t>(match_.size(), 1));
+    return static_cast<double>(m) / static_cast<double>(std::max<std::size_t>(sampled_, 1));
 }
 
 std::optional<double> JointRefinement::step(double dmax, std::size_t min_matches,
