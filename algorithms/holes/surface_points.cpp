@@ -1,0 +1,158 @@
+// Surface samples for hole detection (docs/algorithms.md §9-§11): the views gathered into one
+// world-frame set of measured points, and that set thinned on a voxel grid for merged
+// sequences. See also: hole_detection.cpp (the criteria), pipeline/fill_stage.cpp (the stage).
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "algorithms/holes/hole_detection.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::holes {
+
+SurfacePoints gather_views(const std::vector<const PointCloud*>& views,
+                           std::vector<SensorView>* sensors, bool measured_only) {
+    SurfacePoints out;
+    bool normals = true, colors = true;
+    std::size_t total = 0, non_empty = 0;
+    for (const PointCloud* v : views) {
+        if (v->empty()) continue;
+        total += v->size();
+        ++non_empty;
+        normals = normals && v->points.has_normal_map();
+        colors = colors && v->has_colors();
+    }
+    out.position.reserve(total);
+    if (normals) out.normal.reserve(total);
+    if (colors) out.color.reserve(total);
+    out.view.reserve(total);
+    for (const PointCloud* v : views) {
+        if (v->empty()) continue;
+        // A lone sensor-frame view without a pose (a plain point file) is taken as it is.
+        Pose world_from_view = Pose::Identity();
+        const bool lone = non_empty == 1;
+        if (v->view.frame == ViewFrame::kSensor) {
+            RGBD_CHECK(
+                v->view.world_from_sensor.has_value() || lone,
+                "view " + std::to_string(v->view.id) + " is in its sensor frame and has no pose");
+            if (v->view.world_from_sensor) world_from_view = *v->view.world_from_sensor;
+        }
+        int sensor = -1;
+        if (sensors && v->view.world_from_sensor) {
+            sensor = static_cast<int>(sensors->size());
+            sensors->push_back({*v->view.world_from_sensor, v->view.intrinsics});
+        }
+        const auto color_maps = colors ? std::optional(v->colors()) : std::nullopt;
+        const auto synthetic = measured_only ? v->flag(prop::kSynthetic) : std::nullopt;
+        for (auto idx : v->points) {
+            if (synthetic && (*synthetic)[idx]) continue;
+            out.position.push_back(world_from_view * to_eigen(v->points.point(idx)));
+            if (normals)
+                out.normal.push_back(
+                    (world_from_view.linear() * to_eigen(v->points.normal(idx))).normalized());
+            if (colors) out.color.push_back(color_maps->get(idx));
+            out.view.push_back(sensor);
+        }
+    }
+    return out;
+}
+
+SurfacePoints thin_points(const SurfacePoints& points, std::size_t max_points, double* voxel_m) {
+    if (voxel_m) *voxel_m = 0.0;
+    const std::size_t n = points.size();
+    if (max_points == 0 || n <= max_points) return points;
+    Eigen::AlignedBox3d box;
+    for (std::size_t i = 0; i < n; ++i) {
+        RGBD_CHECK(points.position[i].allFinite(),
+                   "thin_points: point " + std::to_string(i) + " is not finite");
+        box.extend(points.position[i]);
+    }
+    const double diagonal = std::max(box.diagonal().norm(), 1e-9);
+    constexpr std::uint64_t kAxis = (std::uint64_t{1} << 21) - 1;
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
+    const auto key_all = [&](double edge) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& range) {
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                const Eigen::Vector3d c = (points.position[i] - box.min()) / edge;
+                const auto axis = [&](double v) {
+                    return std::min(static_cast<std::uint64_t>(std::max(v, 0.0)), kAxis);
+                };
+                keyed[i] = {axis(c.x()) | axis(c.y()) << 21 | axis(c.z()) << 42,
+                            static_cast<std::uint32_t>(i)};
+            }
+        });
+        tbb::parallel_sort(keyed.begin(), keyed.end());
+        std::size_t occupied = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            occupied += i == 0 || keyed[i].first != keyed[i - 1].first;
+        return occupied;
+    };
+    // Occupied voxels of a surface fall as about 1/edge^2: start where a flat square of the
+    // box's diagonal would fit, correct by the square root of the ratio, and once the budget
+    // has been crossed both ways bisect between the finest edge that fits and the coarsest that
+    // does not (the count is not smooth in the edge on regular samplings).
+    double edge = std::max(diagonal / std::sqrt(static_cast<double>(max_points)),
+                           diagonal / static_cast<double>(kAxis));
+    double fits = std::numeric_limits<double>::infinity(), too_fine = 0.0;
+    for (int pass = 0; pass < 14; ++pass) {
+        const std::size_t occupied = key_all(edge);
+        if (occupied <= max_points) {
+            fits = std::min(fits, edge);
+            if (occupied >= max_points * 7 / 10) break;
+        } else {
+            too_fine = std::max(too_fine, edge);
+        }
+        const double ratio = static_cast<double>(occupied) / static_cast<double>(max_points);
+        edge = too_fine > 0.0 && std::isfinite(fits) ? 0.5 * (too_fine + fits)
+                                                     : edge * std::sqrt(ratio / 0.85);
+        if (edge <= diagonal / static_cast<double>(kAxis)) break;  // the finest grid fits
+    }
+    if (!std::isfinite(fits)) {  // never fitted in the passes: grow until it does
+        fits = std::max(edge, too_fine);
+        while (key_all(fits) > max_points) fits *= 1.1;
+    }
+    edge = fits;
+    const std::size_t occupied = key_all(edge);
+    SurfacePoints out;
+    out.position.reserve(occupied);
+    if (!points.normal.empty()) out.normal.reserve(occupied);
+    if (!points.color.empty()) out.color.reserve(occupied);
+    if (!points.view.empty()) out.view.reserve(occupied);
+    for (std::size_t begin = 0; begin < n;) {
+        std::size_t end = begin + 1;
+        while (end < n && keyed[end].first == keyed[begin].first) ++end;
+        // The voxel's centre (not its points' centroid): kept points then lie about one edge
+        // apart everywhere, a regular sampling the detection's spacing describes.
+        const std::uint64_t key = keyed[begin].first;
+        const Eigen::Vector3d centre =
+            box.min() + edge * Eigen::Vector3d(static_cast<double>(key & kAxis) + 0.5,
+                                               static_cast<double>(key >> 21 & kAxis) + 0.5,
+                                               static_cast<double>(key >> 42 & kAxis) + 0.5);
+        std::uint32_t best = keyed[begin].second;
+        double best_d = std::numeric_limits<double>::infinity();
+        for (std::size_t k = begin; k < end; ++k) {  // sorted by index within the voxel
+            const double d = (points.position[keyed[k].second] - centre).squaredNorm();
+            if (d < best_d) {
+                best_d = d;
+                best = keyed[k].second;
+            }
+        }
+        out.position.push_back(points.position[best]);
+        if (!points.normal.empty()) out.normal.push_back(points.normal[best]);
+        if (!points.color.empty()) out.color.push_back(points.color[best]);
+        if (!points.view.empty()) out.view.push_back(points.view[best]);
+        begin = end;
+    }
+    if (voxel_m) *voxel_m = edge;
+    return out;
+}
+
+}  // namespace rgbd::holes
