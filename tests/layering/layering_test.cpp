@@ -1,8 +1,9 @@
 // Enforces the dependency rules of docs/architecture.md on the source tree: which top-level
 // folder may include which, algorithms/internal stays inside algorithms/, and CGAL stays behind
-// the data model: only toolkit/types.hpp, point_cloud.hpp and mesh.hpp include CGAL headers
-// (the kernel, Point_set_3, Surface_mesh) and name CGAL types; every other public header of
-// the libraries uses their aliases (Point_3, PointSet, Mesh) and includes no CGAL header.
+// the data model: only toolkit/types.hpp, point_cloud.hpp and mesh.hpp include CGAL headers (the
+// kernel, Point_set_3, Surface_mesh) and name CGAL types; every other public header of the
+// libraries uses their aliases (Point_3, PointSet, Mesh) and includes no CGAL header. And an
+// installed header includes only installed ones (the install rule of CMakeLists.txt).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <map>
 #include <regex>
 #include <set>
+#include <sstream>
 #include <string>
 
 namespace fs = std::filesystem;
@@ -134,6 +136,50 @@ TEST(Layering, CgalOnlyInTheDataModelHeaders) {
         for (int n = 1; std::getline(in, line); ++n)
             EXPECT_EQ(code_of(line).find("CGAL::"), std::string::npos)
                 << relative << ":" << n << " names a CGAL type: use the toolkit's aliases";
+    }
+    EXPECT_GT(checked, 50u) << "no headers found: is RGBD_SOURCE_DIR right?";
+}
+
+/// The names the install rule of CMakeLists.txt leaves out (`PATTERN "x" EXCLUDE`: a file or a
+/// folder of that name).
+std::set<std::string> install_excludes(const fs::path& root) {
+    std::ifstream in(root / "CMakeLists.txt");
+    std::stringstream text;
+    text << in.rdbuf();
+    const std::string cmake = text.str();
+    static const std::regex kPattern(R"re(PATTERN\s+"([^"]+)"\s+EXCLUDE)re");
+    std::set<std::string> out;
+    for (std::sregex_iterator it(cmake.begin(), cmake.end(), kPattern), end; it != end; ++it)
+        out.insert((*it)[1]);
+    return out;
+}
+
+bool installed(const fs::path& relative, const std::set<std::string>& excludes) {
+    for (const auto& part : relative)
+        if (excludes.count(part.string())) return false;
+    return true;
+}
+
+// A user of the installed package (find_package(RgbdToolkit)) compiles every installed header:
+// none may include a header of the libraries that the install rule leaves out.
+TEST(Layering, InstalledHeadersIncludeOnlyInstalledHeaders) {
+    const fs::path root = RGBD_SOURCE_DIR;
+    const std::set<std::string> excludes = install_excludes(root);
+    ASSERT_TRUE(excludes.count("internal")) << "the install rule of CMakeLists.txt was not found";
+    const std::set<std::string> libraries = {"toolkit", "io", "algorithms", "pipeline", "sensors"};
+    std::size_t checked = 0;
+    for (const auto& file : public_headers(root)) {
+        const fs::path relative = fs::relative(file, root);
+        if (!installed(relative, excludes)) continue;
+        ++checked;
+        for (const auto& inc : includes_of(file)) {
+            const fs::path target(inc.target);
+            if (inc.angled || target.empty() || !libraries.count(target.begin()->string()))
+                continue;
+            EXPECT_TRUE(installed(target, excludes))
+                << relative.generic_string() << " includes \"" << inc.target
+                << "\", which is not installed: the installed package cannot compile it";
+        }
     }
     EXPECT_GT(checked, 50u) << "no headers found: is RGBD_SOURCE_DIR right?";
 }
