@@ -225,17 +225,10 @@ TEST_F(RgbdCapture, LiveVideoIsServedWhileCapturing) {
 }
 
 TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
-    if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
     const fs::path dir = temp_root();
     const fs::path mount = dir / "small_video_disk";
-    fs::create_directories(mount);
-    if (std::system(
-            ("mount -t tmpfs -o size=400k tmpfs " + mount.string() + " 2>/dev/null").c_str()) != 0)
-        GTEST_SKIP() << "cannot mount a tmpfs here";
-    struct Unmount {
-        fs::path p;
-        ~Unmount() { std::system(("umount " + p.string()).c_str()); }
-    } unmount{mount};
+    const SmallDisk disk(mount, "400k");
+    if (!disk.mounted()) GTEST_SKIP() << disk.why();
     const int port = free_port();
     const std::string rig = rig_of(2);
     start(dir, "hub_vfull",

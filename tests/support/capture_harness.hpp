@@ -105,10 +105,10 @@ inline json read_json(const fs::path& p) { return json::parse(slurp(p)); }
 /// probe interval after the newest: for n >= 2 about equally spaced, equally weighted
 /// samples the line's coefficients have sum |w_i| <= 3 there (3 at n = 2, 7/3 at n = 3, 2
 /// from n = 4 on), so the error is within 1.5 max_round_trip_ns. (The hub weights samples by
-/// 1 / rtt^2, which moves the line towards the samples with the smallest error bounds.) While the line is still flat (samples spread over
-/// under a second) the unmodelled drift adds at most 50 ppm x 2 s = 0.1 ms.
-/// `min_one_way_ns`: a delay every message is known to take each way (a test's delaying
-/// proxy); only the round trip beyond twice that is unknown, so only it enters the bound.
+/// 1 / rtt^2, which moves the line towards the samples with the smallest error bounds.) While the
+/// line is still flat (samples spread over under a second) the unmodelled drift adds at most 50 ppm
+/// x 2 s = 0.1 ms. `min_one_way_ns`: a delay every message is known to take each way (a test's
+/// delaying proxy); only the round trip beyond twice that is unknown, so only it enters the bound.
 inline double clock_error_bound_ns(const json& clock, double min_one_way_ns = 0) {
     const double unknown = clock.at("max_round_trip_ns").get<double>() - 2 * min_one_way_ns;
     return std::max(1e6, 1.5 * std::max(unknown, 0.0) + 0.1e6);
@@ -124,6 +124,38 @@ inline double drift_error_bound_ppm(const json& clock, double seconds) {
     const double span_ns = 0.8 * seconds * 1e9;
     return std::max(10.0, 1.5 * clock.at("max_round_trip_ns").get<double>() / span_ns * 1e6);
 }
+
+/// A small tmpfs mounted at `path` for the full-disk tests, unmounted when it goes away.
+/// Mounting needs root: mounted() is false, and why() says why, when it cannot be done.
+class SmallDisk {
+public:
+    SmallDisk(const fs::path& path, const std::string& size) : path_(path) {
+        if (::geteuid() != 0) {
+            why_ = "needs root to mount a small tmpfs";
+            return;
+        }
+        fs::create_directories(path_);
+        const std::string mount =
+            "mount -t tmpfs -o size=" + size + " tmpfs " + path_.string() + " 2>/dev/null";
+        if (std::system(mount.c_str()) != 0) {
+            why_ = "cannot mount a tmpfs here";
+            return;
+        }
+        mounted_ = true;
+    }
+    ~SmallDisk() {
+        if (mounted_) std::system(("umount " + path_.string()).c_str());
+    }
+    SmallDisk(const SmallDisk&) = delete;
+    SmallDisk& operator=(const SmallDisk&) = delete;
+    bool mounted() const { return mounted_; }
+    const std::string& why() const { return why_; }
+
+private:
+    fs::path path_;
+    bool mounted_ = false;
+    std::string why_;
+};
 
 /// The 8-Kinect ring capture (4 frame sets at 30 fps) every test replays. ctest runs each
 /// test in its own process: the capture is rendered once per rgbd-synth build into a shared
