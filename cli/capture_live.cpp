@@ -10,7 +10,6 @@
 
 #include "cli/common/tool.hpp"
 #include "io/ply_stream.hpp"
-#include "pipeline/stages.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::cli {
@@ -188,7 +187,6 @@ void LiveStream::emit(const LiveSet& live) {
             if (on_disk == 1) rgbd.source = depth_file_(spec.id, frame.index);
             document.cloud = view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
                                              options_.extraction, report);
-            pipeline::tag_noise_model(document.cloud, spec);  // as rgbd-cloud's load_view
         } catch (const Error& e) {
             context_.warn(std::string("live stream: ") + e.what() + "; view left out");
             continue;

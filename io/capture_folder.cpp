@@ -410,6 +410,7 @@ RgbdFrame frame_from_stored(const SensorSpec& s, const cv::Mat& raw, const cv::M
     frame.range_min_m = static_cast<float>(s.range_min_m);
     frame.range_max_m = static_cast<float>(s.range_max_m);
     frame.noise_model = s.noise_model;
+    frame.sensor_model = s.model;
     return frame;
 }
 

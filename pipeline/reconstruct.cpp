@@ -137,8 +137,6 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
             const RgbdFrame frame = io::load_frame(capture, id, position);
             PointCloud cloud = view_from_frame(frame, static_cast<int>(views.size()), options.cloud,
                                                centre, options.extraction, v);
-            for (const auto& sensor : capture.rig.sensors)
-                if (sensor.id == id) tag_noise_model(cloud, sensor);
             distance_options.noise_model =
                 options.noise_model
                     ? *options.noise_model

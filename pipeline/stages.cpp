@@ -47,8 +47,8 @@ namespace {
 constexpr const char* kNoiseKey = "rgbd:sensor.noise_model ";
 }  // namespace
 
-std::optional<denoise::NoiseModel> sensor_noise_model(const io::SensorSpec& sensor) {
-    for (const std::string& name : {sensor.noise_model, sensor.model}) {
+std::optional<denoise::NoiseModel> frame_noise_model(const RgbdFrame& frame) {
+    for (const std::string& name : {frame.noise_model, frame.sensor_model}) {
         if (name.empty()) continue;
         try {
             return denoise::parse_noise_model(name);
@@ -56,15 +56,6 @@ std::optional<denoise::NoiseModel> sensor_noise_model(const io::SensorSpec& sens
         }
     }
     return std::nullopt;
-}
-
-void tag_noise_model(PointCloud& view, const io::SensorSpec& sensor) {
-    auto& extra = view.view.extra_comments;
-    extra.erase(std::remove_if(extra.begin(), extra.end(),
-                               [](const std::string& c) { return c.rfind(kNoiseKey, 0) == 0; }),
-                extra.end());
-    if (const auto model = sensor_noise_model(sensor))
-        extra.push_back(kNoiseKey + denoise::to_string(*model));
 }
 
 std::optional<denoise::NoiseModel> view_noise_model(const PointCloud& view) {
@@ -93,11 +84,8 @@ PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, s
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,
                      const ExtractionOptions& extraction, Report& report) {
-    PointCloud view = view_from_frame(io::load_frame(capture, sensor_id, position), view_id,
-                                      cloud_options, centre, extraction, report);
-    for (const auto& sensor : capture.rig.sensors)
-        if (sensor.id == sensor_id) tag_noise_model(view, sensor);
-    return view;
+    return view_from_frame(io::load_frame(capture, sensor_id, position), view_id, cloud_options,
+                           centre, extraction, report);
 }
 
 PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
@@ -107,6 +95,8 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
     PointCloud cloud = frames::depth_to_cloud(frame, cloud_options, &report);
     cloud.view.id = view_id;
     cloud.view.frame_index = frame.frame_index;
+    if (const auto model = frame_noise_model(frame))
+        cloud.view.extra_comments.push_back(kNoiseKey + denoise::to_string(*model));
     report["view"] = view_id;
     report["sensor"] = frame.sensor_id;
     report["frame_index"] = frame.frame_index;

@@ -37,20 +37,18 @@ std::optional<Eigen::Vector3d> object_centre(
 std::optional<Eigen::Vector3d> object_centre(const io::Rig& rig);
 
 /// One frame as a view: depth_to_cloud, then the world-space crop around `centre` when given.
-/// Fills view.id and view.frame_index; the report gets the counts. rgbd-cloud (through
+/// Fills view.id and view.frame_index, and writes the frame's noise model (frame_noise_model)
+/// into the view's metadata (`rgbd:sensor.noise_model NAME`, nothing when it is unknown), so
+/// that the denoisers down a pipe know it; the report gets the counts. rgbd-cloud (through
 /// load_view), rgbd-capture's live stream and pipeline::reconstruct make their views here.
 PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
                            const frames::CloudOptions& cloud_options,
                            const std::optional<Eigen::Vector3d>& centre,
                            const ExtractionOptions& extraction, Report& report);
 
-/// The denoisers' noise model of a rig sensor: its noise.model, else its model, when the
-/// denoisers know the name; nullopt otherwise.
-std::optional<denoise::NoiseModel> sensor_noise_model(const io::SensorSpec& sensor);
-/// Writes the sensor's noise model (sensor_noise_model) into the view's metadata
-/// (`rgbd:sensor.noise_model NAME`), so that the denoisers down a pipe know it (nothing when
-/// it is unknown).
-void tag_noise_model(PointCloud& view, const io::SensorSpec& sensor);
+/// The denoisers' noise model of the frame's sensor: its noise.model, else its model, when
+/// the denoisers know the name; nullopt otherwise.
+std::optional<denoise::NoiseModel> frame_noise_model(const RgbdFrame& frame);
 /// The noise model a view's metadata names, else nullopt.
 std::optional<denoise::NoiseModel> view_noise_model(const PointCloud& view);
 /// The noise model the denoisers use on views whose model is not given (rgbd-clean
@@ -58,8 +56,7 @@ std::optional<denoise::NoiseModel> view_noise_model(const PointCloud& view);
 /// they agree, else Kinect v2. One view: its own.
 denoise::NoiseModel stream_noise_model(const std::vector<PointCloud>& views);
 
-/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame,
-/// then tag_noise_model).
+/// Loads one selected frame of a capture as a view (io::load_frame, then view_from_frame).
 PointCloud load_view(const io::Capture& capture, const std::string& sensor_id, std::size_t position,
                      int view_id, const frames::CloudOptions& cloud_options,
                      const std::optional<Eigen::Vector3d>& centre,

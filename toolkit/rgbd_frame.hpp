@@ -26,8 +26,9 @@ struct RgbdFrame {
     std::string source;             ///< path of the depth image, for provenance
     float range_min_m = 0.0f;       ///< valid depth range of the sensor (0 = unknown)
     float range_max_m = 0.0f;
-    std::string noise_model;  ///< "kinect_v2", "kinect_v1", "sr300" or empty
-    cv::Mat mask;             ///< optional CV_8UC1 object mask on the depth grid, 0 = background
+    std::string noise_model;   ///< the sensor's noise model name (rig noise.model) or empty
+    std::string sensor_model;  ///< the sensor's model ("kinect_v2", "sr300", ...) or empty
+    cv::Mat mask;              ///< optional CV_8UC1 object mask on the depth grid, 0 = background
 };
 
 }  // namespace rgbd
