@@ -1,19 +1,14 @@
 // Surface samples for hole detection (docs/algorithms.md §9-§11): the views gathered into one
 // world-frame set of measured points, and that set thinned on a voxel grid for merged
 // sequences. See also: hole_detection.cpp (the criteria), pipeline/fill_stage.cpp (the stage).
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
 #include <limits>
 #include <string>
-#include <utility>
 
 #include "algorithms/holes/hole_detection.hpp"
+#include "algorithms/internal/voxel_grid.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::holes {
@@ -76,82 +71,59 @@ SurfacePoints thin_points(const SurfacePoints& points, std::size_t max_points, d
         box.extend(points.position[i]);
     }
     const double diagonal = std::max(box.diagonal().norm(), 1e-9);
-    constexpr std::uint64_t kAxis = (std::uint64_t{1} << 21) - 1;
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
-    const auto key_all = [&](double edge) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& range) {
-            for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                const Eigen::Vector3d c = (points.position[i] - box.min()) / edge;
-                const auto axis = [&](double v) {
-                    return std::min(static_cast<std::uint64_t>(std::max(v, 0.0)), kAxis);
-                };
-                keyed[i] = {axis(c.x()) | axis(c.y()) << 21 | axis(c.z()) << 42,
-                            static_cast<std::uint32_t>(i)};
-            }
-        });
-        tbb::parallel_sort(keyed.begin(), keyed.end());
-        std::size_t occupied = 0;
-        for (std::size_t i = 0; i < n; ++i)
-            occupied += i == 0 || keyed[i].first != keyed[i - 1].first;
-        return occupied;
+    const double finest = diagonal / static_cast<double>(internal::kVoxelAxisMax);
+    internal::VoxelKeyed keyed;
+    double keyed_edge = 0.0;  // the edge `keyed` holds
+    std::vector<std::size_t> starts;
+    const auto occupied = [&](double edge) {
+        internal::sort_by_voxel(points.position, box.min(), edge, keyed);
+        keyed_edge = edge;
+        starts = internal::voxel_starts(keyed);
+        return starts.size() - 1;
     };
     // Occupied voxels of a surface fall as about 1/edge^2: start where a flat square of the
     // box's diagonal would fit, correct by the square root of the ratio, and once the budget
     // has been crossed both ways bisect between the finest edge that fits and the coarsest that
     // does not (the count is not smooth in the edge on regular samplings).
-    double edge = std::max(diagonal / std::sqrt(static_cast<double>(max_points)),
-                           diagonal / static_cast<double>(kAxis));
+    double edge = std::max(diagonal / std::sqrt(static_cast<double>(max_points)), finest);
     double fits = std::numeric_limits<double>::infinity(), too_fine = 0.0;
     for (int pass = 0; pass < 14; ++pass) {
-        const std::size_t occupied = key_all(edge);
-        if (occupied <= max_points) {
+        const std::size_t count = occupied(edge);
+        if (count <= max_points) {
             fits = std::min(fits, edge);
-            if (occupied >= max_points * 7 / 10) break;
+            if (count >= max_points * 7 / 10) break;
         } else {
             too_fine = std::max(too_fine, edge);
         }
-        const double ratio = static_cast<double>(occupied) / static_cast<double>(max_points);
+        const double ratio = static_cast<double>(count) / static_cast<double>(max_points);
         edge = too_fine > 0.0 && std::isfinite(fits) ? 0.5 * (too_fine + fits)
                                                      : edge * std::sqrt(ratio / 0.85);
-        if (edge <= diagonal / static_cast<double>(kAxis)) break;  // the finest grid fits
+        if (edge <= finest) break;  // the finest grid fits
     }
     if (!std::isfinite(fits)) {  // never fitted in the passes: grow until it does
         fits = std::max(edge, too_fine);
-        while (key_all(fits) > max_points) fits *= 1.1;
+        while (occupied(fits) > max_points) fits *= 1.1;
     }
-    edge = fits;
-    const std::size_t occupied = key_all(edge);
+    if (keyed_edge != fits) occupied(fits);
     SurfacePoints out;
-    out.position.reserve(occupied);
-    if (!points.normal.empty()) out.normal.reserve(occupied);
-    if (!points.color.empty()) out.color.reserve(occupied);
-    if (!points.view.empty()) out.view.reserve(occupied);
-    for (std::size_t begin = 0; begin < n;) {
-        std::size_t end = begin + 1;
-        while (end < n && keyed[end].first == keyed[begin].first) ++end;
-        // The voxel's centre (not its points' centroid): kept points then lie about one edge
-        // apart everywhere, a regular sampling the detection's spacing describes.
-        const std::uint64_t key = keyed[begin].first;
+    const std::size_t voxels = starts.size() - 1;
+    out.position.reserve(voxels);
+    if (!points.normal.empty()) out.normal.reserve(voxels);
+    if (!points.color.empty()) out.color.reserve(voxels);
+    if (!points.view.empty()) out.view.reserve(voxels);
+    for (std::size_t g = 0; g < voxels; ++g) {
+        // The point nearest the voxel's centre (not its points' centroid): kept points then lie
+        // about one edge apart everywhere, a regular sampling the detection's spacing describes.
         const Eigen::Vector3d centre =
-            box.min() + edge * Eigen::Vector3d(static_cast<double>(key & kAxis) + 0.5,
-                                               static_cast<double>(key >> 21 & kAxis) + 0.5,
-                                               static_cast<double>(key >> 42 & kAxis) + 0.5);
-        std::uint32_t best = keyed[begin].second;
-        double best_d = std::numeric_limits<double>::infinity();
-        for (std::size_t k = begin; k < end; ++k) {  // sorted by index within the voxel
-            const double d = (points.position[keyed[k].second] - centre).squaredNorm();
-            if (d < best_d) {
-                best_d = d;
-                best = keyed[k].second;
-            }
-        }
+            internal::voxel_centre(keyed[starts[g]].first, box.min(), fits);
+        const std::uint32_t best =
+            internal::nearest_in_voxel(keyed, starts[g], starts[g + 1], points.position, centre);
         out.position.push_back(points.position[best]);
         if (!points.normal.empty()) out.normal.push_back(points.normal[best]);
         if (!points.color.empty()) out.color.push_back(points.color[best]);
         if (!points.view.empty()) out.view.push_back(points.view[best]);
-        begin = end;
     }
-    if (voxel_m) *voxel_m = edge;
+    if (voxel_m) *voxel_m = fits;
     return out;
 }
 

@@ -213,6 +213,11 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     const IcpCriteria& crit = options.icp.criteria;
     std::size_t smallest_view = work[0].reg.xyz.size();
     for (const Working& w : work) smallest_view = std::min(smallest_view, w.reg.xyz.size());
+    // A stride that still samples about kMinSampled points of the smallest view.
+    const auto sampled_stride = [&](std::size_t stride) {
+        while (stride > 1 && smallest_view / stride < kMinSampled) stride /= 2;
+        return stride;
+    };
     std::vector<int> moved_iterations(nv, 0);
     std::vector<char> converged(nv, 0);
 
@@ -230,9 +235,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                 options.pairwise ? std::min(crit.max_iterations, 10) : crit.max_iterations;
             // Coarse rounds on every 2^k-th working point (k = rounds left, at most 3, at least
             // ~1000 points per view); the finest round on all of them.
-            std::size_t stride =
-                std::max(min_stride, std::size_t{1} << std::min(options.rounds - 1 - round, 3));
-            while (stride > 1 && smallest_view / stride < kMinSampled) stride /= 2;
+            const std::size_t stride = sampled_stride(
+                std::max(min_stride, std::size_t{1} << std::min(options.rounds - 1 - round, 3)));
             for (int it = 0; it < max_it; ++it) {
                 joint.match(dmax, stride);
                 const std::optional<double> max_motion =
@@ -254,8 +258,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     // Share of the working points (every stride-th, at least ~1000 per view) matched to another
     // view at the finest distance.
     auto overlap_score = [&](std::size_t stride) {
-        while (stride > 1 && smallest_view / stride < kMinSampled) stride /= 2;
-        joint.match(result.max_distances_m.back(), stride);
+        joint.match(result.max_distances_m.back(), sampled_stride(stride));
         return joint.overlap();
     };
 

@@ -144,8 +144,9 @@ void JointRefinement::match(double dmax, std::size_t stride) {
         }
     });
     sampled_ = 0;
+    const std::size_t every = std::max<std::size_t>(stride, 1);
     for (std::size_t v = 0; v < nv; ++v) {
-        sampled_ += (work_[v].reg.xyz.size() + stride - 1) / std::max<std::size_t>(stride, 1);
+        sampled_ += (work_[v].reg.xyz.size() + every - 1) / every;
         matched_[v] = 0;
         sq_sum_[v] = 0.0;
         for (std::size_t a = offset_[v]; a < offset_[v + 1]; ++a) {

@@ -1,7 +1,6 @@
 #include "algorithms/sampling/voxel_downsample.hpp"
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <cmath>
 #include <cstdint>
@@ -10,13 +9,13 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/internal/voxel_grid.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::sampling {
 
 namespace {
-constexpr int kKeyBits = 21;
-constexpr std::int64_t kMaxCells = std::int64_t{1} << kKeyBits;
+constexpr std::int64_t kMaxCells = std::int64_t{1} << internal::kVoxelKeyBits;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
 }  // namespace
@@ -53,26 +52,10 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_m) {
                "voxel_downsample: " + view_name(cloud) + ": voxel " + std::to_string(voxel_m) +
                    " m is too small for the extent of the cloud");
 
-    // (voxel key, point position in xyz) pairs; unique, so any sort gives the same order.
-    const std::size_t n = xyz.size();
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                              const Eigen::Vector3d c = ((xyz[i] - lo) / voxel_m).array().floor();
-                              const auto ix = static_cast<std::uint64_t>(c.x());
-                              const auto iy = static_cast<std::uint64_t>(c.y());
-                              const auto iz = static_cast<std::uint64_t>(c.z());
-                              keyed[i] = {ix | (iy << kKeyBits) | (iz << (2 * kKeyBits)),
-                                          static_cast<std::uint32_t>(i)};
-                          }
-                      });
-    tbb::parallel_sort(keyed.begin(), keyed.end());
-
-    std::vector<std::size_t> starts;  // group boundaries in `keyed`
-    for (std::size_t i = 0; i < n; ++i)
-        if (i == 0 || keyed[i].first != keyed[i - 1].first) starts.push_back(i);
-    starts.push_back(n);
+    // (voxel key, point position in xyz) pairs, a voxel's points consecutive.
+    internal::VoxelKeyed keyed;
+    internal::sort_by_voxel(xyz, lo, voxel_m, keyed);
+    const std::vector<std::size_t> starts = internal::voxel_starts(keyed);  // group boundaries
     const std::size_t groups = starts.size() - 1;
 
     const bool has_normals = in.has_normal_map();
@@ -87,51 +70,42 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_m) {
         std::uint32_t representative;
     };
     std::vector<Cell> cells(groups);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 256),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t g = r.begin(); g != r.end(); ++g) {
-                              Cell& cell = cells[g];
-                              const std::size_t b = starts[g], e = starts[g + 1];
-                              const double count = static_cast<double>(e - b);
-                              Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-                              Eigen::Vector3d nsum = Eigen::Vector3d::Zero();
-                              double rsum = 0, gsum = 0, bsum = 0;
-                              for (std::size_t k = b; k < e; ++k) {
-                                  const std::uint32_t i = keyed[k].second;
-                                  sum += xyz[i];
-                                  if (has_normals) nsum += to_eigen(in.normal(index[i]));
-                                  if (has_colors) {
-                                      const Rgb c = in_colors->get(index[i]);
-                                      rsum += c.r;
-                                      gsum += c.g;
-                                      bsum += c.b;
-                                  }
-                              }
-                              cell.centroid = sum / count;
-                              double best = std::numeric_limits<double>::infinity();
-                              cell.representative = keyed[b].second;
-                              for (std::size_t k = b; k < e; ++k) {
-                                  const std::uint32_t i = keyed[k].second;
-                                  const double d = (xyz[i] - cell.centroid).squaredNorm();
-                                  if (d < best) {  // keyed is sorted by index within a group
-                                      best = d;
-                                      cell.representative = i;
-                                  }
-                              }
-                              if (has_normals) {
-                                  const double len = nsum.norm();
-                                  cell.normal =
-                                      len > 1e-12 ? Eigen::Vector3d(nsum / len)
-                                                  : to_eigen(in.normal(index[cell.representative]));
-                              }
-                              if (has_colors) {
-                                  auto avg = [count](double s) {
-                                      return static_cast<std::uint8_t>(std::lround(s / count));
-                                  };
-                                  cell.color = {avg(rsum), avg(gsum), avg(bsum)};
-                              }
-                          }
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, groups, 256),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t g = r.begin(); g != r.end(); ++g) {
+                Cell& cell = cells[g];
+                const std::size_t b = starts[g], e = starts[g + 1];
+                const double count = static_cast<double>(e - b);
+                Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                Eigen::Vector3d nsum = Eigen::Vector3d::Zero();
+                double rsum = 0, gsum = 0, bsum = 0;
+                for (std::size_t k = b; k < e; ++k) {
+                    const std::uint32_t i = keyed[k].second;
+                    sum += xyz[i];
+                    if (has_normals) nsum += to_eigen(in.normal(index[i]));
+                    if (has_colors) {
+                        const Rgb c = in_colors->get(index[i]);
+                        rsum += c.r;
+                        gsum += c.g;
+                        bsum += c.b;
+                    }
+                }
+                cell.centroid = sum / count;
+                cell.representative = internal::nearest_in_voxel(keyed, b, e, xyz, cell.centroid);
+                if (has_normals) {
+                    const double len = nsum.norm();
+                    cell.normal = len > 1e-12 ? Eigen::Vector3d(nsum / len)
+                                              : to_eigen(in.normal(index[cell.representative]));
+                }
+                if (has_colors) {
+                    auto avg = [count](double s) {
+                        return static_cast<std::uint8_t>(std::lround(s / count));
+                    };
+                    cell.color = {avg(rsum), avg(gsum), avg(bsum)};
+                }
+            }
+        });
 
     out.points.reserve(groups);
     for (const Cell& cell : cells) out.points.insert(in, index[cell.representative]);
