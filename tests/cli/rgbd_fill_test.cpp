@@ -108,6 +108,21 @@ TEST_F(RgbdFill, FillsTheOcclusionHoleOnlyWithSyntheticPointsOnTheSurface) {
     ASSERT_EQ(r.code, 0) << r.err;
     const auto m2 = nlohmann::json::parse(slurp(temp_root() / "m2.json"));
     EXPECT_EQ(m2["documents"][0]["loops_filled"], 2);
+    // --max-points: fewer measured points than the views hold are thinned first; the occlusion
+    // hole is still found and filled on the sphere, and the report says to how many.
+    const std::size_t measured = d["points"].get<std::size_t>();
+    r = run("$BIN/rgbd-fill --max-points " + std::to_string(measured / 2) +
+            " views.ply --metrics m3.json > filled3.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto d3 = nlohmann::json::parse(slurp(temp_root() / "m3.json"))["documents"][0];
+    EXPECT_EQ(d3["points_measured"].get<std::size_t>(), measured) << d3.dump();
+    EXPECT_LE(d3["thinned_to"].get<std::size_t>(), measured / 2) << d3.dump();
+    EXPECT_EQ(d3["occlusion_loops"], 1) << d3.dump();
+    const auto docs3 = read(temp_root() / "filled3.ply");
+    ASSERT_EQ(docs3.size(), 3u);
+    ASSERT_GT(docs3[2].cloud.size(), 5u);
+    for (auto idx : docs3[2].cloud.points)
+        EXPECT_NEAR(rgbd::to_eigen(docs3[2].cloud.points.point(idx)).norm(), 0.1, 0.0005);
 }
 
 TEST_F(RgbdFill, DetectOnlyMarksRimPointsAndAddsNothing) {
@@ -167,7 +182,8 @@ TEST_F(RgbdFill, AbsurdParametersAreUsageErrors) {
                             "--patch 8",
                             "--patch 1",
                             "--search-window 0.5",
-                            "--search-window nan"}) {
+                            "--search-window nan",
+                            "--max-points -1"}) {
         SCOPED_TRACE(opt);
         const Outcome r = run(std::string("$BIN/rgbd-fill ") + opt + " views.ply -o never.ply");
         rgbd::test::expect_failure(r, 2, "rgbd-fill", temp_root());
