@@ -1,5 +1,7 @@
 #include "pipeline/stages.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -109,13 +111,16 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
 
 namespace {
 
-/// Normals oriented towards each view's own sensor, for views that have none.
+/// Normals oriented towards each view's own sensor, for views that have none. Views in
+/// parallel: each view's kd-tree build is sequential, so view-level parallelism keeps both
+/// cores busy (the normals do not depend on the order).
 void ensure_view_normals(std::vector<PointCloud>& views) {
     normals::NormalOptions options;
     options.orientation = normals::NormalOrientation::kAuto;
-    for (auto& view : views)
-        if (!view.points.has_normal_map() && view.size() >= 3)
-            normals::estimate_normals(view, options);
+    tbb::parallel_for(std::size_t{0}, views.size(), [&](std::size_t v) {
+        if (!views[v].points.has_normal_map() && views[v].size() >= 3)
+            normals::estimate_normals(views[v], options);
+    });
 }
 
 }  // namespace
