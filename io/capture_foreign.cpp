@@ -109,18 +109,36 @@ std::vector<Pose> read_log(const fs::path& path) {
     return poses;
 }
 
+/// The camera of a foreign layout: id "camera", the sensor `model`, depth PNG values
+/// `depth_scale` per metre, no rig pose (poses, where the layout has them, are per frame).
+SensorSpec foreign_camera(const std::string& model, double depth_scale) {
+    SensorSpec s;
+    s.id = "camera";
+    s.model = model;
+    s.depth_scale = depth_scale;
+    s.has_world_from_depth = false;
+    return s;
+}
+
+/// An empty capture of a foreign `layout` at `root`, for add_sensor to fill.
+Capture foreign_capture(const fs::path& root, const std::string& layout) {
+    Capture cap;
+    cap.root = root;
+    cap.layout = layout;
+    return cap;
+}
+
+void add_sensor(Capture& cap, const SensorSpec& s, std::vector<FrameRecord> frames) {
+    cap.rig.sensors.push_back(s);
+    cap.frames[s.id] = std::move(frames);
+}
+
 }  // namespace
 
 /// The "frames with OpenCV camera xml" layout (shared/data/multiview/uva_cv2_person_kinect1).
 Capture open_uva(const fs::path& root, const std::vector<fs::path>& xmls) {
-    Capture cap;
-    cap.root = root;
-    cap.layout = "uva";
-    SensorSpec s;
-    s.id = "camera";
-    s.model = "kinect_v1";
-    s.depth_scale = 1000.0;
-    s.has_world_from_depth = false;  // poses are per frame
+    Capture cap = foreign_capture(root, "uva");
+    SensorSpec s = foreign_camera("kinect_v1", 1000.0);
     std::vector<FrameRecord> frames;
     static const std::regex kName(R"((\d+)_camera\.xml)");
     for (const fs::path& xml : xmls) {
@@ -183,22 +201,15 @@ Capture open_uva(const fs::path& root, const std::vector<fs::path>& xmls) {
     }
     std::sort(frames.begin(), frames.end(),
               [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
-    cap.rig.sensors.push_back(s);
-    cap.frames[s.id] = std::move(frames);
+    add_sensor(cap, s, std::move(frames));
     return cap;
 }
 
 Capture open_tum(const fs::path& root) {
-    Capture cap;
-    cap.root = root;
-    cap.layout = "tum";
-    SensorSpec s;
-    s.id = "camera";
-    s.model = "kinect_v1";
+    Capture cap = foreign_capture(root, "tum");
+    SensorSpec s = foreign_camera("kinect_v1", 5000.0);
     s.depth = default_intrinsics(319.5, 239.5);  // TUM default (Freiburg) intrinsics
     s.color = s.depth;
-    s.depth_scale = 5000.0;
-    s.has_world_from_depth = false;
     std::vector<FrameRecord> frames;
     if (has_file(root / "depth.txt")) {
         const auto depth = read_tum_list(root / "depth.txt");
@@ -254,8 +265,7 @@ Capture open_tum(const fs::path& root) {
         if (has_file(root / "TUM_color.png")) f.color = absolute_path(root / "TUM_color.png");
         frames.push_back(std::move(f));
     }
-    cap.rig.sensors.push_back(s);
-    cap.frames[s.id] = std::move(frames);
+    add_sensor(cap, s, std::move(frames));
     return cap;
 }
 std::optional<fs::path> redwood_folder(const fs::path& root) {
@@ -273,15 +283,9 @@ std::optional<fs::path> redwood_folder(const fs::path& root) {
 }
 
 Capture open_redwood(const fs::path& root, const fs::path& folder) {
-    Capture cap;
-    cap.root = root;
-    cap.layout = "redwood";
-    SensorSpec s;
-    s.id = "camera";
-    s.model = "primesense";
+    Capture cap = foreign_capture(root, "redwood");
+    SensorSpec s = foreign_camera("primesense", 1000.0);
     s.depth = default_intrinsics(319.5, 239.5);  // Open3D PrimeSenseDefault
-    s.depth_scale = 1000.0;
-    s.has_world_from_depth = false;
     for (const fs::path& dir : {folder, root})
         for (const fs::path& f : list_files(dir))
             if (f.extension() == ".json")
@@ -344,14 +348,12 @@ found_intrinsics:
         }
         frames.push_back(std::move(f));
     }
-    cap.rig.sensors.push_back(s);
-    cap.frames[s.id] = std::move(frames);
+    add_sensor(cap, s, std::move(frames));
     if (!clean.empty()) {
         SensorSpec c = s;
         c.id = "clean";
         c.model = "ground_truth";
-        cap.rig.sensors.push_back(c);
-        cap.frames[c.id] = std::move(clean);
+        add_sensor(cap, c, std::move(clean));
     }
     return cap;
 }

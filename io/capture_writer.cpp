@@ -30,6 +30,17 @@ std::string frame_name(std::int64_t index) {
     return buf;
 }
 
+/// InputError when the `what` image ("depth", "colour") of the sensor is not the size that the
+/// rig declares for it.
+void check_declared_size(const cv::Mat& image, const PinholeIntrinsics& declared,
+                         const std::string& sensor_id, const std::string& what) {
+    if (image.cols != declared.width || image.rows != declared.height)
+        throw InputError("add_frame: sensor '" + sensor_id + "': " + what + " is " +
+                         std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                         " but the rig declares " + std::to_string(declared.width) + "x" +
+                         std::to_string(declared.height));
+}
+
 }  // namespace
 
 CaptureWriter::CaptureWriter(const fs::path& root, const Rig& rig) : root_(root), rig_(rig) {
@@ -54,18 +65,10 @@ void CaptureWriter::add_frame(const std::string& sensor_id, std::int64_t index,
     const SensorSpec& s = rig_.sensor(sensor_id);
     const fs::path dir = root_ / sensor_id;
     if (depth_m.type() != CV_32FC1) throw InputError("add_frame: depth must be CV_32FC1 metres");
-    if (depth_m.cols != s.depth.width || depth_m.rows != s.depth.height)
-        throw InputError("add_frame: sensor '" + sensor_id + "': depth is " +
-                         std::to_string(depth_m.cols) + "x" + std::to_string(depth_m.rows) +
-                         " but the rig declares " + std::to_string(s.depth.width) + "x" +
-                         std::to_string(s.depth.height));
+    check_declared_size(depth_m, s.depth, sensor_id, "depth");
     if (!color_bgr.empty()) {
         if (color_bgr.type() != CV_8UC3) throw InputError("add_frame: colour must be CV_8UC3 BGR");
-        if (color_bgr.cols != s.color.width || color_bgr.rows != s.color.height)
-            throw InputError("add_frame: sensor '" + sensor_id + "': colour is " +
-                             std::to_string(color_bgr.cols) + "x" + std::to_string(color_bgr.rows) +
-                             " but the rig declares " + std::to_string(s.color.width) + "x" +
-                             std::to_string(s.color.height));
+        check_declared_size(color_bgr, s.color, sensor_id, "colour");
     }
     std::error_code ec;
     fs::create_directories(dir / "depth", ec);

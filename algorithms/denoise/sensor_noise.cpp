@@ -4,28 +4,22 @@
 #include <cmath>
 #include <numbers>
 
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
 
-std::string to_string(NoiseModel model) {
-    switch (model) {
-        case NoiseModel::kKinectV2:
-            return "kinect_v2";
-        case NoiseModel::kKinectV1:
-            return "kinect_v1";
-        case NoiseModel::kSr300:
-            return "sr300";
-        case NoiseModel::kGeneric:
-            return "generic";
-    }
-    return "generic";
-}
+namespace {
+constexpr EnumName<NoiseModel> kNoiseModelNames[] = {{NoiseModel::kKinectV2, "kinect_v2"},
+                                                     {NoiseModel::kKinectV1, "kinect_v1"},
+                                                     {NoiseModel::kSr300, "sr300"},
+                                                     {NoiseModel::kGeneric, "generic"}};
+}  // namespace
+
+std::string to_string(NoiseModel model) { return name_of(kNoiseModelNames, model, "generic"); }
 
 NoiseModel parse_noise_model(const std::string& name) {
-    for (NoiseModel m :
-         {NoiseModel::kKinectV2, NoiseModel::kKinectV1, NoiseModel::kSr300, NoiseModel::kGeneric})
-        if (to_string(m) == name) return m;
+    if (const auto model = value_of(kNoiseModelNames, name)) return *model;
     throw InputError("unknown noise model '" + name +
                      "' (expected kinect_v2, kinect_v1, sr300 or generic)");
 }

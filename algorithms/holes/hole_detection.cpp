@@ -14,6 +14,7 @@
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/neighbour_lists.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::holes {
@@ -42,18 +43,13 @@ Eigen::Vector3d orthogonal(const Eigen::Vector3d& n) {
     return n.cross(axis).normalized();
 }
 
+constexpr EnumName<HoleKind> kHoleKindNames[] = {{HoleKind::kUnknown, "unknown"},
+                                                 {HoleKind::kOcclusion, "occlusion"},
+                                                 {HoleKind::kOpening, "opening"}};
+
 }  // namespace
 
-const char* to_string(HoleKind kind) {
-    switch (kind) {
-        case HoleKind::kOcclusion:
-            return "occlusion";
-        case HoleKind::kOpening:
-            return "opening";
-        default:
-            return "unknown";
-    }
-}
+const char* to_string(HoleKind kind) { return name_of(kHoleKindNames, kind, "unknown"); }
 
 void NeighbourhoodOptions::check() const {
     RGBD_CHECK(k >= 3 && k <= 256, "holes: k must be in [3, 256]");

@@ -9,32 +9,34 @@
 #include <unordered_map>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::holes {
 
+namespace {
+
+constexpr EnumName<FillMechanism> kMechanismNames[] = {
+    {FillMechanism::kOnePoint, "one"},         {FillMechanism::kFourPoints, "four"},
+    {FillMechanism::kThreePoints, "three"},    {FillMechanism::kInterpolation, "interpolation"},
+    {FillMechanism::kLargeHole, "large-hole"}, {FillMechanism::kHeadTop, "head-top"}};
+
+/// What parse_fill_mechanism accepts: the small-hole mechanisms by name and by their number
+/// M1..M4 (§11).
+constexpr EnumName<FillMechanism> kSmallHoleNames[] = {
+    {FillMechanism::kOnePoint, "one"},      {FillMechanism::kFourPoints, "four"},
+    {FillMechanism::kThreePoints, "three"}, {FillMechanism::kInterpolation, "interpolation"},
+    {FillMechanism::kOnePoint, "m1"},       {FillMechanism::kFourPoints, "m2"},
+    {FillMechanism::kThreePoints, "m3"},    {FillMechanism::kInterpolation, "m4"}};
+
+}  // namespace
+
 const char* to_string(FillMechanism mechanism) {
-    switch (mechanism) {
-        case FillMechanism::kOnePoint:
-            return "one";
-        case FillMechanism::kFourPoints:
-            return "four";
-        case FillMechanism::kThreePoints:
-            return "three";
-        case FillMechanism::kLargeHole:
-            return "large-hole";
-        case FillMechanism::kHeadTop:
-            return "head-top";
-        default:
-            return "interpolation";
-    }
+    return name_of(kMechanismNames, mechanism, "interpolation");
 }
 
 FillMechanism parse_fill_mechanism(const std::string& name) {
-    if (name == "one" || name == "m1") return FillMechanism::kOnePoint;
-    if (name == "four" || name == "m2") return FillMechanism::kFourPoints;
-    if (name == "three" || name == "m3") return FillMechanism::kThreePoints;
-    if (name == "interpolation" || name == "m4") return FillMechanism::kInterpolation;
+    if (const auto mechanism = value_of(kSmallHoleNames, name)) return *mechanism;
     throw InputError("fill: unknown mechanism '" + name + "' (one, four, three or interpolation)");
 }
 

@@ -11,24 +11,22 @@
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::normals {
 
+namespace {
+constexpr EnumName<NormalOrientation> kOrientationNames[] = {
+    {NormalOrientation::kAuto, "auto"},
+    {NormalOrientation::kSensor, "sensor"},
+    {NormalOrientation::kMst, "mst"},
+    {NormalOrientation::kOutward, "outward"},
+    {NormalOrientation::kNone, "none"}};
+}  // namespace
+
 const char* to_string(NormalOrientation orientation) {
-    switch (orientation) {
-        case NormalOrientation::kAuto:
-            return "auto";
-        case NormalOrientation::kSensor:
-            return "sensor";
-        case NormalOrientation::kMst:
-            return "mst";
-        case NormalOrientation::kOutward:
-            return "outward";
-        case NormalOrientation::kNone:
-            return "none";
-    }
-    return "?";
+    return name_of(kOrientationNames, orientation);
 }
 
 void NormalOptions::check() const {

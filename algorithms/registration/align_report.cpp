@@ -4,20 +4,17 @@
 #include <string>
 
 #include "algorithms/registration/icp.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::registration {
-const char* to_string(Verdict verdict) {
-    switch (verdict) {
-        case Verdict::kPass:
-            return "PASS";
-        case Verdict::kWarn:
-            return "WARN";
-        case Verdict::kFail:
-            return "FAIL";
-    }
-    return "?";
-}
+
+namespace {
+constexpr EnumName<Verdict> kVerdictNames[] = {
+    {Verdict::kPass, "PASS"}, {Verdict::kWarn, "WARN"}, {Verdict::kFail, "FAIL"}};
+}  // namespace
+
+const char* to_string(Verdict verdict) { return name_of(kVerdictNames, verdict); }
 
 void MultiViewOptions::check() const {
     icp.check();

@@ -12,6 +12,7 @@
 
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/render/rasterizer.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 
@@ -359,13 +360,27 @@ Geometry from_views(const std::vector<PointCloud>& views) {
     return g;
 }
 
+namespace {
+
+constexpr EnumName<ViewDirection> kViewNames[] = {
+    {ViewDirection::kAuto, "auto"},   {ViewDirection::kFront, "front"},
+    {ViewDirection::kBack, "back"},   {ViewDirection::kLeft, "left"},
+    {ViewDirection::kRight, "right"}, {ViewDirection::kTop, "top"}};
+
+/// Where each direction looks from: azimuth from the front towards the right and elevation
+/// above the horizon, degrees (kAuto: the three-quarter view).
+struct ViewAngles {
+    ViewDirection direction;
+    double azimuth_deg, elevation_deg;
+};
+constexpr ViewAngles kViewAngles[] = {
+    {ViewDirection::kAuto, 35, 20}, {ViewDirection::kFront, 0, 0},  {ViewDirection::kBack, 180, 0},
+    {ViewDirection::kLeft, -90, 0}, {ViewDirection::kRight, 90, 0}, {ViewDirection::kTop, 0, 90}};
+
+}  // namespace
+
 ViewDirection parse_view_direction(const std::string& name) {
-    if (name == "auto") return ViewDirection::kAuto;
-    if (name == "front") return ViewDirection::kFront;
-    if (name == "back") return ViewDirection::kBack;
-    if (name == "left") return ViewDirection::kLeft;
-    if (name == "right") return ViewDirection::kRight;
-    if (name == "top") return ViewDirection::kTop;
+    if (const auto direction = value_of(kViewNames, name)) return *direction;
     throw InputError("unknown view '" + name + "' (auto, front, back, left, right or top)");
 }
 
@@ -438,25 +453,8 @@ Camera fit_camera(const std::vector<Eigen::Vector3d>& points, const Orientation&
     const double radius = std::max(0.5 * (hi - lo).norm(), 1e-6);
 
     double az = 35, el = 20;
-    switch (options.view) {
-        case ViewDirection::kAuto:
-            break;
-        case ViewDirection::kFront:
-            az = 0, el = 0;
-            break;
-        case ViewDirection::kBack:
-            az = 180, el = 0;
-            break;
-        case ViewDirection::kLeft:
-            az = -90, el = 0;
-            break;
-        case ViewDirection::kRight:
-            az = 90, el = 0;
-            break;
-        case ViewDirection::kTop:
-            az = 0, el = 90;
-            break;
-    }
+    for (const ViewAngles& v : kViewAngles)
+        if (v.direction == options.view) az = v.azimuth_deg, el = v.elevation_deg;
     if (options.azimuth_deg) az = *options.azimuth_deg;
     if (options.elevation_deg) el = *options.elevation_deg;
     const double a = az * kPi / 180, e = el * kPi / 180;

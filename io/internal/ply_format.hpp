@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "io/internal/text.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/point_cloud.hpp"
 
@@ -63,39 +64,23 @@ inline std::string format_double(double v) {
 
 enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
 
+/// The type names of the PLY specification (what the writer writes) and the sized names
+/// (int8 ... float64) that many writers use instead.
+constexpr EnumName<PlyType> kTypeNames[] = {
+    {PlyType::kInt8, "char"},     {PlyType::kUint8, "uchar"},   {PlyType::kInt16, "short"},
+    {PlyType::kUint16, "ushort"}, {PlyType::kInt32, "int"},     {PlyType::kUint32, "uint"},
+    {PlyType::kFloat32, "float"}, {PlyType::kFloat64, "double"}};
+constexpr EnumName<PlyType> kSizedTypeNames[] = {
+    {PlyType::kInt8, "int8"},       {PlyType::kUint8, "uint8"},    {PlyType::kInt16, "int16"},
+    {PlyType::kUint16, "uint16"},   {PlyType::kInt32, "int32"},    {PlyType::kUint32, "uint32"},
+    {PlyType::kFloat32, "float32"}, {PlyType::kFloat64, "float64"}};
+
 inline std::optional<PlyType> parse_type(std::string_view s) {
-    if (s == "char" || s == "int8") return PlyType::kInt8;
-    if (s == "uchar" || s == "uint8") return PlyType::kUint8;
-    if (s == "short" || s == "int16") return PlyType::kInt16;
-    if (s == "ushort" || s == "uint16") return PlyType::kUint16;
-    if (s == "int" || s == "int32") return PlyType::kInt32;
-    if (s == "uint" || s == "uint32") return PlyType::kUint32;
-    if (s == "float" || s == "float32") return PlyType::kFloat32;
-    if (s == "double" || s == "float64") return PlyType::kFloat64;
-    return std::nullopt;
+    if (const auto t = value_of(kTypeNames, s)) return t;
+    return value_of(kSizedTypeNames, s);
 }
 
-inline const char* type_name(PlyType t) {
-    switch (t) {
-        case PlyType::kInt8:
-            return "char";
-        case PlyType::kUint8:
-            return "uchar";
-        case PlyType::kInt16:
-            return "short";
-        case PlyType::kUint16:
-            return "ushort";
-        case PlyType::kInt32:
-            return "int";
-        case PlyType::kUint32:
-            return "uint";
-        case PlyType::kFloat32:
-            return "float";
-        case PlyType::kFloat64:
-            return "double";
-    }
-    return "?";
-}
+inline const char* type_name(PlyType t) { return name_of(kTypeNames, t); }
 
 /// Calls `f.template operator()<T>()` with T the C++ type that stores `t` (std::int8_t ...
 /// double) and returns its result: one switch for every per-type operation.

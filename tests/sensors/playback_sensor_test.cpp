@@ -11,6 +11,7 @@
 
 #include "sensors/registry.hpp"
 #include "sensors/synthetic/synthetic_sensor.hpp"
+#include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::sensors {
@@ -22,11 +23,7 @@ io::SensorSpec small_spec(const std::string& id) {
     io::SensorSpec s;
     s.id = id;
     s.model = "test";
-    s.depth.width = 8;
-    s.depth.height = 6;
-    s.depth.fx = s.depth.fy = 10;
-    s.depth.cx = 4;
-    s.depth.cy = 3;
+    s.depth = test::centred_pinhole(8, 6, 10);
     s.color = s.depth;
     return s;
 }
@@ -57,8 +54,14 @@ fs::path make_capture() {
     return root;
 }
 
-TEST(PlaybackSensor, DeliversStoredDepthAndJpegUnchanged) {
+/// Tests on the capture of make_capture(), removed afterwards.
+class PlaybackOfACapture : public ::testing::Test {
+protected:
+    ~PlaybackOfACapture() override { fs::remove_all(root); }
     const fs::path root = make_capture();
+};
+
+TEST_F(PlaybackOfACapture, DeliversStoredDepthAndJpegUnchanged) {
     PlaybackOptions o;
     o.realtime = false;
     PlaybackSensor sensor(root, "b", o);
@@ -79,11 +82,9 @@ TEST(PlaybackSensor, DeliversStoredDepthAndJpegUnchanged) {
         EXPECT_EQ(frame.source_position, f);
     }
     EXPECT_FALSE(sensor.next(frame));
-    fs::remove_all(root);
 }
 
-TEST(PlaybackSensor, LoopsAndStopsAtTheLimit) {
-    const fs::path root = make_capture();
+TEST_F(PlaybackOfACapture, LoopsAndStopsAtTheLimit) {
     PlaybackOptions o;
     o.realtime = false;
     o.loop = true;
@@ -99,11 +100,9 @@ TEST(PlaybackSensor, LoopsAndStopsAtTheLimit) {
         if (f == 4) EXPECT_EQ(frame.device_ns - first_device, 100'000'000);
     }
     EXPECT_FALSE(sensor.next(frame));
-    fs::remove_all(root);
 }
 
-TEST(PlaybackSensor, RealTimeSensorsOfOneCaptureKeepTheirRecordedPhase) {
-    const fs::path root = make_capture();
+TEST_F(PlaybackOfACapture, RealTimeSensorsOfOneCaptureKeepTheirRecordedPhase) {
     PlaybackOptions o;
     o.loop = true;
     o.max_frames = 3;
@@ -118,11 +117,9 @@ TEST(PlaybackSensor, RealTimeSensorsOfOneCaptureKeepTheirRecordedPhase) {
     EXPECT_EQ(d, 5'000'000);
     ASSERT_TRUE(a.next(fa));
     EXPECT_GE(monotonic_ns(), fa.capture_ns);  // real time: not delivered before its instant
-    fs::remove_all(root);
 }
 
-TEST(PlaybackSensor, ErrorsNameTheProblem) {
-    const fs::path root = make_capture();
+TEST_F(PlaybackOfACapture, ErrorsNameTheProblem) {
     try {
         PlaybackSensor s(root, "", {});
         FAIL();
@@ -138,16 +135,13 @@ TEST(PlaybackSensor, ErrorsNameTheProblem) {
     const fs::path depth = root / "a" / cap.frames.at("a")[2].depth;
     fs::resize_file(depth, 20);
     EXPECT_THROW(PlaybackSensor(root, "a", {}), Error);
-    fs::remove_all(root);
 }
 
-TEST(PlaybackSensor, RegistryOpensFolderSlashIdAndHashId) {
-    const fs::path root = make_capture();
+TEST_F(PlaybackOfACapture, RegistryOpensFolderSlashIdAndHashId) {
     OpenOptions o;
     o.playback.realtime = false;
     EXPECT_EQ(open_sensor("playback:" + (root / "b").string(), o)->spec().id, "b");
     EXPECT_EQ(open_sensor("playback:" + root.string() + "#a", o)->spec().id, "a");
-    fs::remove_all(root);
 }
 
 TEST(SyntheticSensor, IsDeterministicAndKinectLike) {

@@ -45,32 +45,19 @@ Rgb texture_color(const Eigen::Vector3d& p, const TextureOptions& t) {
     const double c = v * t.saturation;
     const double h6 = hue / 60.0;
     const double x = c * (1.0 - std::abs(std::fmod(h6, 2.0) - 1.0));
-    double r = 0, g = 0, b = 0;
-    switch (std::min(static_cast<int>(h6), 5)) {
-        case 0:
-            r = c, g = x;
-            break;
-        case 1:
-            r = x, g = c;
-            break;
-        case 2:
-            g = c, b = x;
-            break;
-        case 3:
-            g = x, b = c;
-            break;
-        case 4:
-            r = x, b = c;
-            break;
-        default:
-            r = c, b = x;
-            break;
-    }
+    // Per 60-degree sector (hue is in [0, 360]): the channel (r, g, b) that gets c, the one
+    // that gets x; the third stays 0.
+    constexpr int kChromaChannel[6] = {0, 1, 1, 2, 2, 0};
+    constexpr int kRampChannel[6] = {1, 0, 2, 1, 0, 2};
+    const int sector = std::min(static_cast<int>(h6), 5);
+    double rgb[3] = {0, 0, 0};
+    rgb[kChromaChannel[sector]] = c;
+    rgb[kRampChannel[sector]] = x;
     const double m = v - c;
     const auto to8 = [m](double f) {
         return static_cast<std::uint8_t>(std::clamp(std::lround(255.0 * (f + m)), 0L, 255L));
     };
-    return {to8(r), to8(g), to8(b)};
+    return {to8(rgb[0]), to8(rgb[1]), to8(rgb[2])};
 }
 
 }  // namespace rgbd::synth

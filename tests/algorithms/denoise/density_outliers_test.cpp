@@ -10,11 +10,14 @@
 #include <random>
 
 #include "algorithms/sampling/robust_spacing.hpp"
+#include "tests/support/options_check.hpp"
 #include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
 namespace {
+
+using test::rejects;
 
 constexpr int kW = 128, kH = 96;
 
@@ -137,12 +140,8 @@ TEST(DensityOutliers, ErrorsAndEmptyViews) {
     std::vector<PointCloud> none;
     EXPECT_EQ(remove_density_outliers(none, DensityOptions{})["removed"].get<int>(), 0);
 
-    DensityOptions bad;
-    bad.beta = -1;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.k = 1;
-    EXPECT_THROW(bad.check(), InputError);
+    EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.beta = -1; }));
+    EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.k = 1; }));
 }
 
 TEST(DensityOutliers, OneAndTwoThreadsAgree) {
@@ -310,15 +309,9 @@ TEST(DensityOutliers, ConsensusFlagsSteepOffSurfacePoints) {
     report = run(far, steep_marked, frontal_marked, surface_marked);
     EXPECT_EQ(steep_marked, 0u) << report.dump();
 
-    DensityOptions bad;
-    bad.consensus_ratio = 1.5;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.consensus_radius = 2.5;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.consensus_sigmas = 0.0;
-    EXPECT_THROW(bad.check(), InputError);
+    EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_ratio = 1.5; }));
+    EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_radius = 2.5; }));
+    EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_sigmas = 0.0; }));
 }
 
 }  // namespace

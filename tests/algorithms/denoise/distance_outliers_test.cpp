@@ -15,11 +15,14 @@
 #include <utility>
 #include <vector>
 
+#include "tests/support/options_check.hpp"
 #include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
 namespace {
+
+using test::rejects;
 
 constexpr int kW = 160, kH = 120;
 constexpr double kF = 365.5;
@@ -359,26 +362,14 @@ TEST(DistanceOutliers, Errors) {
     world.view.frame = ViewFrame::kWorld;
     EXPECT_THROW(remove_distance_outliers(world, DistanceOptions{}), InputError);
 
-    DistanceOptions bad;
-    bad.c_min = 25;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.theta_max_deg = 90;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.alpha = -1;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.c_min_wide = 49;
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.keep_knn = std::numeric_limits<double>::quiet_NaN();
-    EXPECT_THROW(bad.check(), InputError);
-    bad = {};
-    bad.keep_k = 0;
-    EXPECT_THROW(bad.check(), InputError);
-    bad.keep_k = 49;
-    EXPECT_THROW(bad.check(), InputError);
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.c_min = 25; }));
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.theta_max_deg = 90; }));
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.alpha = -1; }));
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.c_min_wide = 49; }));
+    EXPECT_TRUE(rejects<DistanceOptions>(
+        [](auto& o) { o.keep_knn = std::numeric_limits<double>::quiet_NaN(); }));
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.keep_k = 0; }));
+    EXPECT_TRUE(rejects<DistanceOptions>([](auto& o) { o.keep_k = 49; }));
 }
 
 TEST(DistanceOutliers, EmptyViewsPass) {

@@ -98,6 +98,23 @@ std::vector<SensorView> ring(double z) {
     return out;
 }
 
+/// The §12 test body: an egg 12 x 10 cm wide and 25 cm tall, open below z = -0.15 m.
+const Eigen::Vector3d kEggAxes(0.12, 0.10, 0.25);
+
+/// Whether q lies in the 6 x 4 cm patch cut from the egg's side (centred at azimuth 0.6 rad,
+/// z = 0.02 m; arc length at the egg's mean radius 0.11 m), grown by `margin` metres.
+bool in_side_patch(const Eigen::Vector3d& q, double margin = 0) {
+    const double arc = std::remainder(std::atan2(q.y(), q.x()) - 0.6, 2 * M_PI) * 0.11;
+    return std::abs(arc) < 0.03 + margin && std::abs(q.z() - 0.02) < 0.02 + margin;
+}
+
+/// Samples of the egg without its side patch, with `noise_m` normal noise.
+std::vector<Eigen::Vector3d> egg_without_patch(double noise_m) {
+    return sample(
+        kEggAxes, kSpacing,
+        [](const auto& q, const auto&) { return q.z() > -0.15 && !in_side_patch(q); }, noise_m);
+}
+
 /// Mean nearest distance from each of `a` to `b` (brute force; small sets).
 double mean_nearest(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
     double sum = 0;
@@ -332,19 +349,12 @@ TEST(HeadTop, ATopThatIsNoEllipsoidStaysOpenUnlessAsked) {
 // measured 0.41; Telea alone 1.17),
 // stay in the patch and leave the bottom cut open.
 TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
-    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
-    const double theta0 = 0.6, z0 = 0.02;
-    const auto in_patch = [&](const Eigen::Vector3d& q) {
-        const double arc = std::remainder(std::atan2(q.y(), q.x()) - theta0, 2 * M_PI) * 0.11;
-        return std::abs(arc) < 0.03 && std::abs(q.z() - z0) < 0.02;
-    };
-    const auto xyz = sample(
-        axes, kSpacing, [&](const auto& q, const auto&) { return q.z() > -0.15 && !in_patch(q); },
-        0.0003);
+    const Eigen::Vector3d& axes = kEggAxes;
+    const auto xyz = egg_without_patch(0.0003);
     std::vector<Eigen::Vector3d> normals;
     const SurfacePoints s = with_normals(xyz, axes, normals);
     const auto patch =
-        sample(axes, kSpacing, [&](const auto& q, const auto&) { return in_patch(q); });
+        sample(axes, kSpacing, [](const auto& q, const auto&) { return in_side_patch(q); });
     const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.3));
     double telea_rms = 0;
     {
@@ -366,9 +376,7 @@ TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
         EXPECT_EQ(added.mechanism[i], FillMechanism::kLargeHole);
         sq += std::pow(surface_distance(axes, p), 2);
         // Within two spacings of the patch (the arc test at the true radius).
-        const double arc = std::remainder(std::atan2(p.y(), p.x()) - theta0, 2 * M_PI) * 0.11;
-        outside +=
-            !(std::abs(arc) < 0.03 + 2 * kSpacing && std::abs(p.z() - z0) < 0.02 + 2 * kSpacing);
+        outside += !in_side_patch(p, 2 * kSpacing);
         EXPECT_GT(p.z(), -0.15);
         EXPECT_GT(added.normal[i].dot(outward(axes, p)), 0.9);
     }
@@ -393,22 +401,14 @@ TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
 // exemplar-based colour (Criminisi, the default) continues the stripes through the hole, Telea
 // blurs them into the mean. Colour error of the added points against the true stripe colour.
 TEST(LargeHoles, ExemplarColourContinuesStripesThatTeleaBlurs) {
-    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
-    const double theta0 = 0.6, z0 = 0.02;
-    const auto in_patch = [&](const Eigen::Vector3d& q) {
-        const double arc = std::remainder(std::atan2(q.y(), q.x()) - theta0, 2 * M_PI) * 0.11;
-        return std::abs(arc) < 0.03 && std::abs(q.z() - z0) < 0.02;
-    };
     const auto light = [](const Eigen::Vector3d& p) {
         const double t = std::atan2(p.y(), p.x()) + M_PI;
         return static_cast<int>(std::floor(t / (2 * M_PI / 24))) % 2 == 0;
     };
     const rgbd::Rgb dark{40, 50, 150}, bright{230, 200, 60};
-    const auto xyz = sample(
-        axes, kSpacing, [&](const auto& q, const auto&) { return q.z() > -0.15 && !in_patch(q); },
-        0.0003);
+    const auto xyz = egg_without_patch(0.0003);
     std::vector<Eigen::Vector3d> normals;
-    SurfacePoints s = with_normals(xyz, axes, normals);
+    SurfacePoints s = with_normals(xyz, kEggAxes, normals);
     for (std::size_t i = 0; i < xyz.size(); ++i) s.color[i] = light(xyz[i]) ? bright : dark;
     const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.3));
     auto colour_error = [&](rgbd::holes::ColourInpaint method, double& contrast) {
@@ -443,15 +443,9 @@ TEST(LargeHoles, ExemplarColourContinuesStripesThatTeleaBlurs) {
 // The same patch in front of a ring sensor (at 45 degrees, 15 degrees from the patch's centre):
 // the sensor looked at it and measured nothing, a real opening: left open unless fill_openings.
 TEST(LargeHoles, AHoleASensorSawThroughStaysOpen) {
-    const Eigen::Vector3d axes(0.12, 0.10, 0.25);
-    const auto in_patch = [&](const Eigen::Vector3d& q) {
-        const double arc = std::remainder(std::atan2(q.y(), q.x()) - 0.6, 2 * M_PI) * 0.11;
-        return std::abs(arc) < 0.03 && std::abs(q.z() - 0.02) < 0.02;
-    };
-    const auto xyz = sample(
-        axes, kSpacing, [&](const auto& q, const auto&) { return q.z() > -0.15 && !in_patch(q); });
+    const auto xyz = egg_without_patch(0);
     std::vector<Eigen::Vector3d> normals;
-    const SurfacePoints s = with_normals(xyz, axes, normals);
+    const SurfacePoints s = with_normals(xyz, kEggAxes, normals);
     const auto sensors = ring(0.02);
     const BodyAxis axis = rgbd::holes::estimate_body_axis(s, sensors);
     rgbd::Report report;

@@ -25,6 +25,18 @@ struct Layout {
     fs::path tum, redwood;
 };
 
+/// Writes one frame into `folder`: a uniform depth image depth/<name>.png of `depth` units
+/// and a uniform colour image <color_dir>/<name>.<color_ext>, both `width` x `height`.
+void write_frame(const fs::path& folder, const std::string& color_dir, const std::string& name,
+                 const std::string& color_ext, int width, int height, double depth) {
+    fs::create_directories(folder / "depth");
+    fs::create_directories(folder / color_dir);
+    cv::imwrite((folder / "depth" / (name + ".png")).string(),
+                cv::Mat(height, width, CV_16UC1, cv::Scalar(depth)));
+    cv::imwrite((folder / color_dir / (name + color_ext)).string(),
+                cv::Mat(height, width, CV_8UC3, cv::Scalar(50, 100, 150)));
+}
+
 const Layout& layout() {
     static const Layout l = [] {
         Layout l;
@@ -32,18 +44,8 @@ const Layout& layout() {
         l.redwood = rgbd::fuzz::scratch() / "redwood";
         fs::remove_all(l.tum);
         fs::remove_all(l.redwood);
-        fs::create_directories(l.tum / "depth");
-        fs::create_directories(l.tum / "rgb");
-        cv::imwrite((l.tum / "depth" / "1.0.png").string(),
-                    cv::Mat(480, 640, CV_16UC1, cv::Scalar(5000)));
-        cv::imwrite((l.tum / "rgb" / "1.0.png").string(),
-                    cv::Mat(480, 640, CV_8UC3, cv::Scalar(50, 100, 150)));
-        fs::create_directories(l.redwood / "depth");
-        fs::create_directories(l.redwood / "color");
-        cv::imwrite((l.redwood / "depth" / "000000.png").string(),
-                    cv::Mat(6, 8, CV_16UC1, cv::Scalar(1200)));
-        cv::imwrite((l.redwood / "color" / "000000.jpg").string(),
-                    cv::Mat(6, 8, CV_8UC3, cv::Scalar(50, 100, 150)));
+        write_frame(l.tum, "rgb", "1.0", ".png", 640, 480, 5000);
+        write_frame(l.redwood, "color", "000000", ".jpg", 8, 6, 1200);
         return l;
     }();
     return l;
