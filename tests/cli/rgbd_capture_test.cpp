@@ -31,6 +31,7 @@
 #include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
+#include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
@@ -38,6 +39,7 @@
 namespace {
 
 using namespace rgbd::test::capture;
+using rgbd::test::is_usage_error;
 namespace fs = std::filesystem;
 using rgbd::test::Outcome;
 using rgbd::test::slurp;
@@ -50,16 +52,12 @@ TEST_F(RgbdCapture, HelpAndUsageErrors) {
         EXPECT_NE(r.out.find("Usage: "), std::string::npos);
         EXPECT_NE(r.out.find("Example:"), std::string::npos);
     }
-    Outcome r = run("$BIN/rgbd-capture -o x");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("rgbd-capture: error: --rig"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-node --hub tcp://127.0.0.1:9");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--sensor is required"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-node --sensor synthetic: --clock-drift-ppm 1e9");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o x --tolerance-ms -1");
-    EXPECT_EQ(r.code, 2);
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture -o x"), "rgbd-capture: error: --rig"));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-node --hub tcp://127.0.0.1:9"), "--sensor is required"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-node --sensor synthetic: --clock-drift-ppm 1e9")));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o x --tolerance-ms -1")));
     EXPECT_FALSE(fs::exists(temp_root() / "x"));
 }
 
@@ -658,17 +656,13 @@ TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
 }
 
 TEST_F(RgbdCapture, LiveOptionErrors) {
-    Outcome r = run("$BIN/rgbd-capture --rig synth/rig.json");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--live"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o y --live-sets 2");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--live-sets needs --live"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --metrics -");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --live-sets -1");
-    EXPECT_EQ(r.code, 2);
-    r =
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json"), "--live"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o y --live-sets 2"),
+                               "--live-sets needs --live"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --live - --metrics -")));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --live - --live-sets -1")));
+    const Outcome r =
         run("$BIN/rgbd-capture --rig synth/rig.json --live no_such_dir/live.ply --listen "
             "tcp://127.0.0.1:" +
             std::to_string(free_port()));

@@ -16,11 +16,13 @@
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "io/video.hpp"
+#include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 
 namespace {
 
 using namespace rgbd::test::capture;
+using rgbd::test::is_usage_error;
 namespace fs = std::filesystem;
 using rgbd::test::Outcome;
 using rgbd::test::slurp;
@@ -259,18 +261,15 @@ TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
 }
 
 TEST_F(RgbdCapture, VideoOptionErrors) {
-    Outcome r = run("$BIN/rgbd-capture --rig synth/rig.json --video v -o rec");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--fuse-on hub"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --video v --fuse-on elsewhere");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o rec --serve 8080");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --video v --draco-color-bits 9");
-    EXPECT_EQ(r.code, 2);
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --video v -o rec"),
+                               "--fuse-on hub"));
+    EXPECT_TRUE(is_usage_error(
+        run("$BIN/rgbd-capture --rig synth/rig.json --video v --fuse-on elsewhere")));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o rec --serve 8080")));
+    EXPECT_TRUE(is_usage_error(
+        run("$BIN/rgbd-capture --rig synth/rig.json --video v --draco-color-bits 9")));
     EXPECT_FALSE(fs::exists(temp_root() / "v"));
-    r = run("$BIN/rgbd-info synth --frame 0 -o x.ply");
-    EXPECT_NE(r.code, 0);
+    EXPECT_NE(run("$BIN/rgbd-info synth --frame 0 -o x.ply").code, 0);
 }
 
 }  // namespace
