@@ -15,8 +15,9 @@
 #include <utility>
 #include <vector>
 
-#include "algorithms/denoise/cell_grid.hpp"
+#include "algorithms/denoise/eps_components.hpp"
 #include "algorithms/denoise/outlier_common.hpp"
+#include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/spacing_sample.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
@@ -204,7 +205,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     std::vector<double> view_spacing(gathered.size(), -1.0);
     tbb::parallel_for(std::size_t(0), gathered.size(), [&](std::size_t v) {
         if (gathered[v].xyz.size() >= 10)
-            view_spacing[v] = detail::grid_spacing(gathered[v].xyz, 2000, options.seed);
+            view_spacing[v] = sampling::robust_spacing(gathered[v].xyz, 2000, options.seed);
     });
     std::vector<double> spacings;
     for (const double s : view_spacing)
@@ -219,7 +220,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     // test; `gridded` false when the extent needed the kd-tree instead).
     std::vector<Eigen::Vector3d> normal;
     double radius = 0.0;
-    detail::CellGrid grid;
+    internal::CellGrid grid;
     bool gridded = false;
     if (reference == DensityReference::kSensors) {
         // Measured density: the points within r of p_i, r chosen so that a frontal surface seen
@@ -272,8 +273,8 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                     std::pair<std::uint32_t, std::uint32_t> runs[9];
                     for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
                         const std::uint64_t key = grid.keys[ca];
-                        const std::uint64_t x = key >> 42, y = (key >> 21) & detail::kKeyMask,
-                                            z = key & detail::kKeyMask;
+                        const std::uint64_t x = key >> 42, y = (key >> 21) & internal::kKeyMask,
+                                            z = key & internal::kKeyMask;
                         int nr = 0;
                         for (std::int64_t cx = std::int64_t(x) - 1; cx <= std::int64_t(x) + 1; ++cx)
                             for (std::int64_t cy = std::int64_t(y) - 1; cy <= std::int64_t(y) + 1;

@@ -15,6 +15,7 @@
 #include <map>
 #include <numeric>
 
+#include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
@@ -409,14 +410,16 @@ std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& poin
     RGBD_CHECK(!cloud.empty(), "distance query against an empty cloud");
     for (const auto& p : points) RGBD_CHECK(p.allFinite(), "distance query of a non-finite point");
     for (const auto& p : cloud) RGBD_CHECK(p.allFinite(), "cloud has a non-finite point");
-    const internal::KdTree tree(cloud);
+    // A cell grid, not a kd-tree: the cloud is often millions of points (a merged sequence)
+    // against a few hundred thousand queries, and a kd-tree's build is sequential.
+    const internal::PointSearch search(cloud);
     std::vector<double> out(points.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           for (std::size_t i = r.begin(); i != r.end(); ++i) {
                               std::uint32_t j = 0;
                               double sq = 0.0;
-                              tree.nearest(points[i], j, sq);
+                              search.knn(points[i], 1, &j, &sq);
                               out[i] = std::sqrt(sq);
                           }
                       });

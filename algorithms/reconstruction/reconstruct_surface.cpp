@@ -27,6 +27,7 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/reconstruction/smooth_points.hpp"
@@ -379,12 +380,9 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
             orig_rgb.push_back(colors.get(idx));
         }
     }
-    // The two trees are built side by side (millions of points on a dense sequence).
-    std::unique_ptr<rgbd::internal::KdTree> all_ptr, orig_ptr;
-    tbb::parallel_invoke([&] { all_ptr = std::make_unique<rgbd::internal::KdTree>(all_xyz); },
-                         [&] { orig_ptr = std::make_unique<rgbd::internal::KdTree>(orig_xyz); });
-    const rgbd::internal::KdTree& all_tree = *all_ptr;
-    const rgbd::internal::KdTree& orig_tree = *orig_ptr;
+    // Cell grids, not kd-trees: millions of points on a dense sequence against the mesh's
+    // vertices, and a kd-tree's build is sequential.
+    const rgbd::internal::PointSearch all_tree(all_xyz), orig_tree(orig_xyz);
     const bool separate = (synthetic.has_value() || uncoloured.has_value()) && !orig_xyz.empty();
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
@@ -398,12 +396,12 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
                           std::vector<double> sq(k);
                           for (std::size_t v = r.begin(); v != r.end(); ++v) {
                               const Eigen::Vector3d q = to_eigen(mesh.point(vertices[v]));
-                              const rgbd::internal::KdTree* tree = &all_tree;
+                              const rgbd::internal::PointSearch* tree = &all_tree;
                               const std::vector<Rgb>* rgb = &all_rgb;
                               if (separate) {
                                   std::uint32_t i;
                                   double d2;
-                                  if (orig_tree.nearest(q, i, d2) && std::sqrt(d2) <= near) {
+                                  if (orig_tree.knn(q, 1, &i, &d2) == 1 && std::sqrt(d2) <= near) {
                                       tree = &orig_tree;
                                       rgb = &orig_rgb;
                                   }

@@ -1,7 +1,8 @@
-// The cell grid of the density filter's neighbour searches (docs/algorithms.md, density-based
-// cleaning): points binned in cubic cells with 21-bit keys per axis, the exact components of
-// the eps graph over a point set, and the robust spacing with grid nearest neighbours. Internal
-// to algorithms/denoise (not installed).
+// Points binned in cubic cells with 21-bit keys per axis, sorted by cell (the density filter's
+// neighbour counts, the eps graph's components), and exact k-nearest-neighbour queries on it
+// for dense clouds (robust spacing, colours of mesh vertices, distances to the input points):
+// binning is O(n) and parallel, where building a kd-tree over millions of points is a long
+// sequential step. Internal to algorithms/ (not installed).
 #pragma once
 
 #include <tbb/blocked_range.h>
@@ -10,11 +11,17 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
+#include <memory>
+#include <mutex>
 #include <utility>
 #include <vector>
 
-namespace rgbd::denoise::detail {
+#include "algorithms/internal/kd_tree.hpp"
+
+namespace rgbd::internal {
 
 /// Key of cell (x, y, z), 21 bits per axis.
 constexpr std::uint64_t key_of(std::uint64_t x, std::uint64_t y, std::uint64_t z) {
@@ -155,24 +162,132 @@ private:
     std::vector<std::uint32_t> column_start;
 };
 
-/// Components of the eps graph over `pts` (p ~ q iff |p - q| <= eps), exactly, without a
-/// radius search per point: points are binned in cells of side c = eps / sqrt(3) (any two
-/// points of a cell are closer than eps, so a cell lies in one component) and only cells at
-/// most 2 apart on every axis can hold a linked pair (3 cells apart means more than 2c > eps
-/// on that axis); a pair of cells is tested point by point, stopping at the first link, and
-/// skipped when both already share a component. Writes each point's component
-/// label (a cell index, equal for the points of one component) to `label`. Returns false
-/// without touching `label` when the grid would not fit 21 bits per axis.
-bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
-                    std::vector<std::uint32_t>& label);
+/// Exact k nearest neighbours of query points among `pts` on a CellGrid whose cells are
+/// `cell_factor` times the spacing a surface over the points' bounding box would have. Shells
+/// of cells (Chebyshev rings) around the query's cell are searched until the k-th best distance
+/// is at most R times the cell side after ring R: every point outside ring R is farther than
+/// that. A query not settled within `max_rings` rings returns 0 (see PointSearch for a search
+/// that always answers). Results equal a kd-tree's: the same neighbours, nearest first (equal
+/// distances by point index).
+class CellNeighbours {
+public:
+    CellNeighbours(const std::vector<Eigen::Vector3d>& pts, double cell_factor,
+                   std::int64_t max_rings)
+        : pts_(pts) {
+        if (pts.empty()) return;
+        Eigen::Vector3d lo = pts[0], hi = pts[0];
+        for (const auto& p : pts) {
+            lo = lo.cwiseMin(p);
+            hi = hi.cwiseMax(p);
+        }
+        Eigen::Vector3d ext = hi - lo;
+        std::sort(ext.data(), ext.data() + 3);
+        cell_ =
+            cell_factor * std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(pts.size()));
+        ok_ = cell_ > 0.0 && std::isfinite(cell_) && grid_.build(pts, cell_);
+        if (!ok_) return;
+        max_rings_ = max_rings;
+        lo_ = lo;
+        const Eigen::Vector3d span = (hi - lo) / cell_;
+        last_cell_ = {std::int64_t(span.x()) + 2, std::int64_t(span.y()) + 2,
+                      std::int64_t(span.z()) + 2};
+    }
+    /// False when the grid could not be built (all points equal, an extent beyond 21 bits).
+    bool ok() const { return ok_; }
 
-/// sampling::robust_spacing(pts, sample, seed), exactly (same query sample, nearest other
-/// point, same median), with the nearest neighbours found on a cell grid instead of a kd-tree:
-/// cells of side c ~ the spacing a surface over the bounding box's largest face would have;
-/// rings of cells around the query's are searched until the best distance is at most R c
-/// after ring R (any point outside ring R is farther than R c), or all rings are searched. Falls
-/// back to the kd-tree for extents the grid cannot hold.
-double grid_spacing(const std::vector<Eigen::Vector3d>& pts, std::size_t sample,
-                    std::uint64_t seed);
+    /// The k nearest points of q (k >= 1), nearest first, into indices / sq_dists (room for k
+    /// each). Returns how many were found (k, or all points when there are fewer), or 0 when
+    /// the search did not settle within max_rings rings.
+    std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
+                    double* sq_dists) const {
+        std::size_t found = 0;
+        const auto offer = [&](double d2, std::uint32_t j) {
+            if (found == k &&
+                !(d2 < sq_dists[k - 1] || (d2 == sq_dists[k - 1] && j < indices[k - 1])))
+                return;
+            std::size_t a = found < k ? found++ : k - 1;
+            while (a > 0 &&
+                   (sq_dists[a - 1] > d2 || (sq_dists[a - 1] == d2 && indices[a - 1] > j))) {
+                sq_dists[a] = sq_dists[a - 1];
+                indices[a] = indices[a - 1];
+                --a;
+            }
+            sq_dists[a] = d2;
+            indices[a] = j;
+        };
+        const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0, std::int64_t z1) {
+            const auto [c0, c1] = grid_.column(x, y, z0, z1);
+            for (std::uint32_t a = grid_.start[c0]; a < grid_.start[c1]; ++a) {
+                const std::uint32_t j = grid_.keyed[a].second;
+                offer((pts_[j] - q).squaredNorm(), j);
+            }
+        };
+        if (!(((q - lo_) / cell_).cwiseAbs().maxCoeff() < 1e15)) return 0;  // no int64 cell
+        const auto c = grid_.cell_of(q);
+        // Rings past this one hold no cell: every point has been seen there.
+        std::int64_t all_rings = 0;
+        for (int a = 0; a < 3; ++a)
+            all_rings = std::max({all_rings, c(a) - 2, last_cell_(a) - c(a)});
+        if (all_rings > kMaxRings) return 0;  // far outside the grid: ask a kd-tree
+        visit(c.x(), c.y(), c.z(), c.z());
+        const std::size_t want = std::min(k, pts_.size());
+        const std::int64_t rings = std::min(max_rings_, all_rings);
+        for (std::int64_t ring = 1; ring <= rings; ++ring) {
+            for (std::int64_t x = c.x() - ring; x <= c.x() + ring; ++x)
+                for (std::int64_t y = c.y() - ring; y <= c.y() + ring; ++y) {
+                    if (std::abs(x - c.x()) == ring || std::abs(y - c.y()) == ring) {
+                        visit(x, y, c.z() - ring, c.z() + ring);
+                    } else {
+                        visit(x, y, c.z() - ring, c.z() - ring);
+                        visit(x, y, c.z() + ring, c.z() + ring);
+                    }
+                }
+            const double reach = double(ring) * cell_;
+            if (found == want && sq_dists[found - 1] <= reach * reach) return found;
+        }
+        return rings == all_rings && found == want ? found : 0;
+    }
 
-}  // namespace rgbd::denoise::detail
+private:
+    static constexpr std::int64_t kMaxRings = 4096;
+    const std::vector<Eigen::Vector3d>& pts_;
+    std::int64_t max_rings_ = 0;
+    Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
+    Eigen::Matrix<std::int64_t, 3, 1> last_cell_ = Eigen::Matrix<std::int64_t, 3, 1>::Zero();
+    double cell_ = 0.0;
+    bool ok_ = false;
+    CellGrid grid_;
+};
+
+/// Exact k nearest neighbours that always answers, for dense clouds queried a few hundred
+/// thousand times (mesh vertices, surface samples): a fine cell grid (cells of twice the
+/// surface spacing, 8 rings) settles the queries near the points, a coarse one (16 times the
+/// spacing, every ring) those far from them, and a kd-tree is built only when neither grid can
+/// be (an extent beyond 21 bits per axis) or for queries far outside the grid.
+class PointSearch {
+public:
+    explicit PointSearch(const std::vector<Eigen::Vector3d>& pts)
+        : pts_(pts),
+          fine_(pts, 2.0, 8),
+          coarse_(pts, 16.0, std::numeric_limits<std::int64_t>::max()) {}
+
+    /// As CellNeighbours::knn, but never 0 for a non-empty cloud. Thread-safe.
+    std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
+                    double* sq_dists) const {
+        if (pts_.empty() || k == 0) return 0;
+        if (fine_.ok())
+            if (const std::size_t found = fine_.knn(q, k, indices, sq_dists)) return found;
+        if (coarse_.ok())
+            if (const std::size_t found = coarse_.knn(q, k, indices, sq_dists)) return found;
+        std::call_once(tree_once_, [&] { tree_ = std::make_unique<KdTree>(pts_); });
+        return tree_->knn(q, k, indices, sq_dists);
+    }
+
+private:
+    const std::vector<Eigen::Vector3d>& pts_;
+    CellNeighbours fine_, coarse_;
+    mutable std::once_flag tree_once_;
+    mutable std::unique_ptr<KdTree> tree_;
+};
+
+}  // namespace rgbd::internal
