@@ -24,6 +24,7 @@
 
 #include "cli/capture_live.hpp"
 #include "cli/common/tool.hpp"
+#include "cli/zmq_errors.hpp"
 #include "io/capture_folder.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/clock_sync.hpp"
@@ -101,11 +102,7 @@ public:
         socket_.set(zmq::sockopt::linger, 0);
         socket_.set(zmq::sockopt::router_mandatory, 0);
         if (keys) net::make_curve_server(socket_, *keys);
-        try {
-            socket_.bind(endpoint);
-        } catch (const zmq::error_t& e) {
-            throw IoError("--control " + endpoint + ": cannot listen: " + e.what());
-        }
+        listen_on(socket_, "--control", endpoint);
         thread_ = std::thread([this] { run(); });
     }
     ~ControlHub() { stop(); }

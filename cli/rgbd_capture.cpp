@@ -29,6 +29,7 @@
 #include "cli/common/tool.hpp"
 #include "cli/node_views.hpp"
 #include "cli/view_server.hpp"
+#include "cli/zmq_errors.hpp"
 #include "io/capture_folder.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/clock_sync.hpp"
@@ -200,11 +201,7 @@ void run_capture(cli::Context& ctx) {
     pull.set(zmq::sockopt::linger, 0);
     pull.set(zmq::sockopt::maxmsgsize, static_cast<std::int64_t>(2 * net::kMaxPayload + 4096));
     if (keys) net::make_curve_server(pull, *keys);
-    try {
-        pull.bind(listen);
-    } catch (const zmq::error_t& e) {
-        throw IoError("--listen " + listen + ": cannot listen: " + e.what());
-    }
+    cli::listen_on(pull, "--listen", listen);
     ControlHub hub(context, control, rig, options, keys.get(), ctx);
     // The output folder is created only once the sockets are up (no empty folders on error).
     Recorder recorder(ctx.output_path(), rig, png);
@@ -581,11 +578,5 @@ int main(int argc, char** argv) {
             "bind", cli::po::value<std::string>()->default_value("127.0.0.1"),
             "address the --serve page listens on (another address lets remote viewers in)");
     };
-    return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) {
-        try {
-            run_capture(ctx);
-        } catch (const zmq::error_t& e) {
-            throw IoError(std::string("ZeroMQ: ") + e.what());
-        }
-    });
+    return cli::run_tool(argc, argv, spec, cli::zmq_errors_as_io_errors(run_capture));
 }

@@ -213,281 +213,279 @@ std::pair<int, int> parse_size(const std::string& text) {
     return {w, h};
 }
 
+void run_eval(cli::Context& ctx) {
+    if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one RESULT file");
+    const bool reference_given = ctx.options().count("reference") > 0;
+    const bool baseline_given = ctx.options().count("baseline") > 0;
+    const bool report_given = ctx.options().count("report") > 0;
+    if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given && !report_given &&
+        !ctx.options().count("points"))
+        throw cli::UsageError(
+            "give --reference MESH, --points STREAM, --gt-poses JSON, --baseline NAME and/or "
+            "--report DIR");
+    evaluation::MetricOptions options;
+    std::vector<int> depths;
+    double trim = 0;
+    std::pair<int, int> picture_size{640, 480};
+    try {
+        options.taus_m.clear();
+        for (double t : cli::parse_doubles(ctx.get<std::string>("tau-mm"), "tau-mm"))
+            options.taus_m.push_back(t / 1000.0);
+        options.invented_tau_m = ctx.get<double>("invented-tau-mm") / 1000.0;
+        options.samples = ctx.get<std::size_t>("samples");
+        options.seed = ctx.seed();
+        options.check();
+    } catch (const InputError& e) {
+        throw cli::UsageError(e.what());
+    }
+    if (baseline_given) {
+        if (ctx.get<std::string>("baseline") != "screened-poisson")
+            throw cli::UsageError("--baseline: unknown peer '" + ctx.get<std::string>("baseline") +
+                                  "' (screened-poisson)");
+        for (double d :
+             cli::parse_doubles(ctx.get<std::string>("baseline-depths"), "baseline-depths")) {
+            if (!(d >= 4 && d <= 12 && d == std::floor(d)))
+                throw cli::UsageError("--baseline-depths must be integers in 4..12");
+            depths.push_back(static_cast<int>(d));
+        }
+        trim = ctx.get<double>("baseline-trim");
+        if (!(trim >= 0 && trim < 0.5))
+            throw cli::UsageError("--baseline-trim must be in [0, 0.5)");
+    }
+    if (report_given) picture_size = parse_size(ctx.get<std::string>("report-size"));
+
+    const std::string input = ctx.inputs().front();
+    cli::LoadedResult result = cli::load_result(input);
+    std::optional<cli::LoadedResult> input_points;
+    if (ctx.options().count("points")) {
+        const std::string path = ctx.get<std::string>("points");
+        input_points = cli::load_result(path);
+        RGBD_CHECK(!input_points->mesh, path + ": --points must be points, not a mesh");
+    } else if (!result.mesh) {
+        input_points = cli::LoadedResult{};
+        input_points->views = result.views;  // a cloud result is its own input
+    }
+    if (baseline_given && !input_points)
+        throw cli::UsageError("--baseline needs the input points: give --points STREAM");
+    std::optional<render::Geometry> input_geometry;
+    if (input_points) input_geometry = render::from_views(input_points->views);
+    if (input_geometry && input_geometry->vertices.empty())
+        throw InputError("the input points are empty");
+
+    Report out = Report::object();
+    out["result"] = input;
+    std::optional<Mesh> reference;
+    if (reference_given) {
+        const std::string ref_path = ctx.get<std::string>("reference");
+        reference = io::read_mesh(ref_path);
+        out["reference"] = ref_path;
+        out["surface"] = cli::evaluate_surface(result, *reference, options);
+    }
+    if (input_geometry && result.mesh)
+        out["input_distance"] =
+            input_distance(*result.mesh, input_geometry->vertices, options.invented_tau_m);
+    evaluation::MeshQualityOptions quality_options;
+    quality_options.seed = ctx.seed();
+    auto mesh_quality = [&](const Mesh& mesh) {
+        return evaluation::mesh_quality(mesh, input_geometry ? &input_geometry->vertices : nullptr,
+                                        quality_options);
+    };
+    if (result.mesh) out["mesh_quality"] = mesh_quality(*result.mesh);
+    if (ctx.options().count("gt-poses")) {
+        out["poses"] = cli::evaluate_poses(result.views, ctx.get<std::string>("gt-poses"),
+                                           !ctx.options().count("keep-gauge"));
+    }
+
+    std::vector<BaselineRun> runs;
+    int best = -1;
+    if (baseline_given) {
+        Report& b = out["baseline"];
+        b["method"] = "open3d-screened-poisson";
+        b["open3d"] = "0.16 (python3-open3d)";
+        b["trim_quantile"] = trim;
+        {
+            auto bar = ctx.progress("screened poisson");
+            runs = run_screened_poisson(input_points->views, depths, trim, b, ctx);
+        }
+        b["runs"] = Report::array();
+        std::string fkey;  // the F-score at the first tau decides the best depth
+        double best_score = -1;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+            BaselineRun& run = runs[i];
+            if (reference) {
+                cli::LoadedResult lr;
+                lr.mesh = run.mesh;
+                run.report["surface"] = cli::evaluate_surface(lr, *reference, options);
+                const Report& s = run.report["surface"];
+                if (fkey.empty())
+                    for (auto it = s.begin(); it != s.end(); ++it)
+                        if (it.key().rfind("fscore_", 0) == 0) {
+                            fkey = it.key();
+                            break;
+                        }
+                const double score = s.value(fkey, -1.0);
+                if (score > best_score) best_score = score, best = static_cast<int>(i);
+            }
+            run.report["input_distance"] =
+                input_distance(run.mesh, input_geometry->vertices, options.invented_tau_m);
+            run.report["mesh_quality"] = mesh_quality(run.mesh);
+            b["runs"].push_back(run.report);
+        }
+        if (best < 0) {  // no reference: depth 9 (the peer pipeline's choice), else the last
+            best = static_cast<int>(runs.size()) - 1;
+            for (std::size_t i = 0; i < runs.size(); ++i)
+                if (runs[i].depth == 9) best = static_cast<int>(i);
+            b["best_depth_rule"] = "depth 9 (no reference)";
+        } else {
+            b["best_depth_rule"] = "highest " + fkey;
+        }
+        b["best_depth"] = runs[best].depth;
+
+        // Side by side on stderr.
+        auto pad = [](const std::string& text, std::size_t width) {
+            return std::string(width > text.size() ? width - text.size() : 0, ' ') + text;
+        };
+        auto group_of = [](const Report& r, const std::string& group) {
+            return r.contains(group) ? r[group] : Report();
+        };
+        std::ostringstream t;
+        t << "metric            " << pad("ours", 8);
+        for (const auto& r : runs) t << pad("spr-d" + std::to_string(r.depth), 9);
+        t << "\n";
+        auto row = [&](const std::string& label, const std::string& group, const std::string& key,
+                       double scale) {
+            t << label << std::string(label.size() < 18 ? 18 - label.size() : 1, ' ')
+              << pad(cell(group_of(out, group), key, scale), 8);
+            for (const auto& r : runs) t << pad(cell(group_of(r.report, group), key, scale), 9);
+            t << "\n";
+        };
+        if (reference) {
+            row("chamfer mm", "surface", "chamfer_m", 1000.0);
+            for (const auto& [k, v] : out["surface"].items())
+                if (k.rfind("fscore_", 0) == 0) row(k, "surface", k, 1.0);
+            row("invented", "surface", "invented_surface_fraction", 1.0);
+            row("hausdorff p95 mm", "surface", "hausdorff_p95_m", 1000.0);
+        }
+        if (out.contains("input_distance")) {
+            row("input dist med mm", "input_distance", "median_mm", 1.0);
+            row("input dist p95 mm", "input_distance", "p95_mm", 1.0);
+        }
+        if (out.contains("mesh_quality")) {
+            row("slivers <5deg", "mesh_quality", "sliver_fraction_5deg", 1.0);
+            row("fold edges", "mesh_quality", "fold_edge_fraction", 1.0);
+            row("spike vertices", "mesh_quality", "spike_vertex_fraction", 1.0);
+            row("far area >3mm", "mesh_quality", "far_area_fraction_3mm", 1.0);
+            row("grey vertices", "mesh_quality", "grey_vertex_fraction", 1.0);
+        }
+        t << "time s            " << pad("-", 8);
+        for (const auto& r : runs) t << pad(cell(r.report, "time_s"), 9);
+        t << "\n";
+        std::cerr << t.str();
+    }
+
+    if (report_given) {
+        cli::ReportPage page;
+        page.title = "rgbd-eval: " + fs::path(input).filename().string();
+        page.facts.push_back({"result", input});
+        if (reference) page.facts.push_back({"reference", ctx.get<std::string>("reference")});
+        if (ctx.options().count("points"))
+            page.facts.push_back({"input", ctx.get<std::string>("points")});
+        if (baseline_given)
+            page.facts.push_back({"baseline", "Open3D 0.16 Screened Poisson, depths " +
+                                                  ctx.get<std::string>("baseline-depths") +
+                                                  ", trim quantile " + trim_text(trim) +
+                                                  "; best depth " +
+                                                  std::to_string(runs[best].depth)});
+        cli::PictureInputs pictures;
+        pictures.input = input_geometry ? &*input_geometry : nullptr;
+        pictures.result = result.mesh ? &*result.mesh : nullptr;
+        if (best >= 0) {
+            pictures.baseline = &runs[best].mesh;
+            pictures.baseline_name =
+                "Open3D Screened Poisson depth " + std::to_string(runs[best].depth);
+        }
+        pictures.reference = reference ? &*reference : nullptr;
+        pictures.camera.width = picture_size.first;
+        pictures.camera.height = picture_size.second;
+        Report picture_info;
+        {
+            auto bar = ctx.progress("pictures");
+            cli::render_report_pictures(pictures, page.images, picture_info);
+        }
+        out["report"] = picture_info;
+        std::vector<std::pair<std::string, Report>> columns;
+        Report ours = Report::object();
+        if (out.contains("surface")) ours["surface"] = out["surface"];
+        if (out.contains("input_distance")) ours["input_distance"] = out["input_distance"];
+        if (out.contains("mesh_quality")) ours["mesh_quality"] = out["mesh_quality"];
+        columns.push_back({"ours", ours});
+        for (const auto& r : runs) columns.push_back({"SPR d" + std::to_string(r.depth), r.report});
+        page.tables.push_back(cli::side_by_side("Metrics", columns));
+        if (out.contains("poses"))
+            page.tables.push_back(cli::side_by_side("Poses", {{"poses", out["poses"]}}));
+        page.metrics = out;
+        const fs::path dir = ctx.get<std::string>("report");
+        cli::write_report(dir, page);
+        ctx.note("report: " + (dir / "index.html").string());
+    }
+    ctx.metrics()["results"] = out;
+    ctx.out() << out.dump(2) << "\n";
+}
+
+const cli::ToolSpec kSpec{
+    .name = "rgbd-eval",
+    .usage =
+        "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
+        "[--report DIR] [options] [-o metrics.json]",
+    .description =
+        "Compares a result (a mesh, or a view stream / point file) with a reference surface "
+        "and prints the metrics as one JSON object: Chamfer distance (mean of both directed "
+        "mean distances), Hausdorff distance (max and 95th percentile), accuracy, "
+        "completeness, precision, recall and F-score at each threshold tau, and the invented "
+        "surface (share of the result farther than --invented-tau-mm from the reference). "
+        "Distances are exact point-to-triangle distances from area-uniform samples. With "
+        "--gt-poses (a capture's gt/world_from_depth.json) and a view stream as RESULT, it "
+        "also reports each view's rotation and translation error. With --points (the points "
+        "the result was made from), the distance of the result's vertices to them. A mesh "
+        "result also gets \"mesh_quality\": shares of sliver faces (minimum angle < 5 / 10 "
+        "deg, by count and area), fold edges (adjacent normals > 120 deg apart), spike "
+        "vertices (a face normal > 60 deg from the vertex's area-weighted normal) and, with "
+        "--points, the share of its area farther than 3 mm from every input point and of grey "
+        "fill vertices (128,128,128) within 3 mm of one. --baseline screened-poisson runs "
+        "Open3D 0.16's Screened Poisson (Debian's python3-open3d) on the same input points at "
+        "each --baseline-depths, normals as given or estimated by Open3D towards the sensors, "
+        "times it, and evaluates its meshes exactly like the result, side by side (JSON and a "
+        "table on stderr). --report DIR writes a page (index.html, pictures, metrics.json) "
+        "with pictures of the input, the result, the best baseline depth and heat maps of the "
+        "distance to the reference (else to the input points). The result is read whole.",
+    .example =
+        "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
+        "screened-poisson --report bust_report/",
+    .writes_stream = false,
+    .reads_stream = false,
+    .add_options = [](cli::po::options_description& o) {
+        o.add_options()("reference", cli::value<std::string>("MESH"),
+                        "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(
+            "tau-mm", cli::value<std::string>("2,5", "LIST"), "F-score thresholds in millimetres")(
+            "invented-tau-mm", cli::value<double>(5.0, "MM"),
+            "distance beyond which result surface counts as invented")(
+            "samples", cli::value<std::size_t>(200000, "N"), "surface samples per mesh")(
+            "gt-poses", cli::value<std::string>("JSON"),
+            "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
+            "keep-gauge", "do not remove the global gauge before pose errors")(
+            "points", cli::value<std::string>("STREAM"),
+            "the input points of the result (view stream or point file)")(
+            "baseline", cli::value<std::string>("NAME"),
+            "run a peer on the same input: screened-poisson (Open3D 0.16)")(
+            "baseline-depths", cli::value<std::string>("8,9,10", "LIST"),
+            "octree depths of the Screened Poisson baseline")(
+            "baseline-trim", cli::value<double>(0.02, "Q"),
+            "drop baseline vertices below this density quantile (0 = untrimmed)")(
+            "report", cli::value<std::string>("DIR"), "write a report page with pictures to DIR")(
+            "report-size", cli::value<std::string>("640x480", "WxH"),
+            "size of each report picture, WxH");
+    }};
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    const cli::ToolSpec spec{
-        .name = "rgbd-eval",
-        .usage =
-            "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
-            "[--report DIR] [options] [-o metrics.json]",
-        .description =
-            "Compares a result (a mesh, or a view stream / point file) with a reference surface "
-            "and prints the metrics as one JSON object: Chamfer distance (mean of both directed "
-            "mean distances), Hausdorff distance (max and 95th percentile), accuracy, "
-            "completeness, precision, recall and F-score at each threshold tau, and the invented "
-            "surface (share of the result farther than --invented-tau-mm from the reference). "
-            "Distances are exact point-to-triangle distances from area-uniform samples. With "
-            "--gt-poses (a capture's gt/world_from_depth.json) and a view stream as RESULT, it "
-            "also reports each view's rotation and translation error. With --points (the points "
-            "the result was made from), the distance of the result's vertices to them. A mesh "
-            "result also gets \"mesh_quality\": shares of sliver faces (minimum angle < 5 / 10 "
-            "deg, by count and area), fold edges (adjacent normals > 120 deg apart), spike "
-            "vertices (a face normal > 60 deg from the vertex's area-weighted normal) and, with "
-            "--points, the share of its area farther than 3 mm from every input point and of grey "
-            "fill vertices (128,128,128) within 3 mm of one. --baseline screened-poisson runs "
-            "Open3D 0.16's Screened Poisson (Debian's python3-open3d) on the same input points at "
-            "each --baseline-depths, normals as given or estimated by Open3D towards the sensors, "
-            "times it, and evaluates its meshes exactly like the result, side by side (JSON and a "
-            "table on stderr). --report DIR writes a page (index.html, pictures, metrics.json) "
-            "with pictures of the input, the result, the best baseline depth and heat maps of the "
-            "distance to the reference (else to the input points). The result is read whole.",
-        .example =
-            "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
-            "screened-poisson --report bust_report/",
-        .writes_stream = false,
-        .reads_stream = false,
-        .add_options = [](cli::po::options_description& o) {
-            o.add_options()("reference", cli::value<std::string>("MESH"),
-                            "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(
-                "tau-mm", cli::value<std::string>("2,5", "LIST"),
-                "F-score thresholds in millimetres")(
-                "invented-tau-mm", cli::value<double>(5.0, "MM"),
-                "distance beyond which result surface counts as invented")(
-                "samples", cli::value<std::size_t>(200000, "N"), "surface samples per mesh")(
-                "gt-poses", cli::value<std::string>("JSON"),
-                "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
-                "keep-gauge", "do not remove the global gauge before pose errors")(
-                "points", cli::value<std::string>("STREAM"),
-                "the input points of the result (view stream or point file)")(
-                "baseline", cli::value<std::string>("NAME"),
-                "run a peer on the same input: screened-poisson (Open3D 0.16)")(
-                "baseline-depths", cli::value<std::string>("8,9,10", "LIST"),
-                "octree depths of the Screened Poisson baseline")(
-                "baseline-trim", cli::value<double>(0.02, "Q"),
-                "drop baseline vertices below this density quantile (0 = untrimmed)")(
-                "report", cli::value<std::string>("DIR"),
-                "write a report page with pictures to DIR")(
-                "report-size", cli::value<std::string>("640x480", "WxH"),
-                "size of each report picture, WxH");
-        }};
-    return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
-        if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one RESULT file");
-        const bool reference_given = ctx.options().count("reference") > 0;
-        const bool baseline_given = ctx.options().count("baseline") > 0;
-        const bool report_given = ctx.options().count("report") > 0;
-        if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given &&
-            !report_given && !ctx.options().count("points"))
-            throw cli::UsageError(
-                "give --reference MESH, --points STREAM, --gt-poses JSON, --baseline NAME and/or "
-                "--report DIR");
-        evaluation::MetricOptions options;
-        std::vector<int> depths;
-        double trim = 0;
-        std::pair<int, int> picture_size{640, 480};
-        try {
-            options.taus_m.clear();
-            for (double t : cli::parse_doubles(ctx.get<std::string>("tau-mm"), "tau-mm"))
-                options.taus_m.push_back(t / 1000.0);
-            options.invented_tau_m = ctx.get<double>("invented-tau-mm") / 1000.0;
-            options.samples = ctx.get<std::size_t>("samples");
-            options.seed = ctx.seed();
-            options.check();
-        } catch (const InputError& e) {
-            throw cli::UsageError(e.what());
-        }
-        if (baseline_given) {
-            if (ctx.get<std::string>("baseline") != "screened-poisson")
-                throw cli::UsageError("--baseline: unknown peer '" +
-                                      ctx.get<std::string>("baseline") + "' (screened-poisson)");
-            for (double d :
-                 cli::parse_doubles(ctx.get<std::string>("baseline-depths"), "baseline-depths")) {
-                if (!(d >= 4 && d <= 12 && d == std::floor(d)))
-                    throw cli::UsageError("--baseline-depths must be integers in 4..12");
-                depths.push_back(static_cast<int>(d));
-            }
-            trim = ctx.get<double>("baseline-trim");
-            if (!(trim >= 0 && trim < 0.5))
-                throw cli::UsageError("--baseline-trim must be in [0, 0.5)");
-        }
-        if (report_given) picture_size = parse_size(ctx.get<std::string>("report-size"));
-
-        const std::string input = ctx.inputs().front();
-        cli::LoadedResult result = cli::load_result(input);
-        std::optional<cli::LoadedResult> input_points;
-        if (ctx.options().count("points")) {
-            const std::string path = ctx.get<std::string>("points");
-            input_points = cli::load_result(path);
-            RGBD_CHECK(!input_points->mesh, path + ": --points must be points, not a mesh");
-        } else if (!result.mesh) {
-            input_points = cli::LoadedResult{};
-            input_points->views = result.views;  // a cloud result is its own input
-        }
-        if (baseline_given && !input_points)
-            throw cli::UsageError("--baseline needs the input points: give --points STREAM");
-        std::optional<render::Geometry> input_geometry;
-        if (input_points) input_geometry = render::from_views(input_points->views);
-        if (input_geometry && input_geometry->vertices.empty())
-            throw InputError("the input points are empty");
-
-        Report out = Report::object();
-        out["result"] = input;
-        std::optional<Mesh> reference;
-        if (reference_given) {
-            const std::string ref_path = ctx.get<std::string>("reference");
-            reference = io::read_mesh(ref_path);
-            out["reference"] = ref_path;
-            out["surface"] = cli::evaluate_surface(result, *reference, options);
-        }
-        if (input_geometry && result.mesh)
-            out["input_distance"] =
-                input_distance(*result.mesh, input_geometry->vertices, options.invented_tau_m);
-        evaluation::MeshQualityOptions quality_options;
-        quality_options.seed = ctx.seed();
-        auto mesh_quality = [&](const Mesh& mesh) {
-            return evaluation::mesh_quality(
-                mesh, input_geometry ? &input_geometry->vertices : nullptr, quality_options);
-        };
-        if (result.mesh) out["mesh_quality"] = mesh_quality(*result.mesh);
-        if (ctx.options().count("gt-poses")) {
-            out["poses"] = cli::evaluate_poses(result.views, ctx.get<std::string>("gt-poses"),
-                                               !ctx.options().count("keep-gauge"));
-        }
-
-        std::vector<BaselineRun> runs;
-        int best = -1;
-        if (baseline_given) {
-            Report& b = out["baseline"];
-            b["method"] = "open3d-screened-poisson";
-            b["open3d"] = "0.16 (python3-open3d)";
-            b["trim_quantile"] = trim;
-            {
-                auto bar = ctx.progress("screened poisson");
-                runs = run_screened_poisson(input_points->views, depths, trim, b, ctx);
-            }
-            b["runs"] = Report::array();
-            std::string fkey;  // the F-score at the first tau decides the best depth
-            double best_score = -1;
-            for (std::size_t i = 0; i < runs.size(); ++i) {
-                BaselineRun& run = runs[i];
-                if (reference) {
-                    cli::LoadedResult lr;
-                    lr.mesh = run.mesh;
-                    run.report["surface"] = cli::evaluate_surface(lr, *reference, options);
-                    const Report& s = run.report["surface"];
-                    if (fkey.empty())
-                        for (auto it = s.begin(); it != s.end(); ++it)
-                            if (it.key().rfind("fscore_", 0) == 0) {
-                                fkey = it.key();
-                                break;
-                            }
-                    const double score = s.value(fkey, -1.0);
-                    if (score > best_score) best_score = score, best = static_cast<int>(i);
-                }
-                run.report["input_distance"] =
-                    input_distance(run.mesh, input_geometry->vertices, options.invented_tau_m);
-                run.report["mesh_quality"] = mesh_quality(run.mesh);
-                b["runs"].push_back(run.report);
-            }
-            if (best < 0) {  // no reference: depth 9 (the peer pipeline's choice), else the last
-                best = static_cast<int>(runs.size()) - 1;
-                for (std::size_t i = 0; i < runs.size(); ++i)
-                    if (runs[i].depth == 9) best = static_cast<int>(i);
-                b["best_depth_rule"] = "depth 9 (no reference)";
-            } else {
-                b["best_depth_rule"] = "highest " + fkey;
-            }
-            b["best_depth"] = runs[best].depth;
-
-            // Side by side on stderr.
-            auto pad = [](const std::string& text, std::size_t width) {
-                return std::string(width > text.size() ? width - text.size() : 0, ' ') + text;
-            };
-            auto group_of = [](const Report& r, const std::string& group) {
-                return r.contains(group) ? r[group] : Report();
-            };
-            std::ostringstream t;
-            t << "metric            " << pad("ours", 8);
-            for (const auto& r : runs) t << pad("spr-d" + std::to_string(r.depth), 9);
-            t << "\n";
-            auto row = [&](const std::string& label, const std::string& group,
-                           const std::string& key, double scale) {
-                t << label << std::string(label.size() < 18 ? 18 - label.size() : 1, ' ')
-                  << pad(cell(group_of(out, group), key, scale), 8);
-                for (const auto& r : runs) t << pad(cell(group_of(r.report, group), key, scale), 9);
-                t << "\n";
-            };
-            if (reference) {
-                row("chamfer mm", "surface", "chamfer_m", 1000.0);
-                for (const auto& [k, v] : out["surface"].items())
-                    if (k.rfind("fscore_", 0) == 0) row(k, "surface", k, 1.0);
-                row("invented", "surface", "invented_surface_fraction", 1.0);
-                row("hausdorff p95 mm", "surface", "hausdorff_p95_m", 1000.0);
-            }
-            if (out.contains("input_distance")) {
-                row("input dist med mm", "input_distance", "median_mm", 1.0);
-                row("input dist p95 mm", "input_distance", "p95_mm", 1.0);
-            }
-            if (out.contains("mesh_quality")) {
-                row("slivers <5deg", "mesh_quality", "sliver_fraction_5deg", 1.0);
-                row("fold edges", "mesh_quality", "fold_edge_fraction", 1.0);
-                row("spike vertices", "mesh_quality", "spike_vertex_fraction", 1.0);
-                row("far area >3mm", "mesh_quality", "far_area_fraction_3mm", 1.0);
-                row("grey vertices", "mesh_quality", "grey_vertex_fraction", 1.0);
-            }
-            t << "time s            " << pad("-", 8);
-            for (const auto& r : runs) t << pad(cell(r.report, "time_s"), 9);
-            t << "\n";
-            std::cerr << t.str();
-        }
-
-        if (report_given) {
-            cli::ReportPage page;
-            page.title = "rgbd-eval: " + fs::path(input).filename().string();
-            page.facts.push_back({"result", input});
-            if (reference) page.facts.push_back({"reference", ctx.get<std::string>("reference")});
-            if (ctx.options().count("points"))
-                page.facts.push_back({"input", ctx.get<std::string>("points")});
-            if (baseline_given)
-                page.facts.push_back({"baseline", "Open3D 0.16 Screened Poisson, depths " +
-                                                      ctx.get<std::string>("baseline-depths") +
-                                                      ", trim quantile " + trim_text(trim) +
-                                                      "; best depth " +
-                                                      std::to_string(runs[best].depth)});
-            cli::PictureInputs pictures;
-            pictures.input = input_geometry ? &*input_geometry : nullptr;
-            pictures.result = result.mesh ? &*result.mesh : nullptr;
-            if (best >= 0) {
-                pictures.baseline = &runs[best].mesh;
-                pictures.baseline_name =
-                    "Open3D Screened Poisson depth " + std::to_string(runs[best].depth);
-            }
-            pictures.reference = reference ? &*reference : nullptr;
-            pictures.camera.width = picture_size.first;
-            pictures.camera.height = picture_size.second;
-            Report picture_info;
-            {
-                auto bar = ctx.progress("pictures");
-                cli::render_report_pictures(pictures, page.images, picture_info);
-            }
-            out["report"] = picture_info;
-            std::vector<std::pair<std::string, Report>> columns;
-            Report ours = Report::object();
-            if (out.contains("surface")) ours["surface"] = out["surface"];
-            if (out.contains("input_distance")) ours["input_distance"] = out["input_distance"];
-            if (out.contains("mesh_quality")) ours["mesh_quality"] = out["mesh_quality"];
-            columns.push_back({"ours", ours});
-            for (const auto& r : runs)
-                columns.push_back({"SPR d" + std::to_string(r.depth), r.report});
-            page.tables.push_back(cli::side_by_side("Metrics", columns));
-            if (out.contains("poses"))
-                page.tables.push_back(cli::side_by_side("Poses", {{"poses", out["poses"]}}));
-            page.metrics = out;
-            const fs::path dir = ctx.get<std::string>("report");
-            cli::write_report(dir, page);
-            ctx.note("report: " + (dir / "index.html").string());
-        }
-        ctx.metrics()["results"] = out;
-        ctx.out() << out.dump(2) << "\n";
-    });
-}
+int main(int argc, char** argv) { return cli::run_tool(argc, argv, kSpec, run_eval); }

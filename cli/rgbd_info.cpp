@@ -200,86 +200,85 @@ void print_text(std::ostream& os, const Report& r, const std::string& indent = "
     }
 }
 
+void run_info(cli::Context& ctx) {
+    Report all = Report::array();
+    std::vector<std::string> inputs = ctx.inputs();
+    if (inputs.empty()) inputs.push_back("-");
+    if (ctx.has("frame")) {
+        if (inputs.size() != 1 || !fs::is_directory(inputs.front()))
+            throw cli::UsageError("--frame N needs one video folder");
+        if (ctx.output_path().empty() && isatty(STDOUT_FILENO))
+            throw cli::UsageError("refusing to write binary PLY to a terminal: use -o FILE");
+        export_video_frame(inputs.front(), ctx.get<long long>("frame"), ctx);
+        return;
+    }
+    for (const std::string& input : inputs) {
+        if (input != "-" && fs::is_directory(input) && fs::exists(fs::path(input) / "video.json")) {
+            all.push_back(describe_video(input, ctx));
+            continue;
+        }
+        if (input != "-" && fs::is_directory(input)) {
+            all.push_back(describe_capture(input));
+            continue;
+        }
+        const std::string ext = input == "-" ? ".ply" : fs::path(input).extension().string();
+        if (input != "-" && !fs::exists(input)) throw IoError(input + ": no such file");
+        Report file;
+        file["path"] = input;
+        if (ext == ".ply" || ext == ".PLY") {
+            std::ifstream f;
+            std::istream* in = &std::cin;
+            if (input != "-") {
+                f.open(input, std::ios::binary);
+                in = &f;
+            }
+            io::PlyStreamReader reader(*in, input == "-" ? "<stdin>" : input);
+            io::Document d;
+            Report docs = Report::array();
+            while (reader.next(d)) {
+                docs.push_back(d.kind == io::DocumentKind::kMesh ? describe_mesh(d.mesh)
+                                                                 : describe_cloud(d.cloud));
+                d = io::Document{};
+            }
+            if (docs.empty()) throw InputError(reader.name() + ": empty stream (no PLY document)");
+            file["documents"] = docs;
+        } else if (ext == ".off" || ext == ".obj") {
+            file["documents"] = Report::array({describe_mesh(io::read_mesh(input))});
+        } else {
+            file["documents"] = Report::array({describe_cloud(io::read_point_cloud(input))});
+        }
+        all.push_back(file);
+    }
+    if (ctx.options().count("json")) {
+        ctx.out() << all.dump(2) << "\n";
+    } else {
+        for (const auto& r : all) {
+            print_text(ctx.out(), r);
+            ctx.out() << "\n";
+        }
+    }
+}
+
+const cli::ToolSpec kSpec{
+    .name = "rgbd-info",
+    .usage = "rgbd-info [--json] PATH...   |   rgbd-info VIDEO_DIR --frame N -o frame.ply",
+    .description =
+        "Prints a summary of each input: a capture folder (layout, sensors, frames, frame "
+        "sets, ground truth), a view stream (per document: points, properties, metadata, "
+        "bounding box, flag counts), a mesh (vertices, faces, border edges, closed, colours), "
+        "a point file, or a 3D video folder (rgbd-capture --video: frames, duration, points "
+        "and bytes per frame, hub ms and latency p50/p95, counters, and every frame file that "
+        "is missing, stale or does not decode, by name). --frame N exports one video frame as "
+        "a view for the rest of the pipeline.",
+    .example = "rgbd-cloud cap/ | rgbd-info --json",
+    .writes_stream = false,
+    .add_options = [](cli::po::options_description& o) {
+        o.add_options()("json", "print JSON instead of text")(
+            "frame", cli::po::value<long long>()->value_name("N"),
+            "with a 3D video folder: write its frame N as a view (binary PLY, world frame, "
+            "coloured) to -o FILE or stdout instead of the summary");
+    }};
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    const cli::ToolSpec spec{
-        .name = "rgbd-info",
-        .usage = "rgbd-info [--json] PATH...   |   rgbd-info VIDEO_DIR --frame N -o frame.ply",
-        .description =
-            "Prints a summary of each input: a capture folder (layout, sensors, frames, frame "
-            "sets, ground truth), a view stream (per document: points, properties, metadata, "
-            "bounding box, flag counts), a mesh (vertices, faces, border edges, closed, colours), "
-            "a point file, or a 3D video folder (rgbd-capture --video: frames, duration, points "
-            "and bytes per frame, hub ms and latency p50/p95, counters, and every frame file that "
-            "is missing, stale or does not decode, by name). --frame N exports one video frame as "
-            "a view for the rest of the pipeline.",
-        .example = "rgbd-cloud cap/ | rgbd-info --json",
-        .writes_stream = false,
-        .add_options = [](cli::po::options_description& o) {
-            o.add_options()("json", "print JSON instead of text")(
-                "frame", cli::po::value<long long>()->value_name("N"),
-                "with a 3D video folder: write its frame N as a view (binary PLY, world frame, "
-                "coloured) to -o FILE or stdout instead of the summary");
-        }};
-    return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
-        Report all = Report::array();
-        std::vector<std::string> inputs = ctx.inputs();
-        if (inputs.empty()) inputs.push_back("-");
-        if (ctx.has("frame")) {
-            if (inputs.size() != 1 || !fs::is_directory(inputs.front()))
-                throw cli::UsageError("--frame N needs one video folder");
-            if (ctx.output_path().empty() && isatty(STDOUT_FILENO))
-                throw cli::UsageError("refusing to write binary PLY to a terminal: use -o FILE");
-            export_video_frame(inputs.front(), ctx.get<long long>("frame"), ctx);
-            return;
-        }
-        for (const std::string& input : inputs) {
-            if (input != "-" && fs::is_directory(input) &&
-                fs::exists(fs::path(input) / "video.json")) {
-                all.push_back(describe_video(input, ctx));
-                continue;
-            }
-            if (input != "-" && fs::is_directory(input)) {
-                all.push_back(describe_capture(input));
-                continue;
-            }
-            const std::string ext = input == "-" ? ".ply" : fs::path(input).extension().string();
-            if (input != "-" && !fs::exists(input)) throw IoError(input + ": no such file");
-            Report file;
-            file["path"] = input;
-            if (ext == ".ply" || ext == ".PLY") {
-                std::ifstream f;
-                std::istream* in = &std::cin;
-                if (input != "-") {
-                    f.open(input, std::ios::binary);
-                    in = &f;
-                }
-                io::PlyStreamReader reader(*in, input == "-" ? "<stdin>" : input);
-                io::Document d;
-                Report docs = Report::array();
-                while (reader.next(d)) {
-                    docs.push_back(d.kind == io::DocumentKind::kMesh ? describe_mesh(d.mesh)
-                                                                     : describe_cloud(d.cloud));
-                    d = io::Document{};
-                }
-                if (docs.empty())
-                    throw InputError(reader.name() + ": empty stream (no PLY document)");
-                file["documents"] = docs;
-            } else if (ext == ".off" || ext == ".obj") {
-                file["documents"] = Report::array({describe_mesh(io::read_mesh(input))});
-            } else {
-                file["documents"] = Report::array({describe_cloud(io::read_point_cloud(input))});
-            }
-            all.push_back(file);
-        }
-        if (ctx.options().count("json")) {
-            ctx.out() << all.dump(2) << "\n";
-        } else {
-            for (const auto& r : all) {
-                print_text(ctx.out(), r);
-                ctx.out() << "\n";
-            }
-        }
-    });
-}
+int main(int argc, char** argv) { return cli::run_tool(argc, argv, kSpec, run_info); }

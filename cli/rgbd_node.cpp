@@ -22,6 +22,7 @@
 
 #include "cli/common/tool.hpp"
 #include "cli/node_views.hpp"
+#include "cli/zmq_errors.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
 #include "sensors/network/transport.hpp"
@@ -495,11 +496,5 @@ int main(int argc, char** argv) {
             "send-timeout-s", cli::po::value<double>()->default_value(30.0),
             "give up when the hub accepts no frame for S seconds");
     };
-    return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) {
-        try {
-            run_node(ctx);
-        } catch (const zmq::error_t& e) {
-            throw IoError(std::string("ZeroMQ: ") + e.what());
-        }
-    });
+    return cli::run_tool(argc, argv, spec, cli::zmq_errors_as_io_errors(run_node));
 }

@@ -95,212 +95,211 @@ cli::ReportPage report_page(const Report& report) {
     return page;
 }
 
+void run_reconstruct(cli::Context& ctx) {
+    if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
+    if (ctx.output_path().empty()) throw cli::UsageError("give the mesh file with -o MESH");
+    const std::string root = ctx.inputs().front();
+    const fs::path mesh_path = ctx.output_path();
+    const fs::path report_dir =
+        ctx.options().count("report")
+            ? fs::path(ctx.get<std::string>("report"))
+            : fs::path(fs::path(mesh_path).replace_extension().string() + "_report");
+    pipeline::ReconstructOptions options;
+    options.skip = parse_skip(ctx.options().count("skip") ? ctx.get<std::string>("skip") : "");
+    try {
+        options.mesh.method = ctx.get<std::string>("method");
+        options.mesh.watertight = ctx.options().count("open") == 0;
+        options.mesh.check();
+        const int neighbors = ctx.get<int>("upsample");
+        if (neighbors != 0 && neighbors != 4 && neighbors != 8)
+            throw cli::UsageError("--upsample must be 4 or 8 (0 = off), not " +
+                                  std::to_string(neighbors));
+        if (neighbors == 0)
+            options.skip.insert("upsample");
+        else
+            options.upsample.neighbors = neighbors;
+        options.upsample.check();
+    } catch (const InputError& e) {
+        throw cli::UsageError(e.what());
+    }
+    const std::string noise_name = ctx.get<std::string>("noise-model");
+    if (noise_name != "auto") {
+        try {
+            options.noise_model = denoise::parse_noise_model(noise_name);
+        } catch (const InputError& e) {
+            throw cli::UsageError(std::string("--noise-model: ") + e.what());
+        }
+    }
+    try {
+        options.stand = pipeline::parse_stand_mode(ctx.get<std::string>("stand"));
+    } catch (const InputError& e) {
+        throw cli::UsageError(std::string("--stand: ") + e.what());
+    }
+    options.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
+    if (!(options.extraction.crop_radius_m >= 0))
+        throw cli::UsageError("--crop-radius-m must be >= 0");
+    options.seed = ctx.seed();
+
+    std::optional<fs::path> stages_dir;
+    if (ctx.options().count("stages-dir")) {
+        stages_dir = ctx.get<std::string>("stages-dir");
+        std::error_code ec;
+        fs::create_directories(*stages_dir, ec);
+        if (ec)
+            throw IoError(stages_dir->string() + ": cannot create the folder (" + ec.message() +
+                          ")");
+    }
+    Report report;
+    report["capture"] = root;
+    report["mesh_file"] = mesh_path.string();
+    report["skipped_stages"] = Report::array();
+    for (const auto& s : pipeline::optional_stages())
+        if (options.skip.count(s)) report["skipped_stages"].push_back(s);
+    Stopwatch total;
+
+    const io::Capture capture = io::open_capture(root);
+    const auto jobs = cli::select_frames(
+        capture, ctx.get<long long>("frameset"),
+        ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), {}, &ctx);
+    // Progress bars, messages and --stages-dir for the library's chain.
+    pipeline::ReconstructHooks hooks;
+    std::unique_ptr<cli::ProgressBar> bar;
+    hooks.stage_begin = [&](const std::string& stage) {
+        bar.reset(new cli::ProgressBar(ctx.progress(stage)));
+        return bar->callback();
+    };
+    hooks.stage_end = [&](const std::string&) { bar.reset(); };
+    hooks.warn = [&](const std::string& message) { ctx.warn(message); };
+    hooks.info = [&](const std::string& message) { ctx.info(message); };
+    hooks.views_after = [&](int index, const std::string& stage,
+                            const std::vector<PointCloud>& views) {
+        save_stage(stages_dir, index, stage, views);
+    };
+    pipeline::ReconstructResult result = pipeline::reconstruct(capture, jobs, options, hooks);
+    const Mesh& mesh = result.mesh;
+    report.update(result.report);
+    report["stages"] = result.stages_report();
+    Report& timings = report["timings_s"];
+    timings = result.timings();
+    ViewInfo info;
+    info.frame = ViewFrame::kWorld;
+    info.sensor = "mesh";
+    ctx.add_history(info);
+    io::write_mesh(mesh_path, mesh, &info);
+
+    // 8. evaluation against ground truth when there is some.
+    std::string reference = ctx.options().count("reference")
+                                ? ctx.get<std::string>("reference")
+                                : (fs::path(root) / "gt" / "mesh.ply").string();
+    std::optional<Mesh> reference_mesh;
+    if (fs::exists(reference) || ctx.options().count("reference")) {
+        Stopwatch watch;
+        evaluation::MetricOptions metric_options;
+        metric_options.taus_m = {0.001, 0.002, 0.005};
+        metric_options.seed = ctx.seed();
+        cli::LoadedResult loaded;
+        loaded.mesh = mesh;
+        reference_mesh = io::read_mesh(reference);
+        report["evaluation"]["reference"] = reference;
+        report["evaluation"]["surface"] =
+            cli::evaluate_surface(loaded, *reference_mesh, metric_options);
+        const fs::path gt_poses = fs::path(root) / "gt" / "world_from_depth.json";
+        if (fs::exists(gt_poses))
+            report["evaluation"]["poses"] =
+                cli::evaluate_poses(result.poses, gt_poses.string(), /*remove_gauge=*/true);
+        timings["evaluation"] = watch.seconds();
+    }
+
+    // 9. the report page with pictures.
+    Stopwatch watch;
+    cli::ReportPage page;
+    {
+        auto picture_bar = ctx.progress("pictures");
+        cli::PictureInputs pictures;
+        pictures.input = &result.input;
+        pictures.result = &mesh;
+        pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
+        Report picture_info;
+        std::vector<cli::ReportImage> images;
+        cli::render_report_pictures(pictures, images, picture_info);
+        report["report"] = picture_info;
+        timings["pictures"] = watch.seconds();
+        timings["total"] = total.seconds();
+        page = report_page(report);
+        page.images = std::move(images);
+    }
+    page.metrics = report;
+    cli::write_report(report_dir, page);
+    ctx.metrics()["reconstruct"] = report;
+    ctx.note("mesh: " + mesh_path.string() + " (" +
+             std::to_string(report["counts"]["mesh_faces"].get<std::size_t>()) + " faces)");
+    ctx.note("report: " + (report_dir / "index.html").string());
+    if (report.contains("evaluation")) {
+        const auto& s = report["evaluation"]["surface"];
+        std::ostringstream line;
+        line.precision(4);
+        line << "against " << reference << ": F-score@2mm " << s.value("fscore_2mm", 0.0)
+             << ", F-score@5mm " << s.value("fscore_5mm", 0.0) << ", invented "
+             << s.value("invented_surface_fraction", 0.0) * 100 << "%, completeness "
+             << s.value("completeness_mean_m", 0.0) * 1000 << " mm";
+        ctx.note(line.str());
+    }
+}
+
+const cli::ToolSpec kSpec{
+    .name = "rgbd-reconstruct",
+    .usage = "rgbd-reconstruct CAPTURE_DIR -o MESH [--report DIR] [--skip STAGE[,STAGE]] [options]",
+    .description =
+        "Runs the whole method on a capture folder with the defaults of each stage, in the "
+        "order of the README's pipe: coloured clouds per view (rgbd-cloud), adaptive "
+        "distance-based noise removal per view (rgbd-clean --distance), colour-guided "
+        "super-resolution (rgbd-upsample, 8 neighbours; only for sensors whose colour camera "
+        "has more pixels than the depth camera), multi-view registration from the rig's poses "
+        "(rgbd-align), adaptive density-based noise removal over the aligned views (rgbd-clean "
+        "--density; before it, on turntable captures, the stand the object stands on is "
+        "removed: --stand), hole filling (rgbd-fill: small holes, head top, large holes, only "
+        "where no sensor saw the surface) and surface reconstruction (rgbd-mesh --watertight: "
+        "a closed coloured mesh; --open keeps unseen holes). The same options through the pipe "
+        "give the same mesh. --skip leaves stages out (distance, upsample, density, fill) for "
+        "comparisons. Writes the mesh and a report folder (metrics.json and index.html) with "
+        "each stage's time and point counts in and out, per-view registration verdicts, the "
+        "mesh's quality and, when the capture has ground truth (gt/ of rgbd-synth) or "
+        "--reference is given, the metrics of rgbd-eval.",
+    .example = "rgbd-reconstruct cap/ -o bust.ply --report report/",
+    .writes_stream = false,
+    .reads_stream = false,
+    .add_options = [](cli::po::options_description& o) {
+        o.add_options()("report", cli::value<std::string>("DIR"),
+                        "report folder (default: MESH without extension + _report)")(
+            "frameset", cli::value<long long>(0, "N"),
+            "frame set to reconstruct (multi-sensor captures)")(
+            "frames", cli::value<std::string>("A:B[:STEP]"),
+            "frame positions (single-sensor sequences; default all)")(
+            "reference", cli::value<std::string>("MESH"),
+            "reference surface for the evaluation (default: CAPTURE/gt/mesh.ply if present)")(
+            "skip", cli::value<std::string>("STAGE[,STAGE]"),
+            "leave stages out of the chain: distance, upsample, density, fill")(
+            "stages-dir", cli::value<std::string>("DIR"),
+            "also write the views after each stage to DIR/NN-STAGE.ply (view streams, as the "
+            "pipe carries them)")(
+            "noise-model", cli::value<std::string>("auto", "NAME"),
+            "sensor noise model of the distance and density cleaning: auto (the rig's sensors' "
+            "model when they share one the denoisers know, else kinect_v2), kinect_v2, "
+            "kinect_v1, sr300 or generic")(
+            "crop-radius-m", cli::value<double>(0.6, "M"),
+            "object extraction radius around the sensors' common centre (0 = no crop)")(
+            "method", cli::value<std::string>("front", "NAME"),
+            "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
+            "stand", cli::value<std::string>("auto", "MODE"),
+            "the stand (turntable platter) below the object, after the alignment: auto (remove "
+            "it on single-sensor captures of several views: turntable), remove or keep")(
+            "open",
+            "keep the holes no sensor saw open (default: closed, as rgbd-mesh --watertight)")(
+            "upsample", cli::value<int>(8, "4|8"),
+            "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
+            "--skip upsample)");
+    }};
+
 }  // namespace
 
-int main(int argc, char** argv) {
-    const cli::ToolSpec spec{
-        .name = "rgbd-reconstruct",
-        .usage =
-            "rgbd-reconstruct CAPTURE_DIR -o MESH [--report DIR] [--skip STAGE[,STAGE]] [options]",
-        .description =
-            "Runs the whole method on a capture folder with the defaults of each stage, in the "
-            "order of the README's pipe: coloured clouds per view (rgbd-cloud), adaptive "
-            "distance-based noise removal per view (rgbd-clean --distance), colour-guided "
-            "super-resolution (rgbd-upsample, 8 neighbours; only for sensors whose colour camera "
-            "has more pixels than the depth camera), multi-view registration from the rig's poses "
-            "(rgbd-align), adaptive density-based noise removal over the aligned views (rgbd-clean "
-            "--density; before it, on turntable captures, the stand the object stands on is "
-            "removed: --stand), hole filling (rgbd-fill: small holes, head top, large holes, only "
-            "where no sensor saw the surface) and surface reconstruction (rgbd-mesh --watertight: "
-            "a closed coloured mesh; --open keeps unseen holes). The same options through the pipe "
-            "give the same mesh. --skip leaves stages out (distance, upsample, density, fill) for "
-            "comparisons. Writes the mesh and a report folder (metrics.json and index.html) with "
-            "each stage's time and point counts in and out, per-view registration verdicts, the "
-            "mesh's quality and, when the capture has ground truth (gt/ of rgbd-synth) or "
-            "--reference is given, the metrics of rgbd-eval.",
-        .example = "rgbd-reconstruct cap/ -o bust.ply --report report/",
-        .writes_stream = false,
-        .reads_stream = false,
-        .add_options = [](cli::po::options_description& o) {
-            o.add_options()("report", cli::value<std::string>("DIR"),
-                            "report folder (default: MESH without extension + _report)")(
-                "frameset", cli::value<long long>(0, "N"),
-                "frame set to reconstruct (multi-sensor captures)")(
-                "frames", cli::value<std::string>("A:B[:STEP]"),
-                "frame positions (single-sensor sequences; default all)")(
-                "reference", cli::value<std::string>("MESH"),
-                "reference surface for the evaluation (default: CAPTURE/gt/mesh.ply if present)")(
-                "skip", cli::value<std::string>("STAGE[,STAGE]"),
-                "leave stages out of the chain: distance, upsample, density, fill")(
-                "stages-dir", cli::value<std::string>("DIR"),
-                "also write the views after each stage to DIR/NN-STAGE.ply (view streams, as the "
-                "pipe carries them)")(
-                "noise-model", cli::value<std::string>("auto", "NAME"),
-                "sensor noise model of the distance and density cleaning: auto (the rig's sensors' "
-                "model when they share one the denoisers know, else kinect_v2), kinect_v2, "
-                "kinect_v1, sr300 or generic")(
-                "crop-radius-m", cli::value<double>(0.6, "M"),
-                "object extraction radius around the sensors' common centre (0 = no crop)")(
-                "method", cli::value<std::string>("front", "NAME"),
-                "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
-                "stand", cli::value<std::string>("auto", "MODE"),
-                "the stand (turntable platter) below the object, after the alignment: auto (remove "
-                "it on single-sensor captures of several views: turntable), remove or keep")(
-                "open",
-                "keep the holes no sensor saw open (default: closed, as rgbd-mesh --watertight)")(
-                "upsample", cli::value<int>(8, "4|8"),
-                "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
-                "--skip upsample)");
-        }};
-    return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {
-        if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
-        if (ctx.output_path().empty()) throw cli::UsageError("give the mesh file with -o MESH");
-        const std::string root = ctx.inputs().front();
-        const fs::path mesh_path = ctx.output_path();
-        const fs::path report_dir =
-            ctx.options().count("report")
-                ? fs::path(ctx.get<std::string>("report"))
-                : fs::path(fs::path(mesh_path).replace_extension().string() + "_report");
-        pipeline::ReconstructOptions options;
-        options.skip = parse_skip(ctx.options().count("skip") ? ctx.get<std::string>("skip") : "");
-        try {
-            options.mesh.method = ctx.get<std::string>("method");
-            options.mesh.watertight = ctx.options().count("open") == 0;
-            options.mesh.check();
-            const int neighbors = ctx.get<int>("upsample");
-            if (neighbors != 0 && neighbors != 4 && neighbors != 8)
-                throw cli::UsageError("--upsample must be 4 or 8 (0 = off), not " +
-                                      std::to_string(neighbors));
-            if (neighbors == 0)
-                options.skip.insert("upsample");
-            else
-                options.upsample.neighbors = neighbors;
-            options.upsample.check();
-        } catch (const InputError& e) {
-            throw cli::UsageError(e.what());
-        }
-        const std::string noise_name = ctx.get<std::string>("noise-model");
-        if (noise_name != "auto") {
-            try {
-                options.noise_model = denoise::parse_noise_model(noise_name);
-            } catch (const InputError& e) {
-                throw cli::UsageError(std::string("--noise-model: ") + e.what());
-            }
-        }
-        try {
-            options.stand = pipeline::parse_stand_mode(ctx.get<std::string>("stand"));
-        } catch (const InputError& e) {
-            throw cli::UsageError(std::string("--stand: ") + e.what());
-        }
-        options.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
-        if (!(options.extraction.crop_radius_m >= 0))
-            throw cli::UsageError("--crop-radius-m must be >= 0");
-        options.seed = ctx.seed();
-
-        std::optional<fs::path> stages_dir;
-        if (ctx.options().count("stages-dir")) {
-            stages_dir = ctx.get<std::string>("stages-dir");
-            std::error_code ec;
-            fs::create_directories(*stages_dir, ec);
-            if (ec)
-                throw IoError(stages_dir->string() + ": cannot create the folder (" + ec.message() +
-                              ")");
-        }
-        Report report;
-        report["capture"] = root;
-        report["mesh_file"] = mesh_path.string();
-        report["skipped_stages"] = Report::array();
-        for (const auto& s : pipeline::optional_stages())
-            if (options.skip.count(s)) report["skipped_stages"].push_back(s);
-        Stopwatch total;
-
-        const io::Capture capture = io::open_capture(root);
-        const auto jobs = cli::select_frames(
-            capture, ctx.get<long long>("frameset"),
-            ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), {},
-            &ctx);
-        // Progress bars, messages and --stages-dir for the library's chain.
-        pipeline::ReconstructHooks hooks;
-        std::unique_ptr<cli::ProgressBar> bar;
-        hooks.stage_begin = [&](const std::string& stage) {
-            bar.reset(new cli::ProgressBar(ctx.progress(stage)));
-            return bar->callback();
-        };
-        hooks.stage_end = [&](const std::string&) { bar.reset(); };
-        hooks.warn = [&](const std::string& message) { ctx.warn(message); };
-        hooks.info = [&](const std::string& message) { ctx.info(message); };
-        hooks.views_after = [&](int index, const std::string& stage,
-                                const std::vector<PointCloud>& views) {
-            save_stage(stages_dir, index, stage, views);
-        };
-        pipeline::ReconstructResult result = pipeline::reconstruct(capture, jobs, options, hooks);
-        const Mesh& mesh = result.mesh;
-        report.update(result.report);
-        report["stages"] = result.stages_report();
-        Report& timings = report["timings_s"];
-        timings = result.timings();
-        ViewInfo info;
-        info.frame = ViewFrame::kWorld;
-        info.sensor = "mesh";
-        ctx.add_history(info);
-        io::write_mesh(mesh_path, mesh, &info);
-
-        // 8. evaluation against ground truth when there is some.
-        std::string reference = ctx.options().count("reference")
-                                    ? ctx.get<std::string>("reference")
-                                    : (fs::path(root) / "gt" / "mesh.ply").string();
-        std::optional<Mesh> reference_mesh;
-        if (fs::exists(reference) || ctx.options().count("reference")) {
-            Stopwatch watch;
-            evaluation::MetricOptions metric_options;
-            metric_options.taus_m = {0.001, 0.002, 0.005};
-            metric_options.seed = ctx.seed();
-            cli::LoadedResult loaded;
-            loaded.mesh = mesh;
-            reference_mesh = io::read_mesh(reference);
-            report["evaluation"]["reference"] = reference;
-            report["evaluation"]["surface"] =
-                cli::evaluate_surface(loaded, *reference_mesh, metric_options);
-            const fs::path gt_poses = fs::path(root) / "gt" / "world_from_depth.json";
-            if (fs::exists(gt_poses))
-                report["evaluation"]["poses"] =
-                    cli::evaluate_poses(result.poses, gt_poses.string(), /*remove_gauge=*/true);
-            timings["evaluation"] = watch.seconds();
-        }
-
-        // 9. the report page with pictures.
-        Stopwatch watch;
-        cli::ReportPage page;
-        {
-            auto picture_bar = ctx.progress("pictures");
-            cli::PictureInputs pictures;
-            pictures.input = &result.input;
-            pictures.result = &mesh;
-            pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
-            Report picture_info;
-            std::vector<cli::ReportImage> images;
-            cli::render_report_pictures(pictures, images, picture_info);
-            report["report"] = picture_info;
-            timings["pictures"] = watch.seconds();
-            timings["total"] = total.seconds();
-            page = report_page(report);
-            page.images = std::move(images);
-        }
-        page.metrics = report;
-        cli::write_report(report_dir, page);
-        ctx.metrics()["reconstruct"] = report;
-        ctx.note("mesh: " + mesh_path.string() + " (" +
-                 std::to_string(report["counts"]["mesh_faces"].get<std::size_t>()) + " faces)");
-        ctx.note("report: " + (report_dir / "index.html").string());
-        if (report.contains("evaluation")) {
-            const auto& s = report["evaluation"]["surface"];
-            std::ostringstream line;
-            line.precision(4);
-            line << "against " << reference << ": F-score@2mm " << s.value("fscore_2mm", 0.0)
-                 << ", F-score@5mm " << s.value("fscore_5mm", 0.0) << ", invented "
-                 << s.value("invented_surface_fraction", 0.0) * 100 << "%, completeness "
-                 << s.value("completeness_mean_m", 0.0) * 1000 << " mm";
-            ctx.note(line.str());
-        }
-    });
-}
+int main(int argc, char** argv) { return cli::run_tool(argc, argv, kSpec, run_reconstruct); }

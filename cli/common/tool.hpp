@@ -43,8 +43,10 @@ public:
 /// "" when none fits or several do.
 std::string option_named_by(const std::string& message, const po::variables_map& vm);
 
-/// What a tool declares about itself; a tool's main() declares it with designated initializers
-/// (`const ToolSpec spec{.name = ..., .usage = ..., ...}`), in the order of the fields.
+/// What a tool declares about itself: a tool declares it in its file's anonymous namespace with
+/// designated initializers (`const ToolSpec kSpec{.name = ..., .usage = ..., ...}`), in the
+/// order of the fields, next to its body `void run_<verb>(Context&)`; its main() is
+/// `return cli::run_tool(argc, argv, kSpec, run_<verb>);`.
 struct ToolSpec {
     std::string name;           ///< "rgbd-clean"
     std::string usage;          ///< "rgbd-clean [options] [FILE...]"

@@ -22,6 +22,7 @@
 #include "io/capture_folder.hpp"
 #include "io/ply_stream.hpp"
 #include "sensors/network/protocol.hpp"
+#include "tests/cli/hub_port.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/tool_runner.hpp"
 
@@ -42,14 +43,13 @@ std::map<std::string, std::string> snapshot(const fs::path& root) {
 TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClean) {
     const fs::path dir = temp_root();
     const std::string rig = rig_of(2);
-    const int port = free_port();
-    const std::string listen = " --listen tcp://127.0.0.1:" + std::to_string(port);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
+    const HubPort port;
     fs::remove_all(dir / "rec_hk");
-    start(dir, "hub_hk", "$BIN/rgbd-capture --rig " + rig + " -o rec_hk" + listen);
+    start(dir, "hub_hk", "$BIN/rgbd-capture --rig " + rig + " -o rec_hk" + port.listen());
     for (int s = 0; s < 2; ++s)
         start(dir, "node_hk_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 900" + hub_at);
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 900" +
+                  port.hub());
     // Kill the hub once it has recorded frame sets (they trail the frames by the grouping
     // latency) and about a second of frames.
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -94,7 +94,7 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
 
     // Restarted into the same folder: refused with one line, the old recording untouched.
     const auto before = snapshot(dir / "rec_hk");
-    Outcome again = run("$BIN/rgbd-capture --rig " + rig + " -o rec_hk" + listen);
+    Outcome again = run("$BIN/rgbd-capture --rig " + rig + " -o rec_hk" + port.listen());
     EXPECT_EQ(again.code, 1) << again.err;
     EXPECT_EQ(rgbd::test::line_count(again.err), 1) << again.err;
     EXPECT_NE(again.err.find("rec_hk"), std::string::npos) << again.err;
@@ -103,10 +103,11 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
     // Restarted into a new folder: a new, complete recording.
     fs::remove_all(dir / "rec_hk2");
     start(dir, "hub_hk2",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_hk2 --exit-after-bye" + listen);
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_hk2 --exit-after-bye" + port.listen());
     for (int s = 0; s < 2; ++s)
-        start(dir, "node_hk2_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 30" + hub_at);
+        start(
+            dir, "node_hk2_" + std::to_string(s),
+            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 30" + port.hub());
     for (int s = 0; s < 2; ++s) EXPECT_EQ(wait_for(dir, "node_hk2_" + std::to_string(s), 60), 0);
     ASSERT_EQ(wait_for(dir, "hub_hk2", 30), 0) << slurp(dir / "hub_hk2.err");
     const rgbd::io::Capture cap2 = rgbd::io::open_capture(dir / "rec_hk2");
@@ -120,19 +121,19 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
     // The same recording with a fast reader of --live - and with one that stalls for 8 s.
     std::map<std::string, json> metrics;
     for (const std::string reader : {"fast", "slow"}) {
-        const int port = free_port();
+        const HubPort port;
         const std::string rec = "rec_live_" + reader;
         fs::remove_all(dir / rec);
         const std::string sink =
             reader == "fast" ? "cat >/dev/null" : "{ sleep 8; cat >/dev/null; }";
         start(dir, "hub_" + reader,
               "set -o pipefail; $BIN/rgbd-capture --rig " + rig + " -o " + rec +
-                  " --live - --exit-after-bye --latency-ms 300 --listen tcp://127.0.0.1:" +
-                  std::to_string(port) + " --metrics hub_" + reader + ".json | " + sink);
+                  " --live - --exit-after-bye --latency-ms 300" + port.listen() +
+                  " --metrics hub_" + reader + ".json | " + sink);
         for (int s = 0; s < 2; ++s)
             start(dir, "node_" + reader + std::to_string(s),
-                  "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                      " --loop --frames 150 --hub tcp://127.0.0.1:" + std::to_string(port));
+                  "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" +
+                      port.hub());
         for (int s = 0; s < 2; ++s)
             ASSERT_EQ(wait_for(dir, "node_" + reader + std::to_string(s), 60), 0);
         ASSERT_EQ(wait_for(dir, "hub_" + reader, 60), 0) << slurp(dir / ("hub_" + reader + ".err"));
@@ -156,25 +157,25 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
 }
 
 TEST_F(RgbdCapture, ControlThreadWarningsLeaveTheLiveStreamOnStdoutIntact) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     const std::string rig = rig_of(2);
     fs::remove_all(dir / "rec_warn");
     // start() sends the hub's stdout, the live view stream, to hub_warn.out.
     start(dir, "hub_warn",
           "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_warn --live - --exit-after-bye --latency-ms 300 --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --metrics hub_warn.json");
+              " -o rec_warn --live - --exit-after-bye --latency-ms 300" + port.listen() +
+              " --metrics hub_warn.json");
     for (int s = 0; s < 2; ++s)
-        start(dir, "node_warn" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --loop --frames 90 --hub tcp://127.0.0.1:" + std::to_string(port));
+        start(
+            dir, "node_warn" + std::to_string(s),
+            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 90" + port.hub());
     // An intruder says hello as a sensor the rig does not have, 40 times while the hub streams:
     // each hello makes the control thread warn on stderr.
     zmq::context_t context(1);
     zmq::socket_t dealer(context, zmq::socket_type::dealer);
     dealer.set(zmq::sockopt::linger, 2000);
-    dealer.connect("tcp://127.0.0.1:" + std::to_string(port + 1));
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(port.number + 1));
     constexpr int kHellos = 40;
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     for (int k = 0; k < kHellos; ++k) {

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "io/capture_folder.hpp"
+#include "tests/cli/hub_port.hpp"
 #include "tests/support/capture_harness.hpp"
 
 namespace {
@@ -17,20 +18,19 @@ namespace fs = std::filesystem;
 using rgbd::test::slurp;
 
 TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_start");
     start(dir, "hub_start",
-          "$BIN/rgbd-capture --rig synth/rig.json -o rec_start --exit-after-bye --listen "
-          "tcp://127.0.0.1:" +
-              std::to_string(port) + " --latency-ms 2000 --metrics hub_start.json");
+          "$BIN/rgbd-capture --rig synth/rig.json -o rec_start --exit-after-bye" + port.listen() +
+              " --latency-ms 2000 --metrics hub_start.json");
     const double offsets_ms[8] = {500, -500, 310, -220, 90, -430, 470, -15};
     for (int s = 0; s < 8; ++s)
         start(dir, "node_start_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --loop --frames 30 --hub tcp://127.0.0.1:" + std::to_string(port) +
-                  " --clock-offset-ms " + std::to_string(offsets_ms[s]) + " --truth truth_start_" +
-                  std::to_string(s) + ".csv --metrics node_start_" + std::to_string(s) + ".json");
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 30" +
+                  port.hub() + " --clock-offset-ms " + std::to_string(offsets_ms[s]) +
+                  " --truth truth_start_" + std::to_string(s) + ".csv --metrics node_start_" +
+                  std::to_string(s) + ".json");
     for (int s = 0; s < 8; ++s)
         ASSERT_EQ(wait_for(dir, "node_start_" + std::to_string(s), 90), 0)
             << slurp(dir / ("node_start_" + std::to_string(s) + ".err"));
@@ -69,18 +69,16 @@ TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
 }
 
 TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_late");
     const std::string rig = rig_of(2);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
     // The hub waits 1 s for the rig's second node, then starts the first alone.
     start(dir, "hub_late",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_late --exit-after-bye --start-wait-s 1 --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --metrics hub_late.json");
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_late --exit-after-bye --start-wait-s 1" +
+              port.listen() + " --metrics hub_late.json");
     start(dir, "node_late_0",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(0) + " --loop --frames 300" + hub_at +
+          "$BIN/rgbd-node --sensor playback:synth#" + id(0) + " --loop --frames 300" + port.hub() +
               " --clock-offset-ms 200 --truth truth_late_0.csv --metrics node_late_0.json");
     // The second node appears once the first one streams (its truth file fills up).
     std::error_code ec;
@@ -90,7 +88,7 @@ TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     start(dir, "node_late_1",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + hub_at +
+          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + port.hub() +
               " --clock-offset-ms -300 --truth truth_late_1.csv --metrics node_late_1.json");
     for (const char* n : {"node_late_0", "node_late_1"})
         ASSERT_EQ(wait_for(dir, n, 90), 0) << slurp(dir / (std::string(n) + ".err"));

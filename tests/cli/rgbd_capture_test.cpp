@@ -31,6 +31,8 @@
 #include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
+#include "tests/cli/hub_port.hpp"
+#include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
@@ -38,6 +40,7 @@
 namespace {
 
 using namespace rgbd::test::capture;
+using rgbd::test::is_usage_error;
 namespace fs = std::filesystem;
 using rgbd::test::Outcome;
 using rgbd::test::slurp;
@@ -50,16 +53,12 @@ TEST_F(RgbdCapture, HelpAndUsageErrors) {
         EXPECT_NE(r.out.find("Usage: "), std::string::npos);
         EXPECT_NE(r.out.find("Example:"), std::string::npos);
     }
-    Outcome r = run("$BIN/rgbd-capture -o x");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("rgbd-capture: error: --rig"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-node --hub tcp://127.0.0.1:9");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--sensor is required"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-node --sensor synthetic: --clock-drift-ppm 1e9");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o x --tolerance-ms -1");
-    EXPECT_EQ(r.code, 2);
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture -o x"), "rgbd-capture: error: --rig"));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-node --hub tcp://127.0.0.1:9"), "--sensor is required"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-node --sensor synthetic: --clock-drift-ppm 1e9")));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o x --tolerance-ms -1")));
     EXPECT_FALSE(fs::exists(temp_root() / "x"));
 }
 
@@ -98,14 +97,13 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
     const char* env = std::getenv("RGBD_CAPTURE_SECONDS");
     const double seconds = env ? std::atof(env) : 10.0;
     const int frames = static_cast<int>(std::lround(seconds * 30));
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec8");
     std::mt19937 rng(8);
     std::uniform_real_distribution<double> uni(-1.0, 1.0);
     start(dir, "hub8",
-          "$BIN/rgbd-capture --rig synth/rig.json -o rec8 --listen tcp://127.0.0.1:" +
-              std::to_string(port) +
+          "$BIN/rgbd-capture --rig synth/rig.json -o rec8" + port.listen() +
               " --exit-after-bye --probe-interval-ms 500 --latency-ms 2000 --metrics hub8.json");
     std::vector<double> offsets, drifts;
     for (int s = 0; s < 8; ++s) {
@@ -113,8 +111,8 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
         drifts.push_back(s == 0 ? 50.0 : s == 1 ? -50.0 : 50.0 * uni(rng));
         start(dir, "node8_" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames " +
-                  std::to_string(frames) + " --hub tcp://127.0.0.1:" + std::to_string(port) +
-                  " --clock-offset-ms " + std::to_string(offsets.back()) + " --clock-drift-ppm " +
+                  std::to_string(frames) + port.hub() + " --clock-offset-ms " +
+                  std::to_string(offsets.back()) + " --clock-drift-ppm " +
                   std::to_string(drifts.back()) + " --truth truth8_" + std::to_string(s) +
                   ".csv --metrics node8_" + std::to_string(s) + ".json");
     }
@@ -224,21 +222,19 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
 }
 
 TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_kill");
     const std::string rig = rig_of(3);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
     start(dir, "hub_kill",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_kill --listen tcp://127.0.0.1:" + std::to_string(port) +
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_kill" + port.listen() +
               " --exit-after-bye --probe-interval-ms 500 "
               "--metrics hub_kill.json");
     for (int s = 0; s < 3; ++s)
         start(dir, "node_kill_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" + hub_at +
-                  " --clock-offset-ms " + std::to_string(100 * s - 100) + " --metrics node_kill_" +
-                  std::to_string(s) + ".json");
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" +
+                  port.hub() + " --clock-offset-ms " + std::to_string(100 * s - 100) +
+                  " --metrics node_kill_" + std::to_string(s) + ".json");
     // Kill node 1 once the hub has recorded half a second of its frames (on a loaded machine
     // a fixed wait could end before the node streamed at all, and there would be no gap).
     const fs::path frames_csv = dir / "rec_kill" / id(1) / "frames.csv";
@@ -248,7 +244,7 @@ TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
     EXPECT_NE(wait_for(dir, "node_kill_1", 10), 0);
     std::this_thread::sleep_for(std::chrono::milliseconds(1000));
     start(dir, "node_kill_1b",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + hub_at +
+          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + port.hub() +
               " --clock-offset-ms 250 --metrics node_kill_1b.json");
     for (const char* n : {"node_kill_0", "node_kill_2", "node_kill_1b"})
         ASSERT_EQ(wait_for(dir, n, 60), 0) << slurp(dir / (std::string(n) + ".err"));
@@ -276,27 +272,26 @@ TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
 }
 
 TEST_F(RgbdCapture, GarbageAndTruncatedMessagesAreDroppedAndCounted) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_junk");
     const std::string rig = rig_of(2);
     start(dir, "hub_junk",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_junk --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --exit-after-bye --metrics hub_junk.json");
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_junk" + port.listen() +
+              " --exit-after-bye --metrics hub_junk.json");
     for (int s = 0; s < 2; ++s)
         start(dir, "node_junk_" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 90 " +
-                  "--hub tcp://127.0.0.1:" + std::to_string(port) + " --metrics node_junk_" +
-                  std::to_string(s) + ".json");
+                  port.hub() + " --metrics node_junk_" + std::to_string(s) + ".json");
     // A rogue sender: garbage, truncated and corrupted frames, multi-part junk, and a
     // well-formed frame from a session the hub never heard of.
     zmq::context_t context(1);
     zmq::socket_t push(context, zmq::socket_type::push);
     push.set(zmq::sockopt::linger, 2000);
-    push.connect("tcp://127.0.0.1:" + std::to_string(port));
+    push.connect("tcp://127.0.0.1:" + std::to_string(port.number));
     zmq::socket_t dealer(context, zmq::socket_type::dealer);
     dealer.set(zmq::sockopt::linger, 2000);
-    dealer.connect("tcp://127.0.0.1:" + std::to_string(port + 1));
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(port.number + 1));
     std::mt19937 rng(1);
     rgbd::sensors::net::FrameHeader h;
     h.session = 42;
@@ -338,7 +333,7 @@ TEST_F(RgbdCapture, GarbageAndTruncatedMessagesAreDroppedAndCounted) {
 
 TEST_F(RgbdCapture, CurveKeyEncryptsAndRefusesNodesWithoutTheKey) {
     if (!zmq_has("curve")) GTEST_SKIP() << "this libzmq has no CURVE support";
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_curve");
     fs::remove(dir / "hub.key");
@@ -361,22 +356,22 @@ TEST_F(RgbdCapture, CurveKeyEncryptsAndRefusesNodesWithoutTheKey) {
         std::ofstream(dir / "mixed.key") << mixed;
     }
     const std::string rig = rig_of(1);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
     start(dir, "hub_curve",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_curve --key hub.key --listen tcp://127.0.0.1:" + std::to_string(port) +
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_curve --key hub.key" + port.listen() +
               " --exit-after-bye --metrics hub_curve.json");
-    start(dir, "node_plain",
-          "$BIN/rgbd-node --sensor playback:synth#k2-0 --frames 10 --start-timeout-s 3" + hub_at);
+    start(
+        dir, "node_plain",
+        "$BIN/rgbd-node --sensor playback:synth#k2-0 --frames 10 --start-timeout-s 3" + port.hub());
     start(dir, "node_mixed",
           "$BIN/rgbd-node --sensor playback:synth#k2-0 --frames 10 --start-timeout-s 3 "
           "--key mixed.key" +
-              hub_at);
+              port.hub());
     EXPECT_EQ(wait_for(dir, "node_plain", 20), 1);
     EXPECT_NE(slurp(dir / "node_plain.err").find("no answer from the hub"), std::string::npos);
     EXPECT_EQ(wait_for(dir, "node_mixed", 20), 1);
     start(dir, "node_curve",
-          "$BIN/rgbd-node --sensor playback:synth#k2-0 --loop --frames 30 --key hub.key" + hub_at);
+          "$BIN/rgbd-node --sensor playback:synth#k2-0 --loop --frames 30 --key hub.key" +
+              port.hub());
     ASSERT_EQ(wait_for(dir, "node_curve", 30), 0) << slurp(dir / "node_curve.err");
     ASSERT_EQ(wait_for(dir, "hub_curve", 30), 0) << slurp(dir / "hub_curve.err");
     const json hub = read_json(dir / "hub_curve.json");
@@ -390,16 +385,15 @@ TEST_F(RgbdCapture, FullDiskStopsTheRecordingWithWhatWasWrittenIntact) {
     const fs::path mount = dir / "small_disk";
     const SmallDisk disk(mount, "6m");
     if (!disk.mounted()) GTEST_SKIP() << disk.why();
-    const int port = free_port();
+    const HubPort port;
     const std::string rig = rig_of(2);
     start(dir, "hub_full",
-          "$BIN/rgbd-capture --rig " + rig + " -o small_disk/rec --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --exit-after-bye --metrics hub_full.json");
+          "$BIN/rgbd-capture --rig " + rig + " -o small_disk/rec" + port.listen() +
+              " --exit-after-bye --metrics hub_full.json");
     for (int s = 0; s < 2; ++s)
         start(dir, "node_full_" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --loop --frames 300 --send-timeout-s 3 --hub tcp://127.0.0.1:" +
-                  std::to_string(port));
+                  " --loop --frames 300 --send-timeout-s 3" + port.hub());
     EXPECT_EQ(wait_for(dir, "hub_full", 60), 1);
     const std::string err = slurp(dir / "hub_full.err");
     EXPECT_NE(err.find("recording stopped"), std::string::npos) << err;
@@ -458,11 +452,11 @@ TEST_F(RgbdCapture, LossAndDelayBetweenNetworkNamespaces) {
     } cleanup{hub_ns, node_ns};
     if (std::system(("bash -c '" + setup + "' >/dev/null 2>&1").c_str()) != 0)
         GTEST_SKIP() << "cannot create network namespaces and veth pairs here (ip netns)";
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_ns");
     const std::string rig = rig_of(2);
-    const std::string p = std::to_string(port);
+    const std::string p = std::to_string(port.number);
     start(dir, "hub_ns",
           "ip netns exec " + hub_ns + " $BIN/rgbd-capture --rig " + rig +
               " -o rec_ns --listen tcp://10.77.1.2:" + p +
@@ -551,20 +545,18 @@ std::vector<std::pair<rgbd::ViewInfo, std::string>> stream_documents(const fs::p
 }  // namespace
 
 TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_live");
     fs::remove(dir / "live.ply");
     const std::string rig = rig_of(3);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
     start(dir, "hub_live",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_live --live live.ply --listen tcp://127.0.0.1:" + std::to_string(port) +
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_live --live live.ply" + port.listen() +
               " --exit-after-bye --latency-ms 300 --probe-interval-ms 500 --metrics hub_live.json");
     for (int s = 0; s < 3; ++s)
         start(dir, "node_live_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" + hub_at +
-                  " --clock-offset-ms " + std::to_string(200 * s - 200));
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" +
+                  port.hub() + " --clock-offset-ms " + std::to_string(200 * s - 200));
     for (int s = 0; s < 3; ++s) ASSERT_EQ(wait_for(dir, "node_live_" + std::to_string(s), 60), 0);
     ASSERT_EQ(wait_for(dir, "hub_live", 30), 0) << slurp(dir / "hub_live.err");
 
@@ -613,17 +605,17 @@ TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
 }
 
 TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
-    const int port = free_port();
+    const HubPort port;
     const fs::path dir = temp_root();
     const std::string rig = rig_of(2);
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
     // One frame set to stdout, nothing recorded: a snapshot for a pipeline.
     start(dir, "hub_snap",
-          "$BIN/rgbd-capture --rig " + rig + " --live - --live-sets 1 --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --latency-ms 300 --metrics hub_snap.json");
+          "$BIN/rgbd-capture --rig " + rig + " --live - --live-sets 1" + port.listen() +
+              " --latency-ms 300 --metrics hub_snap.json");
     for (int s = 0; s < 2; ++s)
-        start(dir, "node_snap_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 60" + hub_at);
+        start(
+            dir, "node_snap_" + std::to_string(s),
+            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 60" + port.hub());
     ASSERT_EQ(wait_for(dir, "hub_snap", 30), 0) << slurp(dir / "hub_snap.err");
     for (int s = 0; s < 2; ++s) wait_for(dir, "node_snap_" + std::to_string(s), 30);
     const json snap = read_json(dir / "hub_snap.json");
@@ -637,17 +629,16 @@ TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
     EXPECT_TRUE(views[0].first.world_from_sensor.has_value());
 
     // The reader of the live stream exits after a few bytes: the hub records on.
-    const int port2 = free_port();
+    const HubPort port2;
     fs::remove_all(dir / "rec_closed");
     start(dir, "hub_closed",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_closed --live - --listen tcp://127.0.0.1:" + std::to_string(port2) +
+          "$BIN/rgbd-capture --rig " + rig + " -o rec_closed --live -" + port2.listen() +
               " --exit-after-bye --latency-ms 300 --metrics hub_closed.json | head -c 100 "
               ">/dev/null");
     for (int s = 0; s < 2; ++s)
         start(dir, "node_closed_" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" +
-                  " --hub tcp://127.0.0.1:" + std::to_string(port2));
+                  port2.hub());
     for (int s = 0; s < 2; ++s) ASSERT_EQ(wait_for(dir, "node_closed_" + std::to_string(s), 60), 0);
     ASSERT_EQ(wait_for(dir, "hub_closed", 30), 0);
     const json closed = read_json(dir / "hub_closed.json");
@@ -658,17 +649,13 @@ TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
 }
 
 TEST_F(RgbdCapture, LiveOptionErrors) {
-    Outcome r = run("$BIN/rgbd-capture --rig synth/rig.json");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--live"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o y --live-sets 2");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--live-sets needs --live"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --metrics -");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --live - --live-sets -1");
-    EXPECT_EQ(r.code, 2);
-    r =
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json"), "--live"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o y --live-sets 2"),
+                               "--live-sets needs --live"));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --live - --metrics -")));
+    EXPECT_TRUE(
+        is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --live - --live-sets -1")));
+    const Outcome r =
         run("$BIN/rgbd-capture --rig synth/rig.json --live no_such_dir/live.ply --listen "
             "tcp://127.0.0.1:" +
             std::to_string(free_port()));

@@ -16,11 +16,14 @@
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "io/video.hpp"
+#include "tests/cli/hub_port.hpp"
+#include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 
 namespace {
 
 using namespace rgbd::test::capture;
+using rgbd::test::is_usage_error;
 namespace fs = std::filesystem;
 using rgbd::test::Outcome;
 using rgbd::test::slurp;
@@ -91,17 +94,16 @@ json run_video(const std::string& name, const std::string& placement) {
     const fs::path dir = temp_root();
     const fs::path cap = moving_capture();
     fs::remove_all(dir / name);
-    const int port = free_port();
-    const std::string hub_at = " --hub tcp://127.0.0.1:" + std::to_string(port);
+    const HubPort port;
     start(dir, "hub_" + name,
           "$BIN/rgbd-capture --rig moving/rig.json --video " + name + " --fuse-on " + placement +
-              " --exit-after-bye --latency-ms 1000 --listen tcp://127.0.0.1:" +
-              std::to_string(port) + " --metrics hub_" + name + ".json");
+              " --exit-after-bye --latency-ms 1000" + port.listen() + " --metrics hub_" + name +
+              ".json");
     for (int s = 0; s < 8; ++s)
         start(dir, name + "_node" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:moving#k2-" + std::to_string(s) +
                   (placement == "nodes" ? " --views" : "") + " --loop --frames " +
-                  (s == 7 ? "6" : "24") + hub_at);
+                  (s == 7 ? "6" : "24") + port.hub());
     for (int s = 0; s < 8; ++s)
         EXPECT_EQ(wait_for(dir, name + "_node" + std::to_string(s), 120), 0)
             << slurp(dir / (name + "_node" + std::to_string(s) + ".err"));
@@ -197,15 +199,16 @@ TEST_F(RgbdCapture, LiveVideoIsServedWhileCapturing) {
     if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
     const fs::path dir = temp_root();
     fs::remove_all(dir / "vid_serve");
-    const int port = free_port(), page = free_port() + 1;
+    const HubPort port;
+    const int page = free_port() + 1;
     const std::string rig = rig_of(2);
     start(dir, "hub_serve",
           "$BIN/rgbd-capture --rig " + rig + " --video vid_serve --serve " + std::to_string(page) +
-              " --exit-after-bye --listen tcp://127.0.0.1:" + std::to_string(port));
+              " --exit-after-bye" + port.listen());
     for (int s = 0; s < 2; ++s)
         start(dir, "node_serve_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --views --loop --frames 240 --hub tcp://127.0.0.1:" + std::to_string(port));
+              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --views --loop --frames 240" +
+                  port.hub());
     const std::string url = "http://127.0.0.1:" + std::to_string(page);
     // The page and, once the first set is fused, the newest fused frame (polled until the hub
     // ends: no time limit of its own).
@@ -229,17 +232,15 @@ TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
     const fs::path mount = dir / "small_video_disk";
     const SmallDisk disk(mount, "400k");
     if (!disk.mounted()) GTEST_SKIP() << disk.why();
-    const int port = free_port();
+    const HubPort port;
     const std::string rig = rig_of(2);
     start(dir, "hub_vfull",
-          "$BIN/rgbd-capture --rig " + rig +
-              " --video small_video_disk/vid --exit-after-bye --listen tcp://127.0.0.1:" +
-              std::to_string(port));
+          "$BIN/rgbd-capture --rig " + rig + " --video small_video_disk/vid --exit-after-bye" +
+              port.listen());
     for (int s = 0; s < 2; ++s)
         start(dir, "node_vfull_" + std::to_string(s),
               "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --views --loop --frames 900 --send-timeout-s 3 --hub tcp://127.0.0.1:" +
-                  std::to_string(port));
+                  " --views --loop --frames 900 --send-timeout-s 3" + port.hub());
     EXPECT_EQ(wait_for(dir, "hub_vfull", 120), 1);
     const std::string err = slurp(dir / "hub_vfull.err");
     EXPECT_NE(err.find("video stopped"), std::string::npos) << err;
@@ -259,18 +260,15 @@ TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
 }
 
 TEST_F(RgbdCapture, VideoOptionErrors) {
-    Outcome r = run("$BIN/rgbd-capture --rig synth/rig.json --video v -o rec");
-    EXPECT_EQ(r.code, 2);
-    EXPECT_NE(r.err.find("--fuse-on hub"), std::string::npos) << r.err;
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --video v --fuse-on elsewhere");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json -o rec --serve 8080");
-    EXPECT_EQ(r.code, 2);
-    r = run("$BIN/rgbd-capture --rig synth/rig.json --video v --draco-color-bits 9");
-    EXPECT_EQ(r.code, 2);
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json --video v -o rec"),
+                               "--fuse-on hub"));
+    EXPECT_TRUE(is_usage_error(
+        run("$BIN/rgbd-capture --rig synth/rig.json --video v --fuse-on elsewhere")));
+    EXPECT_TRUE(is_usage_error(run("$BIN/rgbd-capture --rig synth/rig.json -o rec --serve 8080")));
+    EXPECT_TRUE(is_usage_error(
+        run("$BIN/rgbd-capture --rig synth/rig.json --video v --draco-color-bits 9")));
     EXPECT_FALSE(fs::exists(temp_root() / "v"));
-    r = run("$BIN/rgbd-info synth --frame 0 -o x.ply");
-    EXPECT_NE(r.code, 0);
+    EXPECT_NE(run("$BIN/rgbd-info synth --frame 0 -o x.ply").code, 0);
 }
 
 }  // namespace
