@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "toolkit/synthetic_view.hpp"
+
 namespace rgbd::pipeline {
 
 Rgb mechanism_color(holes::FillMechanism mechanism) {
@@ -125,13 +127,9 @@ std::optional<PointCloud> fill_stage(const std::vector<PointCloud*>& views,
     }
     report["points_added_total"] = added.position.size();
     if (added.position.empty()) return std::nullopt;
-    PointCloud cloud;
-    cloud.view.id = max_id + 1;
-    cloud.view.sensor = "rgbd-fill";
-    cloud.view.frame = ViewFrame::kWorld;
-    cloud.points.add_normal_map();
-    const auto colors = cloud.add_colors();
-    const auto synthetic = cloud.add_flag(prop::kSynthetic);
+    PointCloud cloud = synthetic_world_view(max_id + 1, "rgbd-fill");
+    const auto colors = cloud.colors();
+    const auto synthetic = *cloud.flag(prop::kSynthetic);
     const auto mechanism = cloud.add_flag(prop::kFillMechanism);
     for (std::size_t i = 0; i < added.position.size(); ++i) {
         const auto idx = *cloud.points.insert(to_point(added.position[i]));

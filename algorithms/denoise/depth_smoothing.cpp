@@ -39,19 +39,13 @@ Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progr
         report["time_s"] = watch.seconds();
         return report;
     }
-    RGBD_CHECK(cloud.view.has_grid(), name +
-                                          ": --smooth works on organised views (pixel grid), "
-                                          "before alignment; this view has none");
-    const auto pixel = cloud.pixel_map();
-    RGBD_CHECK(pixel.has_value(), name +
-                                      ": --smooth needs the `pixel` property of an organised "
-                                      "view (straight from rgbd-cloud)");
+    const auto pixel = detail::organised_pixels(
+        cloud, name,
+        "--smooth works on organised views (pixel grid), before alignment; this view has none",
+        "--smooth needs the `pixel` property of an organised view (straight from rgbd-cloud)");
     Pose sensor_from_frame = Pose::Identity();
-    if (cloud.view.frame == ViewFrame::kWorld) {
-        RGBD_CHECK(cloud.view.world_from_sensor.has_value(),
-                   name + ": a world-frame view needs its world_from_sensor pose for --smooth");
-        sensor_from_frame = cloud.view.world_from_sensor->inverse();
-    }
+    if (cloud.view.frame == ViewFrame::kWorld)
+        sensor_from_frame = detail::sensor_from_world(cloud, name, "--smooth");
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
 
     // Depth grid of the live, unflagged points in front of the sensor (first point per pixel).
@@ -62,7 +56,7 @@ Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progr
     const auto noise = cloud.flag(prop::kNoise);
     for (std::size_t i = 0; i < n; ++i) {
         if (noise && (*noise)[g.ids[i]]) continue;
-        const std::uint32_t px = (*pixel)[g.ids[i]];
+        const std::uint32_t px = pixel[g.ids[i]];
         const double z = (sensor_from_frame * g.xyz[i]).z();
         if (px >= cells || !(z > 0.0) || depth[px] > 0.0f) continue;
         depth[px] = float(z);

@@ -78,22 +78,18 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     const std::size_t n = g.xyz.size();
     report["input_points"] = n;
     if (n == 0) return detail::nothing_removed(std::move(report), watch);
-    RGBD_CHECK(cloud.view.has_grid(),
-               name +
-                   ": --distance needs an organised view (pixel grid); this view has none, "
-                   "use --density (after alignment) or --statistical");
-    const auto pixel = cloud.pixel_map();
-    RGBD_CHECK(pixel.has_value(), name +
-                                      ": --distance needs the `pixel` property of an "
-                                      "organised view; use --density or --statistical");
+    const auto pixel = detail::organised_pixels(
+        cloud, name,
+        "--distance needs an organised view (pixel grid); this view has none, use --density "
+        "(after alignment) or --statistical",
+        "--distance needs the `pixel` property of an organised view; use --density or "
+        "--statistical");
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
 
     // Camera-frame coordinates: depth is the camera z.
     std::vector<Eigen::Vector3d> cam(g.xyz);
     if (cloud.view.frame == ViewFrame::kWorld) {
-        RGBD_CHECK(cloud.view.world_from_sensor.has_value(),
-                   name + ": a world-frame view needs its world_from_sensor pose for --distance");
-        const Pose sensor_from_world = cloud.view.world_from_sensor->inverse();
+        const Pose sensor_from_world = detail::sensor_from_world(cloud, name, "--distance");
         for (auto& p : cam) p = sensor_from_world * p;
     }
 
@@ -104,7 +100,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     std::vector<std::uint8_t> reason(n, kKeep);
     std::vector<std::uint8_t> on_grid(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t px = (*pixel)[g.ids[i]];
+        const std::uint32_t px = pixel[g.ids[i]];
         if (cam[i].z() <= 0.0) {
             reason[i] = kStatistical;  // behind the sensor: no surface there
             continue;
@@ -267,7 +263,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
         std::atomic<std::size_t> kept_by_knn{0};
         tbb::parallel_for(std::size_t(0), flagged.size(), [&](std::size_t a) {
             const std::uint32_t i = flagged[a];
-            const std::uint32_t px = (*pixel)[g.ids[i]];
+            const std::uint32_t px = pixel[g.ids[i]];
             const int row = int(px / std::uint32_t(width)), col = int(px % std::uint32_t(width));
             if (reason[i] == kWeak) {
                 reason[i] = kFlying;
@@ -340,7 +336,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                 changed = false;
                 for (std::size_t i = 0; i < n; ++i) {
                     if (root[i] == n || !small(root[i]) || attached[root[i]]) continue;
-                    const std::uint32_t px = (*pixel)[g.ids[i]];
+                    const std::uint32_t px = pixel[g.ids[i]];
                     const int row = int(px / std::uint32_t(width)),
                               col = int(px % std::uint32_t(width));
                     for (int dr = -ww; dr <= ww && !attached[root[i]]; ++dr)

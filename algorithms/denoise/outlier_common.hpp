@@ -24,6 +24,26 @@ inline std::string view_name(const PointCloud& cloud) {
     return name;
 }
 
+/// The `pixel` map of an organised view (`name`: the view in messages). InputError
+/// "<name>: <no_grid>" when the view has no pixel grid, "<name>: <no_pixel>" when it has no
+/// `pixel` property.
+inline PointCloud::Uint32Map organised_pixels(const PointCloud& cloud, const std::string& name,
+                                              const char* no_grid, const char* no_pixel) {
+    RGBD_CHECK(cloud.view.has_grid(), name + ": " + no_grid);
+    const auto pixel = cloud.pixel_map();
+    RGBD_CHECK(pixel.has_value(), name + ": " + no_pixel);
+    return *pixel;
+}
+
+/// The sensor_from_world pose of a world-frame view; InputError naming the view and the filter
+/// (`option`, e.g. "--smooth") when the view has no world_from_sensor pose.
+inline Pose sensor_from_world(const PointCloud& cloud, const std::string& name,
+                              const char* option) {
+    RGBD_CHECK(cloud.view.world_from_sensor.has_value(),
+               name + ": a world-frame view needs its world_from_sensor pose for " + option);
+    return cloud.view.world_from_sensor->inverse();
+}
+
 /// Live points of the cloud in iteration order.
 struct Gathered {
     std::vector<Eigen::Vector3d> xyz;

@@ -126,6 +126,14 @@ DistanceStats stats(std::vector<double> d) {
     return s;
 }
 
+/// Writes `s` into `j` as <name>_mean_m, <name>_median_m, <name>_p95_m and <name>_max_m.
+void put_stats(Report& j, const std::string& name, const DistanceStats& s) {
+    j[name + "_mean_m"] = s.mean;
+    j[name + "_median_m"] = s.median;
+    j[name + "_p95_m"] = s.p95;
+    j[name + "_max_m"] = s.max;
+}
+
 double share_within(const std::vector<double>& d, double tau) {
     if (d.empty()) return 0.0;
     std::size_t n = 0;
@@ -288,14 +296,8 @@ Report SurfaceMetrics::to_json() const {
     j["chamfer_m"] = chamfer_m;
     j["hausdorff_m"] = hausdorff_m;
     j["hausdorff_p95_m"] = hausdorff_p95_m;
-    j["accuracy_mean_m"] = accuracy.mean;
-    j["accuracy_median_m"] = accuracy.median;
-    j["accuracy_p95_m"] = accuracy.p95;
-    j["accuracy_max_m"] = accuracy.max;
-    j["completeness_mean_m"] = completeness.mean;
-    j["completeness_median_m"] = completeness.median;
-    j["completeness_p95_m"] = completeness.p95;
-    j["completeness_max_m"] = completeness.max;
+    put_stats(j, "accuracy", accuracy);
+    put_stats(j, "completeness", completeness);
     for (const ThresholdScores& s : thresholds) {
         const std::string key = tau_key(s.tau_m);
         j["precision_" + key] = s.precision;

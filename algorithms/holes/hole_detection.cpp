@@ -88,11 +88,14 @@ void BoundaryOptions::check() const {
                "holes: hysteresis rings must be in [0, 100]");
     RGBD_CHECK(std::isfinite(link_distance) && link_distance > 0 && link_distance <= 20,
                "holes: link distance must be in (0, 20] spacings");
-    RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
-                   visible_max_angle_deg < 90,
-               "holes: visibility angle must be in (0, 90) degrees");
+    check_visibility("holes", visible_max_angle_deg, ray_clearance);
+}
+
+void check_visibility(const char* who, double max_angle_deg, double ray_clearance) {
+    RGBD_CHECK(std::isfinite(max_angle_deg) && max_angle_deg > 0 && max_angle_deg < 90,
+               std::string(who) + ": visibility angle must be in (0, 90) degrees");
     RGBD_CHECK(std::isfinite(ray_clearance) && ray_clearance > 0 && ray_clearance <= 20,
-               "holes: ray clearance must be in (0, 20] spacings");
+               std::string(who) + ": ray clearance must be in (0, 20] spacings");
 }
 
 namespace {

@@ -214,4 +214,9 @@ bool sensor_sees_region(const SensorView& sensor, const Eigen::Vector3d& centre,
                         const Eigen::Vector3d& normal, double radius_m, double spacing,
                         const internal::KdTree& tree, double max_angle_deg, double ray_clearance);
 
+/// The options check of sensor_sees_region's parameters, for the options structs that carry
+/// them: InputError "<who>: visibility angle must be in (0, 90) degrees" or "<who>: ray clearance
+/// must be in (0, 20] spacings".
+void check_visibility(const char* who, double max_angle_deg, double ray_clearance);
+
 }  // namespace rgbd::holes

@@ -40,11 +40,7 @@ void InpaintOptions::check() const {
                "inpaint: top fraction must be in (0, 0.5]");
     RGBD_CHECK(std::isfinite(top_component) && top_component >= 0 && top_component <= 1,
                "inpaint: top component share must be in [0, 1]");
-    RGBD_CHECK(std::isfinite(visible_max_angle_deg) && visible_max_angle_deg > 0 &&
-                   visible_max_angle_deg < 90,
-               "inpaint: visibility angle must be in (0, 90) degrees");
-    RGBD_CHECK(std::isfinite(ray_clearance) && ray_clearance > 0 && ray_clearance <= 20,
-               "inpaint: ray clearance must be in (0, 20] spacings");
+    check_visibility("inpaint", visible_max_angle_deg, ray_clearance);
     RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,
                "inpaint: the ellipsoid's residual limit must be positive");
     RGBD_CHECK(std::isfinite(max_biharmonic_slope) && max_biharmonic_slope >= 0,

@@ -11,6 +11,7 @@
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 #include "toolkit/random.hpp"
+#include "toolkit/synthetic_view.hpp"
 
 namespace rgbd::segment {
 namespace {
@@ -156,15 +157,11 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
 PointCloud contact_points(const std::vector<PointCloud>& views, const SupportPlane& plane,
                           const StandOptions& options) {
     options.check();
-    PointCloud out;
     int max_id = -1;
     for (const auto& v : views) max_id = std::max(max_id, v.view.id);
-    out.view.id = max_id + 1;
-    out.view.sensor = "rgbd-stand";
-    out.view.frame = ViewFrame::kWorld;
-    out.points.add_normal_map();
-    const auto colors = out.add_colors();
-    const auto synthetic = out.add_flag(prop::kSynthetic);
+    PointCloud out = synthetic_world_view(max_id + 1, "rgbd-stand");
+    const auto colors = out.colors();
+    const auto synthetic = *out.flag(prop::kSynthetic);
     const double cos60 = 0.5;
     for (const auto& v : views) {
         const auto g = denoise::detail::gather(v);

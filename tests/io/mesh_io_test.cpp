@@ -11,11 +11,14 @@
 #include <limits>
 
 #include "io/ply_stream.hpp"
+#include "tests/support/input_error.hpp"
 #include "tests/support/shared_data.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
 namespace {
+
+using rgbd::test::expect_input_error;
 
 namespace fs = std::filesystem;
 
@@ -138,13 +141,7 @@ TEST(MeshIo, OffAndObjVariants) {
     EXPECT_TRUE(CGAL::is_valid_polygon_mesh(q));
     EXPECT_EQ(q.number_of_faces(), 3u);  // quad fan (2) + triangle with negative indices
     const auto expect_error = [](const fs::path& file, const std::string& part) {
-        try {
-            read_mesh(file);
-            ADD_FAILURE() << file << ": no error";
-        } catch (const InputError& e) {
-            EXPECT_NE(std::string(e.what()).find(file.filename().string()), std::string::npos);
-            EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
-        }
+        expect_input_error([&] { read_mesh(file); }, {file.filename().string(), part});
     };
     expect_error(dir / "bad.obj", "out of range");
     expect_error(dir / "bad.off", "truncated");

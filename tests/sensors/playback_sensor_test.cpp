@@ -11,11 +11,14 @@
 
 #include "sensors/registry.hpp"
 #include "sensors/synthetic/synthetic_sensor.hpp"
+#include "tests/support/input_error.hpp"
 #include "tests/support/pinhole.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::sensors {
 namespace {
+
+using rgbd::test::expect_input_error;
 
 namespace fs = std::filesystem;
 
@@ -120,12 +123,7 @@ TEST_F(PlaybackOfACapture, RealTimeSensorsOfOneCaptureKeepTheirRecordedPhase) {
 }
 
 TEST_F(PlaybackOfACapture, ErrorsNameTheProblem) {
-    try {
-        PlaybackSensor s(root, "", {});
-        FAIL();
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("name one"), std::string::npos);
-    }
+    expect_input_error([&] { PlaybackSensor(root, "", {}); }, {"name one"});
     EXPECT_THROW(PlaybackSensor(root, "zz", {}), InputError);
     EXPECT_THROW(open_sensor("nokind"), InputError);
     EXPECT_THROW(open_sensor("bogus:x"), InputError);

@@ -64,17 +64,23 @@ PointCloud plane_view(int id, double x, std::size_t clusters, std::size_t outlie
     return view;
 }
 
-struct Counts {
-    std::size_t noise = 0, surface = 0, noise_left = 0, surface_left = 0;
+/// The report of remove_density_outliers (default options) on `views`, cleaned in place, and
+/// the shares of the planted noise and of the surface (truth: the synthetic flag) it removed.
+struct Cleaned {
+    Report report;
+    double noise_removed = 0.0, surface_removed = 0.0;
 };
 
-Counts count(const std::vector<PointCloud>& before, const std::vector<PointCloud>& after) {
-    Counts c;
-    for (const auto& v : before)
-        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? c.noise : c.surface)++;
-    for (const auto& v : after)
-        for (auto idx : v.points)
-            ((*v.flag(prop::kSynthetic))[idx] ? c.noise_left : c.surface_left)++;
+Cleaned clean(std::vector<PointCloud>& views) {
+    std::size_t noise = 0, surface = 0, noise_left = 0, surface_left = 0;
+    for (const auto& v : views)
+        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? noise : surface)++;
+    Cleaned c;
+    c.report = remove_density_outliers(views, DensityOptions{});
+    for (const auto& v : views)
+        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? noise_left : surface_left)++;
+    c.noise_removed = 1.0 - double(noise_left) / double(noise);
+    c.surface_removed = 1.0 - double(surface_left) / double(surface);
     return c;
 }
 
@@ -83,29 +89,25 @@ std::vector<PointCloud> scene() {
 }
 
 TEST(DensityOutliers, SensorsReferenceRemovesClustersAndOutliers) {
-    const auto before = scene();
-    auto after = before;
-    const Report r = remove_density_outliers(after, DensityOptions{});
-    EXPECT_EQ(r["reference"], "sensors");
-    const Counts c = count(before, after);
-    EXPECT_GE(1.0 - double(c.noise_left) / double(c.noise), 0.95) << r.dump();
-    EXPECT_LE(1.0 - double(c.surface_left) / double(c.surface), 0.01) << r.dump();
-    EXPECT_EQ(after[0].view.id, 0);
-    EXPECT_EQ(after[1].view.id, 1);
+    auto views = scene();
+    const Cleaned c = clean(views);
+    EXPECT_EQ(c.report["reference"], "sensors");
+    EXPECT_GE(c.noise_removed, 0.95) << c.report.dump();
+    EXPECT_LE(c.surface_removed, 0.01) << c.report.dump();
+    EXPECT_EQ(views[0].view.id, 0);
+    EXPECT_EQ(views[1].view.id, 1);
 }
 
 TEST(DensityOutliers, LocalReferenceWithoutCameras) {
-    auto before = scene();
-    for (auto& v : before) v.view.intrinsics.reset();
-    auto after = before;
-    const Report r = remove_density_outliers(after, DensityOptions{});
-    EXPECT_EQ(r["reference"], "local");
-    const Counts c = count(before, after);
-    EXPECT_GE(1.0 - double(c.noise_left) / double(c.noise), 0.9) << r.dump();
-    EXPECT_LE(1.0 - double(c.surface_left) / double(c.surface), 0.01) << r.dump();
+    auto views = scene();
+    for (auto& v : views) v.view.intrinsics.reset();
+    const Cleaned c = clean(views);
+    EXPECT_EQ(c.report["reference"], "local");
+    EXPECT_GE(c.noise_removed, 0.9) << c.report.dump();
+    EXPECT_LE(c.surface_removed, 0.01) << c.report.dump();
     DensityOptions sensors;
     sensors.reference = DensityReference::kSensors;
-    EXPECT_THROW(remove_density_outliers(after, sensors), InputError);
+    EXPECT_THROW(remove_density_outliers(views, sensors), InputError);
 }
 
 TEST(DensityOutliers, MarkEqualsDelete) {

@@ -14,10 +14,13 @@
 #include <set>
 #include <sstream>
 
+#include "tests/support/input_error.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::denoise {
 namespace {
+
+using rgbd::test::expect_input_error;
 
 /// Cloud from coordinates; the `pixel` property holds the original index.
 PointCloud make_cloud(const std::vector<Eigen::Vector3d>& xyz) {
@@ -193,12 +196,7 @@ TEST(StatisticalOutliers, EdgeCases) {
     EXPECT_EQ(report["k"].get<int>(), 4);
 
     PointCloud bad = make_cloud({{0, 0, 0}, {std::nan(""), 0, 0}});
-    try {
-        remove_statistical_outliers(bad, StatisticalOptions{});
-        FAIL() << "expected InputError";
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("view 4"), std::string::npos) << e.what();
-    }
+    expect_input_error([&] { remove_statistical_outliers(bad, StatisticalOptions{}); }, {"view 4"});
     EXPECT_THROW(remove_radius_outliers(bad, RadiusOptions{}), InputError);
     StatisticalOptions absurd;
     absurd.k = 0;

@@ -12,10 +12,13 @@
 #include <optional>
 #include <set>
 
+#include "tests/support/input_error.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::frames {
 namespace {
+
+using rgbd::test::expect_input_error;
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -347,12 +350,7 @@ TEST(DepthToCloud, BadInputThrows) {
     RgbdFrame frame = ramp_frame();
     frame.depth_intrinsics.fx = std::numeric_limits<double>::quiet_NaN();
     frame.sensor_id = "k2-3";
-    try {
-        depth_to_cloud(frame, CloudOptions{});
-        FAIL() << "expected InputError";
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("k2-3"), std::string::npos) << e.what();
-    }
+    expect_input_error([&] { depth_to_cloud(frame, CloudOptions{}); }, {"k2-3"});
     RgbdFrame wrong_type = ramp_frame();
     wrong_type.depth.convertTo(wrong_type.depth, CV_16UC1);
     EXPECT_THROW(depth_to_cloud(wrong_type, CloudOptions{}), InputError);

@@ -12,29 +12,11 @@
 #include <limits>
 
 #include "algorithms/holes/large_holes.hpp"
+#include "tests/algorithms/holes/hole_scenes.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::holes {
 namespace {
-
-using rgbd::holes::FreeSpace;
-using rgbd::holes::FreeSpaceOptions;
-using rgbd::holes::InpaintOptions;
-using rgbd::holes::SensorView;
-using rgbd::holes::SurfacePoints;
-
-constexpr double kSpacing = 0.002;
-
-/// A sensor at `centre` looking at `target` (camera: z forward, y down as far as possible).
-SensorView look_at(const Eigen::Vector3d& centre, const Eigen::Vector3d& target) {
-    const Eigen::Vector3d zc = (target - centre).normalized();
-    const Eigen::Vector3d yc = (Eigen::Vector3d(0, 0, -1) + zc.z() * zc).normalized();
-    SensorView v;
-    v.world_from_sensor.linear().col(0) = yc.cross(zc);
-    v.world_from_sensor.linear().col(1) = yc;
-    v.world_from_sensor.linear().col(2) = zc;
-    v.world_from_sensor.translation() = centre;
-    return v;
-}
 
 TEST(FreeSpace, InFrontOfASeenPlaneIsEmptyBehindAndAsideIsNot) {
     // The plane x = 0 (20 x 20 cm, normal +x), one sensor 1.5 m away on the +x axis.
@@ -203,3 +185,4 @@ TEST(LargeHoles, TheUnseenUndersideOfAnOverhangGetsNoBulge) {
 }
 
 }  // namespace
+}  // namespace rgbd::holes

@@ -10,16 +10,11 @@
 #include <map>
 #include <random>
 
+#include "tests/algorithms/holes/hole_scenes.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::holes {
 namespace {
-
-using rgbd::holes::BoundaryOptions;
-using rgbd::holes::HoleKind;
-using rgbd::holes::SensorView;
-using rgbd::holes::SurfacePoints;
-
-constexpr double kSpacing = 0.002;
 
 struct Hole {
     double x, y, r;
@@ -358,3 +353,4 @@ TEST(HoleDetection, RejectsBadInputAndAbsurdOptions) {
 }
 
 }  // namespace
+}  // namespace rgbd::holes

@@ -6,15 +6,11 @@
 #include <iostream>
 #include <random>
 
+#include "tests/algorithms/holes/hole_scenes.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::holes {
 namespace {
-
-using rgbd::Rgb;
-using rgbd::holes::BoundaryOptions;
-using rgbd::holes::FillMechanism;
-using rgbd::holes::FillOptions;
-using rgbd::holes::SurfacePoints;
 
 /// Ellipsoid (semi-axes a) sampled by mapping a Fibonacci sphere; holes = spherical caps around
 /// unit directions `centres` of angular radius `radii` (radians, on the unit sphere).
@@ -60,15 +56,6 @@ Scene ellipsoid(const Eigen::Vector3d& axes, int n, double noise_m, unsigned see
     return s;
 }
 
-/// Distance to the ellipsoid surface, first order: |f| / |grad f| with f = |p / a|^2 - 1
-/// (exact on a sphere up to O(d^2)).
-double surface_distance(const Eigen::Vector3d& axes, const Eigen::Vector3d& p) {
-    const Eigen::Vector3d q = p.cwiseQuotient(axes);
-    const double f = q.norm() - 1.0;
-    const Eigen::Vector3d g = q.cwiseQuotient(axes) / q.norm();
-    return std::abs(f) / g.norm();
-}
-
 struct FillStats {
     double rms_m = 0, max_m = 0, outside = 0, color_error = 0;
     std::size_t added = 0, loops_left = 0;
@@ -84,7 +71,7 @@ FillStats run(const Scene& s, FillMechanism mechanism) {
     double sum = 0, color = 0;
     for (std::size_t i = 0; i < fill.position.size(); ++i) {
         const Eigen::Vector3d& p = fill.position[i];
-        const double d = surface_distance(s.axes, p);
+        const double d = ellipsoid_distance(s.axes, p);
         sum += d * d;
         st.max_m = std::max(st.max_m, d);
         // Outward growth: every new point must lie in a hole cap (plus one spacing, where the
@@ -226,3 +213,4 @@ TEST(HoleFilling, RejectsBadOptionsAndForeignDetections) {
 }
 
 }  // namespace
+}  // namespace rgbd::holes

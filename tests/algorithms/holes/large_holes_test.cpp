@@ -11,24 +11,11 @@
 #include <limits>
 #include <random>
 
+#include "tests/algorithms/holes/hole_scenes.hpp"
 #include "toolkit/error.hpp"
 
+namespace rgbd::holes {
 namespace {
-
-using rgbd::holes::BodyAxis;
-using rgbd::holes::FillMechanism;
-using rgbd::holes::InpaintOptions;
-using rgbd::holes::SensorView;
-using rgbd::holes::SurfacePoints;
-
-constexpr double kSpacing = 0.002;
-
-/// Distance to the ellipsoid surface, first order (|f| / |grad f|, f = |p / a| - 1).
-double surface_distance(const Eigen::Vector3d& axes, const Eigen::Vector3d& p) {
-    const Eigen::Vector3d q = p.cwiseQuotient(axes);
-    const Eigen::Vector3d g = q.cwiseQuotient(axes) / q.norm();
-    return std::abs(q.norm() - 1.0) / g.norm();
-}
 
 Eigen::Vector3d outward(const Eigen::Vector3d& axes, const Eigen::Vector3d& p) {
     return p.cwiseQuotient(axes.cwiseProduct(axes)).normalized();
@@ -85,15 +72,7 @@ std::vector<SensorView> ring(double z) {
     for (int k = 0; k < 8; ++k) {
         const double a = 2 * M_PI * k / 8;
         const Eigen::Vector3d c(1.5 * std::cos(a), 1.5 * std::sin(a), z);
-        const Eigen::Vector3d zc = Eigen::Vector3d(-c.x(), -c.y(), 0).normalized();
-        const Eigen::Vector3d yc(0, 0, -1);
-        const Eigen::Vector3d xc = yc.cross(zc);
-        SensorView v;
-        v.world_from_sensor.linear().col(0) = xc;
-        v.world_from_sensor.linear().col(1) = yc;
-        v.world_from_sensor.linear().col(2) = zc;
-        v.world_from_sensor.translation() = c;
-        out.push_back(v);
+        out.push_back(look_at(c, Eigen::Vector3d(0, 0, z)));
     }
     return out;
 }
@@ -177,7 +156,7 @@ TEST(HeadTop, FillsTheCrownARingNeverSees) {
     double worst = 0;
     for (std::size_t i = 0; i < added.position.size(); ++i) {
         EXPECT_EQ(added.mechanism[i], FillMechanism::kHeadTop);
-        worst = std::max(worst, surface_distance(axes, added.position[i]));
+        worst = std::max(worst, ellipsoid_distance(axes, added.position[i]));
         // Normals from the height map point out of the head.
         EXPECT_GT(added.normal[i].dot(outward(axes, added.position[i])), 0.8);
     }
@@ -285,7 +264,7 @@ TEST(HeadTop, WithoutTheEllipsoidBiharmonicBeatsTelea) {
         const auto added = rgbd::holes::fill_head_top(s, normals, axis, kSpacing, {}, options);
         ASSERT_FALSE(added.position.empty());
         for (const auto& p : added.position)
-            worst[biharmonic] = std::max(worst[biharmonic], surface_distance(axes, p));
+            worst[biharmonic] = std::max(worst[biharmonic], ellipsoid_distance(axes, p));
     }
     std::cout << "head top without ellipsoid: max surface distance Telea " << worst[0] * 1e3
               << " mm, biharmonic " << worst[1] * 1e3 << " mm\n";
@@ -361,7 +340,7 @@ TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
         InpaintOptions telea;
         telea.biharmonic = false;
         const auto t = rgbd::holes::fill_large_holes(s, normals, axis, kSpacing, {}, telea);
-        for (const auto& p : t.position) telea_rms += std::pow(surface_distance(axes, p), 2);
+        for (const auto& p : t.position) telea_rms += std::pow(ellipsoid_distance(axes, p), 2);
         telea_rms = std::sqrt(telea_rms / std::max<double>(1, t.position.size()));
     }
     rgbd::Report report;
@@ -374,7 +353,7 @@ TEST(LargeHoles, FillsAPatchOnTheSideAndLeavesTheBottomCutOpen) {
     for (std::size_t i = 0; i < added.position.size(); ++i) {
         const Eigen::Vector3d& p = added.position[i];
         EXPECT_EQ(added.mechanism[i], FillMechanism::kLargeHole);
-        sq += std::pow(surface_distance(axes, p), 2);
+        sq += std::pow(ellipsoid_distance(axes, p), 2);
         // Within two spacings of the patch (the arc test at the true radius).
         outside += !in_side_patch(p, 2 * kSpacing);
         EXPECT_GT(p.z(), -0.15);
@@ -487,7 +466,7 @@ TEST(LargeHoles, AHoleBehindAStepIsLeftOpenByTheStepTest) {
         const double r = std::hypot(p.x(), p.y());
         const double to_neck = std::hypot(r - neck, std::max(0.0, p.z() - shelf));
         const double to_shelf = std::hypot(std::max(0.0, neck - r), p.z() - shelf);
-        return std::min(to_neck, std::min(to_shelf, surface_distance(axes, p)));
+        return std::min(to_neck, std::min(to_shelf, ellipsoid_distance(axes, p)));
     };
     const BodyAxis axis = rgbd::holes::estimate_body_axis(s, ring(0.3));
     InpaintOptions unchecked;
@@ -563,3 +542,4 @@ TEST(LargeHoles, BadInputIsAnError) {
 }
 
 }  // namespace
+}  // namespace rgbd::holes

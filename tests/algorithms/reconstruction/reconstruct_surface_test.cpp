@@ -69,6 +69,16 @@ void expect_manifold(const Mesh& mesh) {
     EXPECT_EQ(bad, 0u);
 }
 
+/// reconstruct_surface of `cloud` with `options` (`watertight` set), expected closed and
+/// manifold.
+Mesh closed_surface(const PointCloud& cloud, const ReconstructionOptions& options,
+                    rgbd::Report* report) {
+    Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, options, report);
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    expect_manifold(mesh);
+    return mesh;
+}
+
 /// Mean |distance to the sphere centre - radius| over the vertices.
 double mean_sphere_error(const Mesh& mesh, double radius) {
     double sum = 0;
@@ -122,11 +132,9 @@ TEST(ReconstructSurface, FrontKeepsUnseenHolesOpenAndWatertightClosesThem) {
     ReconstructionOptions o;
     o.watertight = true;
     rgbd::Report report;
-    const Mesh closed = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
-    EXPECT_TRUE(CGAL::is_closed(closed));
+    const Mesh closed = closed_surface(cloud, o, &report);
     EXPECT_EQ(report["border_edges"], 0);
     EXPECT_GE(report["holes"]["holes"].get<int>(), 1);
-    expect_manifold(closed);
     std::size_t cap_vertices = 0;
     for (auto v : closed.vertices()) {
         const rgbd::Point_3& p = closed.point(v);
@@ -175,9 +183,7 @@ TEST(ReconstructSurface, WatertightHasNoSliversNoFoldsAndNoGreyNearSeenPoints) {
     ReconstructionOptions o;
     o.watertight = true;
     rgbd::Report report;
-    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
-    EXPECT_TRUE(CGAL::is_closed(mesh));
-    expect_manifold(mesh);
+    const Mesh mesh = closed_surface(cloud, o, &report);
     std::size_t slivers = 0, folds = 0;
     for (auto f : mesh.faces()) slivers += min_angle_deg(mesh, f) < 5.0;
     for (auto e : mesh.edges()) {
@@ -215,9 +221,7 @@ TEST(ReconstructSurface, WatertightWithUpCapsTheBaseFlatAndFairsTheCrown) {
     o.watertight = true;
     o.up = Eigen::Vector3d(0, 0, 2);  // any length
     rgbd::Report report;
-    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, o, &report);
-    EXPECT_TRUE(CGAL::is_closed(mesh));
-    expect_manifold(mesh);
+    const Mesh mesh = closed_surface(cloud, o, &report);
     EXPECT_EQ(report["holes"]["flat_cuts"], 1) << report.dump();
     EXPECT_NEAR(report["holes"]["up"][2].get<double>(), 1.0, 1e-12);
     const double cut = -0.5 * kRadius;
@@ -370,10 +374,7 @@ TEST(ReconstructSurface, ThinFinSurvives) {
     // The rim joins the sheets: with --watertight nothing is left to fill but small gaps.
     ReconstructionOptions o;
     o.watertight = true;
-    rgbd::Report closed_report;
-    const Mesh closed = rgbd::reconstruction::reconstruct_surface(cloud, o, &closed_report);
-    EXPECT_TRUE(CGAL::is_closed(closed));
-    expect_manifold(closed);
+    closed_surface(cloud, o, nullptr);
 }
 
 TEST(ReconstructSurface, TargetFacesIsHonouredAndKeepsTheShape) {

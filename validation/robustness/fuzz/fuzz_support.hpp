@@ -64,6 +64,18 @@ void expect_clean(F&& read) {
     }
 }
 
+/// Opens the capture folder at `root` and loads, of each sensor's n frames, the ones at the
+/// positions `positions(n)` returns; each step is expect_clean.
+template <typename Positions>
+void open_and_load(const std::filesystem::path& root, Positions&& positions) {
+    expect_clean([&] {
+        const io::Capture capture = io::open_capture(root);
+        for (const auto& entry : capture.frames)  // not a binding: clang 14 cannot capture one
+            for (const std::size_t k : positions(entry.second.size()))
+                expect_clean([&] { io::load_frame(capture, entry.first, k); });
+    });
+}
+
 /// The one-sensor rig of the capture-folder seeds and target: 8x6 depth and colour images,
 /// focal length 7 px, principal point at the centre.
 inline io::Rig small_rig() {

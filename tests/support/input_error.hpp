@@ -1,0 +1,35 @@
+// Tests of error messages: a call that must throw InputError, and what its message must name.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <initializer_list>
+#include <string>
+
+#include "toolkit/error.hpp"
+
+namespace rgbd::test {
+
+/// The message of the InputError that `call()` throws; a test failure (and "") when it throws
+/// none.
+template <typename Call>
+std::string input_error_message(Call&& call) {
+    try {
+        call();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "no InputError";
+    return "";
+}
+
+/// Expects `call()` to throw an InputError whose message contains every one of `parts`, for
+/// expect_input_error([&] { smooth_depth(cloud, {}); }, {"view 7", "organised"}).
+template <typename Call>
+void expect_input_error(Call&& call, std::initializer_list<std::string> parts) {
+    const std::string message = input_error_message(call);
+    for (const std::string& part : parts)
+        EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
+}
+
+}  // namespace rgbd::test
