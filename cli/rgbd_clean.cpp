@@ -128,23 +128,16 @@ void run_clean(cli::Context& ctx) {
         for (std::size_t v = 0; v < views.size(); ++v)
             documents[slots[v]].cloud = std::move(views[v]);
         for (auto& document : documents) {
-            if (document.kind != io::DocumentKind::kPoints)
-                ctx.warn("document " + std::to_string(document.cloud.view.id) +
-                         " is a mesh; passed through");
-            ctx.write(document);
+            if (document.kind == io::DocumentKind::kPoints)
+                ctx.write(document);
+            else
+                ctx.pass_through(document);
         }
         return;
     }
 
     bool fallback_noted = false;
-    ctx.for_each_document([&](io::Document& document) {
-        if (document.kind != io::DocumentKind::kPoints) {
-            ctx.warn("document " + std::to_string(document.cloud.view.id) +
-                     " is a mesh; passed through");
-            ctx.write(document);
-            return;
-        }
-        PointCloud& cloud = document.cloud;
+    ctx.for_each_view([&](PointCloud& cloud) {
         if (cloud.empty()) ctx.warn("view " + std::to_string(cloud.view.id) + " has no points");
         Method use = method;
         if (use == Method::kAuto) {
@@ -177,7 +170,6 @@ void run_clean(cli::Context& ctx) {
         report["view"] = cloud.view.id;
         ctx.add_document_metrics(report);
         ctx.info("view " + std::to_string(cloud.view.id) + ": " + report.dump());
-        ctx.write(document);
     });
 }
 

@@ -76,21 +76,13 @@ void run_upsample(cli::Context& ctx) {
     }
     Captures captures(ctx.options().count("capture") ? ctx.get<std::string>("capture") : "");
     auto bar = ctx.progress("upsample");
-    ctx.for_each_document([&](io::Document& document) {
-        if (document.kind != io::DocumentKind::kPoints) {
-            ctx.warn("document " + std::to_string(document.cloud.view.id) +
-                     " is a mesh; passed through");
-            ctx.write(document);
-            return;
-        }
-        PointCloud& cloud = document.cloud;
+    ctx.for_each_view([&](PointCloud& cloud) {
         if (!cloud.view.has_grid())
             throw InputError(view_label(cloud) +
                              ": the view has no pixel grid (rgbd:grid); rgbd-upsample needs "
                              "organised views from rgbd-cloud");
         if (cloud.empty()) {
             ctx.warn(view_label(cloud) + " has no points");
-            ctx.write(document);
             return;
         }
         if (!cloud.view.frame_index)
@@ -113,7 +105,6 @@ void run_upsample(cli::Context& ctx) {
         report["view"] = cloud.view.id;
         ctx.add_document_metrics(report);
         ctx.info(view_label(cloud) + ": " + report.dump());
-        ctx.write(document);
     });
 }
 

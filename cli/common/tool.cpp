@@ -213,6 +213,19 @@ void Context::for_each_document(const std::function<void(io::Document&)>& handle
     if (total == 0) throw InputError("empty input stream (no PLY document)");
 }
 
+void Context::for_each_view(const std::function<void(PointCloud&)>& handler) {
+    for_each_document([&](io::Document& document) {
+        if (document.kind != io::DocumentKind::kPoints) return pass_through(document);
+        handler(document.cloud);
+        write(document);
+    });
+}
+
+void Context::pass_through(io::Document& mesh) {
+    warn("document " + std::to_string(mesh.cloud.view.id) + " is a mesh; passed through");
+    write(mesh);
+}
+
 std::vector<io::Document> Context::read_all_documents() {
     std::vector<io::Document> documents;
     for_each_document([&](io::Document& d) { documents.push_back(std::move(d)); });

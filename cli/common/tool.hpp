@@ -146,6 +146,11 @@ public:
     /// Calls `handler` for every document of every input (files or stdin), in order; with
     /// ToolSpec::reads_cloud_files, a .pcd/.xyz/.pwn input is one point document.
     void for_each_document(const std::function<void(io::Document&)>& handler);
+    /// for_each_document for a tool that works on point views: calls `handler` with the view of
+    /// every point document and then writes the document; mesh documents are passed through.
+    void for_each_view(const std::function<void(PointCloud&)>& handler);
+    /// Writes a mesh document unchanged with the warning "document N is a mesh; passed through".
+    void pass_through(io::Document& mesh);
     /// Reads every document of every input. Throws InputError for an empty stream.
     std::vector<io::Document> read_all_documents();
 

@@ -22,7 +22,7 @@
 #include "io/capture_folder.hpp"
 #include "io/ply_stream.hpp"
 #include "sensors/network/protocol.hpp"
-#include "tests/cli/hub_port.hpp"
+#include "tests/cli/hub_session.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/tool_runner.hpp"
 
@@ -43,13 +43,11 @@ std::map<std::string, std::string> snapshot(const fs::path& root) {
 TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClean) {
     const fs::path dir = temp_root();
     const std::string rig = rig_of(2);
-    const HubPort port;
+    const HubSession session("hk");
+    const HubPort& port = session.port;
     fs::remove_all(dir / "rec_hk");
-    start(dir, "hub_hk", "$BIN/rgbd-capture --rig " + rig + " -o rec_hk" + port.listen());
-    for (int s = 0; s < 2; ++s)
-        start(dir, "node_hk_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 900" +
-                  port.hub());
+    session.start_hub("--rig " + rig + " -o rec_hk");
+    session.start_nodes(2, "--frames 900");
     // Kill the hub once it has recorded frame sets (they trail the frames by the grouping
     // latency) and about a second of frames.
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -61,9 +59,8 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
     ASSERT_EQ(::kill(pid_of(dir, "hub_hk"), SIGKILL), 0);
-    EXPECT_EQ(wait_for(dir, "hub_hk", 10), 128 + SIGKILL);
-    for (int s = 0; s < 2; ++s) ::kill(pid_of(dir, "node_hk_" + std::to_string(s)), SIGTERM);
-    for (int s = 0; s < 2; ++s) wait_for(dir, "node_hk_" + std::to_string(s), 10);
+    EXPECT_TRUE(session.hub_exits(128 + SIGKILL, 10));
+    session.stop_nodes(2, 10);
 
     // What was recorded before the kill is a readable capture; every frame it lists loads.
     const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec_hk");
@@ -101,15 +98,12 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
     EXPECT_TRUE(snapshot(dir / "rec_hk") == before) << "the old recording changed";
 
     // Restarted into a new folder: a new, complete recording.
+    const HubSession restart("hk2");
     fs::remove_all(dir / "rec_hk2");
-    start(dir, "hub_hk2",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_hk2 --exit-after-bye" + port.listen());
-    for (int s = 0; s < 2; ++s)
-        start(
-            dir, "node_hk2_" + std::to_string(s),
-            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 30" + port.hub());
-    for (int s = 0; s < 2; ++s) EXPECT_EQ(wait_for(dir, "node_hk2_" + std::to_string(s), 60), 0);
-    ASSERT_EQ(wait_for(dir, "hub_hk2", 30), 0) << slurp(dir / "hub_hk2.err");
+    restart.start_hub("--rig " + rig + " -o rec_hk2 --exit-after-bye");
+    restart.start_nodes(2, "--frames 30");
+    EXPECT_TRUE(restart.nodes_succeed(2, 60));
+    ASSERT_TRUE(restart.hub_exits(0, 30));
     const rgbd::io::Capture cap2 = rgbd::io::open_capture(dir / "rec_hk2");
     for (int s = 0; s < 2; ++s) EXPECT_EQ(cap2.frames.at(id(s)).size(), 30u);
     EXPECT_TRUE(snapshot(dir / "rec_hk") == before);
@@ -121,22 +115,19 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
     // The same recording with a fast reader of --live - and with one that stalls for 8 s.
     std::map<std::string, json> metrics;
     for (const std::string reader : {"fast", "slow"}) {
-        const HubPort port;
+        const HubSession session(reader);
         const std::string rec = "rec_live_" + reader;
         fs::remove_all(dir / rec);
         const std::string sink =
             reader == "fast" ? "cat >/dev/null" : "{ sleep 8; cat >/dev/null; }";
-        start(dir, "hub_" + reader,
+        // The hub's exit code, not the reader's: start_hub() would not set pipefail.
+        start(dir, session.hub(),
               "set -o pipefail; $BIN/rgbd-capture --rig " + rig + " -o " + rec +
-                  " --live - --exit-after-bye --latency-ms 300" + port.listen() +
+                  " --live - --exit-after-bye --latency-ms 300" + session.port.listen() +
                   " --metrics hub_" + reader + ".json | " + sink);
-        for (int s = 0; s < 2; ++s)
-            start(dir, "node_" + reader + std::to_string(s),
-                  "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" +
-                      port.hub());
-        for (int s = 0; s < 2; ++s)
-            ASSERT_EQ(wait_for(dir, "node_" + reader + std::to_string(s), 60), 0);
-        ASSERT_EQ(wait_for(dir, "hub_" + reader, 60), 0) << slurp(dir / ("hub_" + reader + ".err"));
+        session.start_nodes(2, "--frames 150");
+        ASSERT_TRUE(session.nodes_succeed(2, 60));
+        ASSERT_TRUE(session.hub_exits(0, 60));
         metrics[reader] = read_json(dir / ("hub_" + reader + ".json"));
         EXPECT_EQ(metrics[reader]["frames_recorded"], 300) << reader << ": recording lost frames";
     }
@@ -157,25 +148,20 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
 }
 
 TEST_F(RgbdCapture, ControlThreadWarningsLeaveTheLiveStreamOnStdoutIntact) {
-    const HubPort port;
+    const HubSession session("warn");
     const fs::path dir = temp_root();
-    const std::string rig = rig_of(2);
     fs::remove_all(dir / "rec_warn");
     // start() sends the hub's stdout, the live view stream, to hub_warn.out.
-    start(dir, "hub_warn",
-          "$BIN/rgbd-capture --rig " + rig +
-              " -o rec_warn --live - --exit-after-bye --latency-ms 300" + port.listen() +
-              " --metrics hub_warn.json");
-    for (int s = 0; s < 2; ++s)
-        start(
-            dir, "node_warn" + std::to_string(s),
-            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 90" + port.hub());
+    session.start_hub("--rig " + rig_of(2) +
+                      " -o rec_warn --live - --exit-after-bye --latency-ms 300 "
+                      "--metrics hub_warn.json");
+    session.start_nodes(2, "--frames 90");
     // An intruder says hello as a sensor the rig does not have, 40 times while the hub streams:
     // each hello makes the control thread warn on stderr.
     zmq::context_t context(1);
     zmq::socket_t dealer(context, zmq::socket_type::dealer);
     dealer.set(zmq::sockopt::linger, 2000);
-    dealer.connect("tcp://127.0.0.1:" + std::to_string(port.number + 1));
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(session.port.number + 1));
     constexpr int kHellos = 40;
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     for (int k = 0; k < kHellos; ++k) {
@@ -187,8 +173,8 @@ TEST_F(RgbdCapture, ControlThreadWarningsLeaveTheLiveStreamOnStdoutIntact) {
         dealer.send(zmq::buffer(bytes));
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
-    for (int s = 0; s < 2; ++s) ASSERT_EQ(wait_for(dir, "node_warn" + std::to_string(s), 60), 0);
-    ASSERT_EQ(wait_for(dir, "hub_warn", 30), 0) << slurp(dir / "hub_warn.err");
+    ASSERT_TRUE(session.nodes_succeed(2, 60));
+    ASSERT_TRUE(session.hub_exits(0, 30));
     const json hub = read_json(dir / "hub_warn.json");
     EXPECT_EQ(hub["refused_nodes"], kHellos);
     // stderr: the warnings, each a whole line.

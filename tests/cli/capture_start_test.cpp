@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "io/capture_folder.hpp"
-#include "tests/cli/hub_port.hpp"
+#include "tests/cli/hub_session.hpp"
 #include "tests/support/capture_harness.hpp"
 
 namespace {
@@ -18,23 +18,19 @@ namespace fs = std::filesystem;
 using rgbd::test::slurp;
 
 TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
-    const HubPort port;
+    const HubSession session("start");
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_start");
-    start(dir, "hub_start",
-          "$BIN/rgbd-capture --rig synth/rig.json -o rec_start --exit-after-bye" + port.listen() +
-              " --latency-ms 2000 --metrics hub_start.json");
+    session.start_hub(
+        "--rig synth/rig.json -o rec_start --exit-after-bye --latency-ms 2000 "
+        "--metrics hub_start.json");
     const double offsets_ms[8] = {500, -500, 310, -220, 90, -430, 470, -15};
     for (int s = 0; s < 8; ++s)
-        start(dir, "node_start_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 30" +
-                  port.hub() + " --clock-offset-ms " + std::to_string(offsets_ms[s]) +
-                  " --truth truth_start_" + std::to_string(s) + ".csv --metrics node_start_" +
-                  std::to_string(s) + ".json");
-    for (int s = 0; s < 8; ++s)
-        ASSERT_EQ(wait_for(dir, "node_start_" + std::to_string(s), 90), 0)
-            << slurp(dir / ("node_start_" + std::to_string(s) + ".err"));
-    ASSERT_EQ(wait_for(dir, "hub_start", 30), 0) << slurp(dir / "hub_start.err");
+        session.start_node(s, "--frames 30 --clock-offset-ms " + std::to_string(offsets_ms[s]) +
+                                  " --truth truth_start_" + std::to_string(s) +
+                                  ".csv --metrics node_start_" + std::to_string(s) + ".json");
+    ASSERT_TRUE(session.nodes_succeed(8, 90));
+    ASSERT_TRUE(session.hub_exits(0, 30));
 
     // Every node honoured the start; their first true capture instants coincide.
     std::int64_t first_lo = INT64_MAX, first_hi = INT64_MIN;
@@ -69,17 +65,15 @@ TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
 }
 
 TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
-    const HubPort port;
+    const HubSession session("late");
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_late");
-    const std::string rig = rig_of(2);
     // The hub waits 1 s for the rig's second node, then starts the first alone.
-    start(dir, "hub_late",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_late --exit-after-bye --start-wait-s 1" +
-              port.listen() + " --metrics hub_late.json");
-    start(dir, "node_late_0",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(0) + " --loop --frames 300" + port.hub() +
-              " --clock-offset-ms 200 --truth truth_late_0.csv --metrics node_late_0.json");
+    session.start_hub("--rig " + rig_of(2) +
+                      " -o rec_late --exit-after-bye --start-wait-s 1 --metrics hub_late.json");
+    session.start_node(
+        0,
+        "--frames 300 --clock-offset-ms 200 --truth truth_late_0.csv --metrics node_late_0.json");
     // The second node appears once the first one streams (its truth file fills up).
     std::error_code ec;
     for (int i = 0; i < 600; ++i) {
@@ -87,12 +81,11 @@ TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
         if (!ec && size > 200) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
-    start(dir, "node_late_1",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + port.hub() +
-              " --clock-offset-ms -300 --truth truth_late_1.csv --metrics node_late_1.json");
-    for (const char* n : {"node_late_0", "node_late_1"})
-        ASSERT_EQ(wait_for(dir, n, 90), 0) << slurp(dir / (std::string(n) + ".err"));
-    ASSERT_EQ(wait_for(dir, "hub_late", 30), 0) << slurp(dir / "hub_late.err");
+    session.start_node(
+        1,
+        "--frames 30 --clock-offset-ms -300 --truth truth_late_1.csv --metrics node_late_1.json");
+    ASSERT_TRUE(session.nodes_succeed(2, 90));
+    ASSERT_TRUE(session.hub_exits(0, 30));
     const auto t0 = read_truth(dir / "truth_late_0.csv");
     const auto t1 = read_truth(dir / "truth_late_1.csv");
     ASSERT_EQ(t1.size(), 30u);

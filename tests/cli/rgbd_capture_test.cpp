@@ -31,7 +31,7 @@
 #include "io/ply_stream.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
-#include "tests/cli/hub_port.hpp"
+#include "tests/cli/hub_session.hpp"
 #include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 #include "tests/support/ellipsoid_off.hpp"
@@ -39,12 +39,9 @@
 
 namespace {
 
+// The harness's namespace also brings fs, json, Outcome and slurp.
 using namespace rgbd::test::capture;
 using rgbd::test::is_usage_error;
-namespace fs = std::filesystem;
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
-using json = nlohmann::json;
 
 TEST_F(RgbdCapture, HelpAndUsageErrors) {
     for (const char* tool : {"rgbd-capture", "rgbd-node"}) {
@@ -97,29 +94,26 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
     const char* env = std::getenv("RGBD_CAPTURE_SECONDS");
     const double seconds = env ? std::atof(env) : 10.0;
     const int frames = static_cast<int>(std::lround(seconds * 30));
-    const HubPort port;
+    const HubSession session("8");
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec8");
     std::mt19937 rng(8);
     std::uniform_real_distribution<double> uni(-1.0, 1.0);
-    start(dir, "hub8",
-          "$BIN/rgbd-capture --rig synth/rig.json -o rec8" + port.listen() +
-              " --exit-after-bye --probe-interval-ms 500 --latency-ms 2000 --metrics hub8.json");
+    session.start_hub(
+        "--rig synth/rig.json -o rec8 --exit-after-bye --probe-interval-ms 500 --latency-ms 2000 "
+        "--metrics hub8.json");
     std::vector<double> offsets, drifts;
     for (int s = 0; s < 8; ++s) {
         offsets.push_back(s == 0 ? 500.0 : s == 1 ? -500.0 : 500.0 * uni(rng));
         drifts.push_back(s == 0 ? 50.0 : s == 1 ? -50.0 : 50.0 * uni(rng));
-        start(dir, "node8_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames " +
-                  std::to_string(frames) + port.hub() + " --clock-offset-ms " +
-                  std::to_string(offsets.back()) + " --clock-drift-ppm " +
-                  std::to_string(drifts.back()) + " --truth truth8_" + std::to_string(s) +
-                  ".csv --metrics node8_" + std::to_string(s) + ".json");
+        session.start_node(s, "--frames " + std::to_string(frames) + " --clock-offset-ms " +
+                                  std::to_string(offsets.back()) + " --clock-drift-ppm " +
+                                  std::to_string(drifts.back()) + " --truth truth8_" +
+                                  std::to_string(s) + ".csv --metrics node8_" + std::to_string(s) +
+                                  ".json");
     }
-    for (int s = 0; s < 8; ++s)
-        ASSERT_EQ(wait_for(dir, "node8_" + std::to_string(s), seconds + 60), 0)
-            << slurp(dir / ("node8_" + std::to_string(s) + ".err"));
-    ASSERT_EQ(wait_for(dir, "hub8", 30), 0) << slurp(dir / "hub8.err");
+    ASSERT_TRUE(session.nodes_succeed(8, seconds + 60));
+    ASSERT_TRUE(session.hub_exits(0, 30));
 
     const json hub = read_json(dir / "hub8.json");
     EXPECT_EQ(hub["dropped_messages"], 0);
@@ -222,19 +216,15 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
 }
 
 TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
-    const HubPort port;
+    const HubSession session("kill");
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_kill");
-    const std::string rig = rig_of(3);
-    start(dir, "hub_kill",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_kill" + port.listen() +
-              " --exit-after-bye --probe-interval-ms 500 "
-              "--metrics hub_kill.json");
+    session.start_hub("--rig " + rig_of(3) +
+                      " -o rec_kill --exit-after-bye --probe-interval-ms 500 "
+                      "--metrics hub_kill.json");
     for (int s = 0; s < 3; ++s)
-        start(dir, "node_kill_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 150" +
-                  port.hub() + " --clock-offset-ms " + std::to_string(100 * s - 100) +
-                  " --metrics node_kill_" + std::to_string(s) + ".json");
+        session.start_node(s, "--frames 150 --clock-offset-ms " + std::to_string(100 * s - 100) +
+                                  " --metrics node_kill_" + std::to_string(s) + ".json");
     // Kill node 1 once the hub has recorded half a second of its frames (on a loaded machine
     // a fixed wait could end before the node streamed at all, and there would be no gap).
     const fs::path frames_csv = dir / "rec_kill" / id(1) / "frames.csv";
@@ -244,11 +234,11 @@ TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
     EXPECT_NE(wait_for(dir, "node_kill_1", 10), 0);
     std::this_thread::sleep_for(std::chrono::milliseconds(1000));
     start(dir, "node_kill_1b",
-          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" + port.hub() +
-              " --clock-offset-ms 250 --metrics node_kill_1b.json");
+          "$BIN/rgbd-node --sensor playback:synth#" + id(1) + " --loop --frames 30" +
+              session.port.hub() + " --clock-offset-ms 250 --metrics node_kill_1b.json");
     for (const char* n : {"node_kill_0", "node_kill_2", "node_kill_1b"})
         ASSERT_EQ(wait_for(dir, n, 60), 0) << slurp(dir / (std::string(n) + ".err"));
-    ASSERT_EQ(wait_for(dir, "hub_kill", 30), 0) << slurp(dir / "hub_kill.err");
+    ASSERT_TRUE(session.hub_exits(0, 30));
 
     const json hub = read_json(dir / "hub_kill.json");
     const rgbd::io::Capture cap = rgbd::io::open_capture(dir / "rec_kill");
@@ -272,17 +262,14 @@ TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
 }
 
 TEST_F(RgbdCapture, GarbageAndTruncatedMessagesAreDroppedAndCounted) {
-    const HubPort port;
+    const HubSession session("junk");
+    const HubPort& port = session.port;
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_junk");
-    const std::string rig = rig_of(2);
-    start(dir, "hub_junk",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_junk" + port.listen() +
-              " --exit-after-bye --metrics hub_junk.json");
+    session.start_hub("--rig " + rig_of(2) +
+                      " -o rec_junk --exit-after-bye --metrics hub_junk.json");
     for (int s = 0; s < 2; ++s)
-        start(dir, "node_junk_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 90 " +
-                  port.hub() + " --metrics node_junk_" + std::to_string(s) + ".json");
+        session.start_node(s, "--frames 90 --metrics node_junk_" + std::to_string(s) + ".json");
     // A rogue sender: garbage, truncated and corrupted frames, multi-part junk, and a
     // well-formed frame from a session the hub never heard of.
     zmq::context_t context(1);
@@ -320,10 +307,8 @@ TEST_F(RgbdCapture, GarbageAndTruncatedMessagesAreDroppedAndCounted) {
         sent += 5;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    for (int s = 0; s < 2; ++s)
-        ASSERT_EQ(wait_for(dir, "node_junk_" + std::to_string(s), 60), 0)
-            << slurp(dir / ("node_junk_" + std::to_string(s) + ".err"));
-    ASSERT_EQ(wait_for(dir, "hub_junk", 30), 0) << slurp(dir / "hub_junk.err");
+    ASSERT_TRUE(session.nodes_succeed(2, 60));
+    ASSERT_TRUE(session.hub_exits(0, 30));
     const json hub = read_json(dir / "hub_junk.json");
     EXPECT_EQ(hub["dropped_messages"], sent) << hub.dump(2);
     EXPECT_EQ(hub["malformed_control_messages"], 10);
@@ -385,24 +370,15 @@ TEST_F(RgbdCapture, FullDiskStopsTheRecordingWithWhatWasWrittenIntact) {
     const fs::path mount = dir / "small_disk";
     const SmallDisk disk(mount, "6m");
     if (!disk.mounted()) GTEST_SKIP() << disk.why();
-    const HubPort port;
-    const std::string rig = rig_of(2);
-    start(dir, "hub_full",
-          "$BIN/rgbd-capture --rig " + rig + " -o small_disk/rec" + port.listen() +
-              " --exit-after-bye --metrics hub_full.json");
-    for (int s = 0; s < 2; ++s)
-        start(dir, "node_full_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --loop --frames 300 --send-timeout-s 3" + port.hub());
-    EXPECT_EQ(wait_for(dir, "hub_full", 60), 1);
+    const HubSession session("full");
+    session.start_hub("--rig " + rig_of(2) +
+                      " -o small_disk/rec --exit-after-bye --metrics hub_full.json");
+    session.start_nodes(2, "--frames 300 --send-timeout-s 3");
+    EXPECT_TRUE(session.hub_exits(1, 60));
     const std::string err = slurp(dir / "hub_full.err");
     EXPECT_NE(err.find("recording stopped"), std::string::npos) << err;
     EXPECT_NE(err.find("disk full"), std::string::npos) << err;
-    for (int s = 0; s < 2; ++s) {
-        const pid_t pid = pid_of(dir, "node_full_" + std::to_string(s));
-        ::kill(pid, SIGTERM);
-        wait_for(dir, "node_full_" + std::to_string(s), 20);
-    }
+    session.stop_nodes(2, 20);
     // What is on the disk is a readable capture: every listed frame exists and equals the
     // source, every frame set refers to listed frames; no temporary files are left.
     const rgbd::io::Capture cap = rgbd::io::open_capture(mount / "rec");
@@ -545,20 +521,17 @@ std::vector<std::pair<rgbd::ViewInfo, std::string>> stream_documents(const fs::p
 }  // namespace
 
 TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
-    const HubPort port;
+    const HubSession session("live");
     const fs::path dir = temp_root();
     fs::remove_all(dir / "rec_live");
     fs::remove(dir / "live.ply");
-    const std::string rig = rig_of(3);
-    start(dir, "hub_live",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_live --live live.ply" + port.listen() +
-              " --exit-after-bye --latency-ms 300 --probe-interval-ms 500 --metrics hub_live.json");
+    session.start_hub("--rig " + rig_of(3) +
+                      " -o rec_live --live live.ply --exit-after-bye --latency-ms 300 "
+                      "--probe-interval-ms 500 --metrics hub_live.json");
     for (int s = 0; s < 3; ++s)
-        start(dir, "node_live_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" +
-                  port.hub() + " --clock-offset-ms " + std::to_string(200 * s - 200));
-    for (int s = 0; s < 3; ++s) ASSERT_EQ(wait_for(dir, "node_live_" + std::to_string(s), 60), 0);
-    ASSERT_EQ(wait_for(dir, "hub_live", 30), 0) << slurp(dir / "hub_live.err");
+        session.start_node(s, "--frames 45 --clock-offset-ms " + std::to_string(200 * s - 200));
+    ASSERT_TRUE(session.nodes_succeed(3, 60));
+    ASSERT_TRUE(session.hub_exits(0, 30));
 
     const json hub = read_json(dir / "hub_live.json");
     const json& live = hub["live"];
@@ -605,19 +578,15 @@ TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
 }
 
 TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
-    const HubPort port;
+    const HubSession snapshot("snap");
     const fs::path dir = temp_root();
     const std::string rig = rig_of(2);
     // One frame set to stdout, nothing recorded: a snapshot for a pipeline.
-    start(dir, "hub_snap",
-          "$BIN/rgbd-capture --rig " + rig + " --live - --live-sets 1" + port.listen() +
-              " --latency-ms 300 --metrics hub_snap.json");
-    for (int s = 0; s < 2; ++s)
-        start(
-            dir, "node_snap_" + std::to_string(s),
-            "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 60" + port.hub());
-    ASSERT_EQ(wait_for(dir, "hub_snap", 30), 0) << slurp(dir / "hub_snap.err");
-    for (int s = 0; s < 2; ++s) wait_for(dir, "node_snap_" + std::to_string(s), 30);
+    snapshot.start_hub("--rig " + rig +
+                       " --live - --live-sets 1 --latency-ms 300 --metrics hub_snap.json");
+    snapshot.start_nodes(2, "--frames 60");
+    ASSERT_TRUE(snapshot.hub_exits(0, 30));
+    for (int s = 0; s < 2; ++s) wait_for(dir, snapshot.node(s), 30);
     const json snap = read_json(dir / "hub_snap.json");
     EXPECT_EQ(snap["stop_reason"], "live sets streamed");
     EXPECT_EQ(snap["live"]["sets_emitted"], 1);
@@ -629,18 +598,14 @@ TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
     EXPECT_TRUE(views[0].first.world_from_sensor.has_value());
 
     // The reader of the live stream exits after a few bytes: the hub records on.
-    const HubPort port2;
+    const HubSession closed_reader("closed");
     fs::remove_all(dir / "rec_closed");
-    start(dir, "hub_closed",
-          "$BIN/rgbd-capture --rig " + rig + " -o rec_closed --live -" + port2.listen() +
-              " --exit-after-bye --latency-ms 300 --metrics hub_closed.json | head -c 100 "
-              ">/dev/null");
-    for (int s = 0; s < 2; ++s)
-        start(dir, "node_closed_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --loop --frames 45" +
-                  port2.hub());
-    for (int s = 0; s < 2; ++s) ASSERT_EQ(wait_for(dir, "node_closed_" + std::to_string(s), 60), 0);
-    ASSERT_EQ(wait_for(dir, "hub_closed", 30), 0);
+    closed_reader.start_hub("--rig " + rig +
+                            " -o rec_closed --live - --exit-after-bye --latency-ms 300 "
+                            "--metrics hub_closed.json | head -c 100 >/dev/null");
+    closed_reader.start_nodes(2, "--frames 45");
+    ASSERT_TRUE(closed_reader.nodes_succeed(2, 60));
+    ASSERT_TRUE(closed_reader.hub_exits(0, 30));
     const json closed = read_json(dir / "hub_closed.json");
     EXPECT_TRUE(closed["live"]["reader_closed"].get<bool>());
     EXPECT_EQ(closed["stop_reason"], "all nodes done");

@@ -114,18 +114,20 @@ TEST_F(RgbdClean, DensityOnAlignedViewsKeepsTheViews) {
 // --high-recall is the stricter operating point: it removes more; an explicit option still
 // wins over its preset value.
 TEST_F(RgbdClean, HighRecallRemovesMoreAndExplicitOptionsWin) {
-    Outcome r =
-        run("$BIN/rgbd-clean --distance views.ply --metrics m_f1.json > f1.ply && "
-            "$BIN/rgbd-clean --distance --high-recall views.ply --metrics m_hr.json > hr.ply && "
-            "$BIN/rgbd-clean --distance --high-recall --c-min 2 --c-min-wide 3 --keep-knn 3 "
-            "--line-sigmas 3 --dense-min 16 views.ply --metrics m_back.json > back.ply");
-    ASSERT_EQ(r.code, 0) << r.err;
-    const auto f1 = metrics("m_f1.json"), hr = metrics("m_hr.json"), back = metrics("m_back.json");
+    const auto f1 = clean_documents("--distance", "f1");
+    const auto hr = clean_documents("--distance --high-recall", "hr");
+    const auto back = clean_documents(
+        "--distance --high-recall --c-min 2 --c-min-wide 3 --keep-knn 3 --line-sigmas 3 "
+        "--dense-min 16",
+        "back");
+    ASSERT_EQ(f1.size(), 4u);
+    ASSERT_EQ(hr.size(), 4u);
+    ASSERT_EQ(back.size(), 4u);
     int removed_f1 = 0, removed_hr = 0;
     for (std::size_t v = 0; v < 4; ++v) {
-        removed_f1 += f1["documents"][v]["removed"].get<int>();
-        removed_hr += hr["documents"][v]["removed"].get<int>();
-        EXPECT_EQ(back["documents"][v]["removed"], f1["documents"][v]["removed"]);
+        removed_f1 += f1[v]["removed"].get<int>();
+        removed_hr += hr[v]["removed"].get<int>();
+        EXPECT_EQ(back[v]["removed"], f1[v]["removed"]);
     }
     EXPECT_GT(removed_hr, removed_f1);
 }

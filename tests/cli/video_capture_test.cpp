@@ -16,17 +16,15 @@
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "io/video.hpp"
-#include "tests/cli/hub_port.hpp"
+#include "tests/cli/hub_session.hpp"
 #include "tests/cli/usage_error.hpp"
 #include "tests/support/capture_harness.hpp"
 
 namespace {
 
+// The harness's namespace also brings fs, json, Outcome and slurp.
 using namespace rgbd::test::capture;
 using rgbd::test::is_usage_error;
-namespace fs = std::filesystem;
-using rgbd::test::Outcome;
-using rgbd::test::slurp;
 
 constexpr int kSets = 6;
 
@@ -199,16 +197,11 @@ TEST_F(RgbdCapture, LiveVideoIsServedWhileCapturing) {
     if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
     const fs::path dir = temp_root();
     fs::remove_all(dir / "vid_serve");
-    const HubPort port;
+    const HubSession session("serve");
     const int page = free_port() + 1;
-    const std::string rig = rig_of(2);
-    start(dir, "hub_serve",
-          "$BIN/rgbd-capture --rig " + rig + " --video vid_serve --serve " + std::to_string(page) +
-              " --exit-after-bye" + port.listen());
-    for (int s = 0; s < 2; ++s)
-        start(dir, "node_serve_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) + " --views --loop --frames 240" +
-                  port.hub());
+    session.start_hub("--rig " + rig_of(2) + " --video vid_serve --serve " + std::to_string(page) +
+                      " --exit-after-bye");
+    session.start_nodes(2, "--views --frames 240");
     const std::string url = "http://127.0.0.1:" + std::to_string(page);
     // The page and, once the first set is fused, the newest fused frame (polled until the hub
     // ends: no time limit of its own).
@@ -222,8 +215,8 @@ TEST_F(RgbdCapture, LiveVideoIsServedWhileCapturing) {
     EXPECT_NE(run("curl -s --max-time 10 " + url + "/").out.find("three.min.js"),
               std::string::npos);
     EXPECT_EQ(json::parse(run("curl -s --max-time 10 " + url + "/api/info").out)["mode"], "live");
-    for (int s = 0; s < 2; ++s) EXPECT_EQ(wait_for(dir, "node_serve_" + std::to_string(s), 120), 0);
-    EXPECT_EQ(wait_for(dir, "hub_serve", 60), 0) << slurp(dir / "hub_serve.err");
+    EXPECT_TRUE(session.nodes_succeed(2, 120));
+    EXPECT_TRUE(session.hub_exits(0, 60));
     EXPECT_TRUE(rgbd::io::read_video(dir / "vid_serve").complete);
 }
 
@@ -232,22 +225,13 @@ TEST_F(RgbdCapture, VideoOnAFullDiskEndsWithEveryWrittenFrameReadable) {
     const fs::path mount = dir / "small_video_disk";
     const SmallDisk disk(mount, "400k");
     if (!disk.mounted()) GTEST_SKIP() << disk.why();
-    const HubPort port;
-    const std::string rig = rig_of(2);
-    start(dir, "hub_vfull",
-          "$BIN/rgbd-capture --rig " + rig + " --video small_video_disk/vid --exit-after-bye" +
-              port.listen());
-    for (int s = 0; s < 2; ++s)
-        start(dir, "node_vfull_" + std::to_string(s),
-              "$BIN/rgbd-node --sensor playback:synth#" + id(s) +
-                  " --views --loop --frames 900 --send-timeout-s 3" + port.hub());
-    EXPECT_EQ(wait_for(dir, "hub_vfull", 120), 1);
+    const HubSession session("vfull");
+    session.start_hub("--rig " + rig_of(2) + " --video small_video_disk/vid --exit-after-bye");
+    session.start_nodes(2, "--views --frames 900 --send-timeout-s 3");
+    EXPECT_TRUE(session.hub_exits(1, 120));
     const std::string err = slurp(dir / "hub_vfull.err");
     EXPECT_NE(err.find("video stopped"), std::string::npos) << err;
-    for (int s = 0; s < 2; ++s) {
-        ::kill(pid_of(dir, "node_vfull_" + std::to_string(s)), SIGTERM);
-        wait_for(dir, "node_vfull_" + std::to_string(s), 20);
-    }
+    session.stop_nodes(2, 20);
     // Every frame on the disk, in the index or not, decodes; no temporary file is left.
     const rgbd::io::VideoInfo video = rgbd::io::read_video(mount / "vid");
     EXPECT_GE(video.frames.size(), 2u);
