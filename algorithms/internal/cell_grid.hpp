@@ -194,6 +194,8 @@ public:
     }
     /// False when the grid could not be built (all points equal, an extent beyond 21 bits).
     bool ok() const { return ok_; }
+    /// Side of a cell (m).
+    double cell() const { return cell_; }
 
     /// The k nearest points of q (k >= 1), nearest first, into indices / sq_dists (room for k
     /// each). Returns how many were found (k, or all points when there are fewer), or 0 when

@@ -3,9 +3,11 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -85,76 +87,46 @@ std::vector<double> kd_nearest(const std::vector<Eigen::Vector3d>& xyz,
 }
 
 /// The same distances for the median, from a cell grid (no kd-tree: over millions of points
-/// its build is a long sequential step): cells of side c ~ the spacing a surface over the
-/// bounding box's largest face would have; rings of cells around the query's are searched
-/// until the best distance is at most R c after ring R (any point outside ring R is farther
-/// than R c). The median only needs the exact distances of the lower half: a query not settled
-/// within 2 rings (an isolated outlier) gets the lower bound 2 c, unless that caps at least
-/// half the queries (then every ring is searched). False when the grid cannot hold the extent.
+/// its build is a long sequential step), cells of about the spacing a surface over the bounding
+/// box's largest face would have (internal::CellNeighbours; the query is among the points, so
+/// its nearest other point is the first of its two nearest that is not itself). The median
+/// only needs the exact distances of the lower half: a query not settled within 2 rings of
+/// cells (an isolated outlier) is farther than 2 cells from every other point and gets that
+/// lower bound, unless that caps at least half the queries (then every ring is searched).
+/// False when the grid cannot hold the extent.
 bool grid_nearest_for_median(const std::vector<Eigen::Vector3d>& pts,
                              const std::vector<std::uint32_t>& queries, std::vector<double>& dist) {
-    const std::size_t n = pts.size();
-    Eigen::Vector3d lo = pts[0], hi = pts[0];
-    for (const auto& p : pts) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-    }
-    Eigen::Vector3d ext = hi - lo;
-    std::sort(ext.data(), ext.data() + 3);
-    const double cell = std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(n));
-    internal::CellGrid grid;
-    if (!(cell > 0.0) || !grid.build(pts, cell)) return false;
-    // Rings beyond the grid's extent hold no cells: the search is complete there.
-    const Eigen::Vector3d span = (hi - lo) / cell;
-    const std::int64_t all_rings = std::int64_t(span.maxCoeff()) + 2;
     constexpr std::int64_t kCapRings = 2;
-    std::int64_t max_ring = std::min(all_rings, kCapRings);
-    dist.assign(queries.size(), 0.0);
-    const auto search = [&] {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, queries.size(), 256),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                    const std::uint32_t qi = queries[i];
-                    const Eigen::Vector3d& p = pts[qi];
-                    const auto c = grid.cell_of(p);
-                    double best = std::numeric_limits<double>::infinity();
-                    // Cells (x, y, z0 .. z1) of one column.
-                    const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0,
-                                           std::int64_t z1) {
-                        const auto [c0, c1] = grid.column(x, y, z0, z1);
-                        for (std::uint32_t a = grid.start[c0]; a < grid.start[c1]; ++a) {
-                            const std::uint32_t j = grid.keyed[a].second;
-                            if (j != qi) best = std::min(best, (pts[j] - p).squaredNorm());
-                        }
-                    };
-                    visit(c.x(), c.y(), c.z(), c.z());
-                    for (std::int64_t ring = 1; ring <= max_ring; ++ring) {
-                        // The shell at Chebyshev distance `ring`: full columns on its x / y
-                        // faces, the two z caps elsewhere.
-                        for (std::int64_t x = c.x() - ring; x <= c.x() + ring; ++x)
-                            for (std::int64_t y = c.y() - ring; y <= c.y() + ring; ++y) {
-                                if (std::abs(x - c.x()) == ring || std::abs(y - c.y()) == ring) {
-                                    visit(x, y, c.z() - ring, c.z() + ring);
-                                } else {
-                                    visit(x, y, c.z() - ring, c.z() - ring);
-                                    visit(x, y, c.z() + ring, c.z() + ring);
-                                }
-                            }
-                        if (best <= double(ring) * cell * double(ring) * cell) break;
-                    }
-                    dist[i] = std::min(std::sqrt(best), double(max_ring) * cell);
-                }
-            });
+    // Nearest other point's distance of every query, searching at most `rings` rings; `cap`
+    // for a query that did not settle. The number of such queries, or nothing without a grid.
+    const auto search = [&](std::int64_t rings, double& cap) -> std::optional<std::size_t> {
+        const internal::CellNeighbours grid(pts, 1.0, rings);
+        if (!grid.ok()) return std::nullopt;
+        cap = double(kCapRings) * grid.cell();
+        dist.assign(queries.size(), 0.0);
+        std::atomic<std::size_t> capped{0};
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              std::uint32_t idx[2];
+                              double sq[2];
+                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                  const std::size_t found = grid.knn(pts[queries[i]], 2, idx, sq);
+                                  if (found == 0) {
+                                      dist[i] = cap;
+                                      ++capped;
+                                  } else if (found == 2) {
+                                      dist[i] = std::sqrt(idx[0] == queries[i] ? sq[1] : sq[0]);
+                                  }
+                              }
+                          });
+        return capped.load();
     };
-    search();
+    double cap = 0.0;
+    const std::optional<std::size_t> capped = search(kCapRings, cap);
+    if (!capped) return false;
     const std::size_t m = dist.size();
-    const std::size_t capped =
-        std::size_t(std::count(dist.begin(), dist.end(), double(max_ring) * cell));
-    if (max_ring < all_rings && capped > 0 && capped + m / 2 + 1 > m) {
-        max_ring = all_rings;
-        search();
-    }
+    if (*capped > 0 && *capped + m / 2 + 1 > m)
+        search(std::numeric_limits<std::int64_t>::max(), cap);
     return true;
 }
 
