@@ -261,7 +261,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
                               [&](const tbb::blocked_range<std::size_t>& r) {
                                   for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                                      const Eigen::Vector3d& p = world[grid.keyed[a].second];
+                                      const Eigen::Vector3d& p = world[grid.point[a]];
                                       xs[a] = p.x();
                                       ys[a] = p.y();
                                       zs[a] = p.z();
@@ -294,7 +294,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                                      dz = zs[b] - pz;
                                         count += dx * dx + dy * dy + dz * dz <= r2;
                                     }
-                                finish(grid.keyed[a].second, count, Eigen::Vector3d::Zero(),
+                                finish(grid.point[a], count, Eigen::Vector3d::Zero(),
                                        Eigen::Matrix3d::Zero());
                                 continue;
                             }
@@ -308,7 +308,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                     sum += d;
                                     outer += d * d.transpose();
                                 }
-                            finish(grid.keyed[a].second, count, sum, outer);
+                            finish(grid.point[a], count, sum, outer);
                         }
                     }
                 });
@@ -481,7 +481,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                                 const auto [c0, c1] =
                                     grid.column(cx, cy, cell.z() - 2, cell.z() + 2);
                                 for (std::uint32_t b = grid.start[c0]; b < grid.start[c1]; ++b)
-                                    take(grid.keyed[b].second);
+                                    take(grid.point[b]);
                             }
                     } else {
                         tree->radius(p, reach, found, /*sorted=*/false);

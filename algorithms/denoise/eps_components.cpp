@@ -19,7 +19,7 @@ bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
     const std::size_t m = pts.size();
     CellGrid grid;
     if (!grid.build(pts, eps / std::sqrt(3.0) * (1.0 - 1e-9))) return false;
-    const auto& keyed = grid.keyed;
+    const auto& point = grid.point;
     const auto& keys = grid.keys;
     const auto& start = grid.start;
     const std::size_t cells = grid.cells();
@@ -28,8 +28,7 @@ bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
     const auto linked = [&](std::size_t ca, std::size_t cb) {
         for (std::uint32_t i = start[ca]; i < start[ca + 1]; ++i)
             for (std::uint32_t j = start[cb]; j < start[cb + 1]; ++j)
-                if ((pts[keyed[i].second] - pts[keyed[j].second]).squaredNorm() <= eps2)
-                    return true;
+                if ((pts[point[i]] - pts[point[j]]).squaredNorm() <= eps2) return true;
         return false;
     };
     // In parallel: the pairs of cells that can hold a linked pair. Neighbours at most one cell
@@ -72,7 +71,7 @@ bool eps_components(const std::vector<Eigen::Vector3d>& pts, double eps,
     label.assign(m, 0);
     for (std::size_t c = 0; c < cells; ++c) {
         const std::uint32_t root = sets.find(std::uint32_t(c));
-        for (std::uint32_t i = start[c]; i < start[c + 1]; ++i) label[keyed[i].second] = root;
+        for (std::uint32_t i = start[c]; i < start[c + 1]; ++i) label[point[i]] = root;
     }
     return true;
 }
