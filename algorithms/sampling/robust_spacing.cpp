@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -65,68 +64,50 @@ double robust_spacing(const PointSet& points, std::size_t sample, std::uint64_t 
 
 namespace {
 
-/// Nearest other point's distance of every query point, from a kd-tree over all points.
-std::vector<double> kd_nearest(const std::vector<Eigen::Vector3d>& xyz,
-                               const std::vector<std::uint32_t>& queries) {
-    const internal::KdTree tree(xyz);
-    std::vector<double> dist(queries.size(), 0.0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 512),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
+/// Nearest other point's distance of every query point into `dist`, by any search with
+/// knn(q, k, indices, sq_dists) over all the points (the query itself is among them: its nearest
+/// other point is the first of its two nearest that is not itself, or a duplicate at 0); `cap`
+/// for a query the search leaves unsettled (knn() = 0). Returns the number of those.
+template <typename Search>
+std::size_t nearest_other(const Search& search, const std::vector<Eigen::Vector3d>& pts,
+                          const std::vector<std::uint32_t>& queries, double cap,
+                          std::vector<double>& dist) {
+    dist.assign(queries.size(), 0.0);
+    std::atomic<std::size_t> capped{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
                           std::uint32_t idx[2];
                           double sq[2];
-                          for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                              const std::size_t found = tree.knn(xyz[queries[i]], 2, idx, sq);
-                              // The query itself is in the tree; its nearest "other" point is
-                              // the second result (or the first, if a duplicate came first).
-                              double d2 = 0.0;
-                              if (found == 2) d2 = idx[0] == queries[i] ? sq[1] : sq[0];
-                              dist[i] = std::sqrt(d2);
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const std::size_t found = search.knn(pts[queries[i]], 2, idx, sq);
+                              if (found == 0) {
+                                  dist[i] = cap;
+                                  ++capped;
+                              } else if (found == 2) {
+                                  dist[i] = std::sqrt(idx[0] == queries[i] ? sq[1] : sq[0]);
+                              }
                           }
                       });
-    return dist;
+    return capped.load();
 }
 
-/// The same distances for the median, from a cell grid (no kd-tree: over millions of points
-/// its build is a long sequential step), cells of about the spacing a surface over the bounding
-/// box's largest face would have (internal::CellNeighbours; the query is among the points, so
-/// its nearest other point is the first of its two nearest that is not itself). The median
-/// only needs the exact distances of the lower half: a query not settled within 2 rings of
-/// cells (an isolated outlier) is farther than 2 cells from every other point and gets that
-/// lower bound, unless that caps at least half the queries (then every ring is searched).
-/// False when the grid cannot hold the extent.
+/// The distances for the median from a cell grid (no kd-tree: over millions of points its
+/// build is a long sequential step), cells of about the spacing a surface over the bounding
+/// box's largest face would have (internal::CellNeighbours). The median only needs the exact
+/// distances of the lower half: a query not settled within 2 rings of cells (an isolated
+/// outlier) is farther than 2 cells from every other point and gets that lower bound, unless
+/// that caps at least half the queries (then every ring is searched). False when the grid
+/// cannot hold the extent.
 bool grid_nearest_for_median(const std::vector<Eigen::Vector3d>& pts,
                              const std::vector<std::uint32_t>& queries, std::vector<double>& dist) {
     constexpr std::int64_t kCapRings = 2;
-    // Nearest other point's distance of every query, searching at most `rings` rings; `cap`
-    // for a query that did not settle. The number of such queries, or nothing without a grid.
-    const auto search = [&](std::int64_t rings, double& cap) -> std::optional<std::size_t> {
-        const internal::CellNeighbours grid(pts, 1.0, rings);
-        if (!grid.ok()) return std::nullopt;
-        cap = double(kCapRings) * grid.cell();
-        dist.assign(queries.size(), 0.0);
-        std::atomic<std::size_t> capped{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              std::uint32_t idx[2];
-                              double sq[2];
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                  const std::size_t found = grid.knn(pts[queries[i]], 2, idx, sq);
-                                  if (found == 0) {
-                                      dist[i] = cap;
-                                      ++capped;
-                                  } else if (found == 2) {
-                                      dist[i] = std::sqrt(idx[0] == queries[i] ? sq[1] : sq[0]);
-                                  }
-                              }
-                          });
-        return capped.load();
-    };
-    double cap = 0.0;
-    const std::optional<std::size_t> capped = search(kCapRings, cap);
-    if (!capped) return false;
-    const std::size_t m = dist.size();
-    if (*capped > 0 && *capped + m / 2 + 1 > m)
-        search(std::numeric_limits<std::int64_t>::max(), cap);
+    const internal::CellNeighbours near(pts, 1.0, kCapRings);
+    if (!near.ok()) return false;
+    const std::size_t capped =
+        nearest_other(near, pts, queries, double(kCapRings) * near.cell(), dist);
+    if (capped > 0 && capped + dist.size() / 2 + 1 > dist.size())
+        nearest_other(internal::CellNeighbours(pts, 1.0, std::numeric_limits<std::int64_t>::max()),
+                      pts, queries, 0.0, dist);
     return true;
 }
 
@@ -142,7 +123,8 @@ double robust_spacing(const std::vector<Eigen::Vector3d>& xyz, std::size_t sampl
                    "robust_spacing: point " + std::to_string(i) + " has a non-finite coordinate");
     const std::vector<std::uint32_t> queries = spacing_sample(n, sample, seed);
     std::vector<double> dist;
-    if (!grid_nearest_for_median(xyz, queries, dist)) dist = kd_nearest(xyz, queries);
+    if (!grid_nearest_for_median(xyz, queries, dist))
+        nearest_other(internal::KdTree(xyz), xyz, queries, 0.0, dist);
     return spacing_median(dist);
 }
 
