@@ -38,13 +38,15 @@ struct CellGrid {
 
     /// False (grid left empty) when the extent needs more than 21 bits per axis.
     bool build(const std::vector<Eigen::Vector3d>& pts, double cell) {
+        if (pts.empty()) return false;
+        const auto [lo, hi] = bounds(pts);
+        return build(pts, cell, lo, hi);
+    }
+    /// The same with the points' bounding box `lo`, `hi` already known.
+    bool build(const std::vector<Eigen::Vector3d>& pts, double cell, const Eigen::Vector3d& lo,
+               const Eigen::Vector3d& hi) {
         const std::size_t m = pts.size();
         if (!(cell > 0.0) || m == 0) return false;
-        Eigen::Vector3d lo = pts[0], hi = pts[0];
-        for (const auto& p : pts) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
         constexpr double kMaxCells = double(1 << 21) - 8.0;
         if (((hi - lo) / cell).maxCoeff() >= kMaxCells) return false;
         origin = lo;
@@ -113,7 +115,19 @@ struct CellGrid {
         }
         return true;
     }
+    /// Bounding box (lo, hi) of a non-empty point set.
+    static std::pair<Eigen::Vector3d, Eigen::Vector3d> bounds(
+        const std::vector<Eigen::Vector3d>& pts) {
+        Eigen::Vector3d lo = pts[0], hi = pts[0];
+        for (const auto& p : pts) {
+            lo = lo.cwiseMin(p);
+            hi = hi.cwiseMax(p);
+        }
+        return {lo, hi};
+    }
     std::size_t cells() const { return keys.size(); }
+    /// Corner of cell (2, 2, 2): the points' lowest coordinates (after build()).
+    const Eigen::Vector3d& lowest() const { return origin; }
     /// Grid coordinates of the cell holding p (offset included), as build() assigns them.
     Eigen::Matrix<std::int64_t, 3, 1> cell_of(const Eigen::Vector3d& p) const {
         const Eigen::Vector3d c = (p - origin) / side;
@@ -187,19 +201,14 @@ public:
                    std::int64_t max_rings)
         : pts_(pts) {
         if (pts.empty()) return;
-        Eigen::Vector3d lo = pts[0], hi = pts[0];
-        for (const auto& p : pts) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
+        const auto [lo, hi] = CellGrid::bounds(pts);
         Eigen::Vector3d ext = hi - lo;
         std::sort(ext.data(), ext.data() + 3);
         cell_ =
             cell_factor * std::sqrt(ext[2] * std::max(ext[1], 1e-3 * ext[2]) / double(pts.size()));
-        ok_ = cell_ > 0.0 && std::isfinite(cell_) && grid_.build(pts, cell_);
+        ok_ = cell_ > 0.0 && std::isfinite(cell_) && grid_.build(pts, cell_, lo, hi);
         if (!ok_) return;
         max_rings_ = max_rings;
-        lo_ = lo;
         const Eigen::Vector3d span = (hi - lo) / cell_;
         last_cell_ = {std::int64_t(span.x()) + 2, std::int64_t(span.y()) + 2,
                       std::int64_t(span.z()) + 2};
@@ -208,6 +217,8 @@ public:
     bool ok() const { return ok_; }
     /// Side of a cell (m).
     double cell() const { return cell_; }
+    /// Searches up to `max_rings` rings from now on (the same grid, another bound).
+    void set_max_rings(std::int64_t max_rings) { max_rings_ = max_rings; }
 
     /// The k nearest points of q (k >= 1), nearest first, into indices / sq_dists (room for k
     /// each). Returns how many were found (k, or all points when there are fewer), or 0 when
@@ -236,7 +247,8 @@ public:
                 offer((pts_[j] - q).squaredNorm(), j);
             }
         };
-        if (!(((q - lo_) / cell_).cwiseAbs().maxCoeff() < 1e15)) return 0;  // no int64 cell
+        if (!(((q - grid_.lowest()) / cell_).cwiseAbs().maxCoeff() < 1e15))
+            return 0;  // no int64 cell
         const auto c = grid_.cell_of(q);
         // Rings past this one hold no cell: every point has been seen there.
         std::int64_t all_rings = 0;
@@ -266,7 +278,6 @@ private:
     static constexpr std::int64_t kMaxRings = 4096;
     const std::vector<Eigen::Vector3d>& pts_;
     std::int64_t max_rings_ = 0;
-    Eigen::Vector3d lo_ = Eigen::Vector3d::Zero();
     Eigen::Matrix<std::int64_t, 3, 1> last_cell_ = Eigen::Matrix<std::int64_t, 3, 1>::Zero();
     double cell_ = 0.0;
     bool ok_ = false;

@@ -12,7 +12,6 @@
 #include <CGAL/poisson_surface_reconstruction.h>
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
@@ -22,6 +21,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -371,19 +371,25 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
     std::vector<Rgb> all_rgb, orig_rgb;
     all_xyz.reserve(cloud.size());
     all_rgb.reserve(cloud.size());
+    const bool flagged = synthetic.has_value() || uncoloured.has_value();
     for (auto idx : cloud.points) {
         const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
         all_xyz.push_back(p);
         all_rgb.push_back(colors.get(idx));
-        if ((!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0)) {
+        if (flagged && (!synthetic || (*synthetic)[idx] == 0) &&
+            (!uncoloured || (*uncoloured)[idx] == 0)) {
             orig_xyz.push_back(p);
             orig_rgb.push_back(colors.get(idx));
         }
     }
+    // The measured points searched on their own only when some points are not measured (with
+    // all of them measured, both searches would find the same neighbours).
+    const bool separate = !orig_xyz.empty() && orig_xyz.size() < all_xyz.size();
     // Cell grids, not kd-trees: millions of points on a dense sequence against the mesh's
     // vertices, and a kd-tree's build is sequential.
-    const rgbd::internal::PointSearch all_tree(all_xyz), orig_tree(orig_xyz);
-    const bool separate = (synthetic.has_value() || uncoloured.has_value()) && !orig_xyz.empty();
+    const rgbd::internal::PointSearch all_tree(all_xyz);
+    std::optional<rgbd::internal::PointSearch> orig_tree;
+    if (separate) orig_tree.emplace(orig_xyz);
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
 
@@ -401,8 +407,8 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
                               if (separate) {
                                   std::uint32_t i;
                                   double d2;
-                                  if (orig_tree.knn(q, 1, &i, &d2) == 1 && std::sqrt(d2) <= near) {
-                                      tree = &orig_tree;
+                                  if (orig_tree->knn(q, 1, &i, &d2) == 1 && std::sqrt(d2) <= near) {
+                                      tree = &*orig_tree;
                                       rgb = &orig_rgb;
                                   }
                               }

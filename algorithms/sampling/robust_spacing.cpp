@@ -101,13 +101,14 @@ std::size_t nearest_other(const Search& search, const std::vector<Eigen::Vector3
 bool grid_nearest_for_median(const std::vector<Eigen::Vector3d>& pts,
                              const std::vector<std::uint32_t>& queries, std::vector<double>& dist) {
     constexpr std::int64_t kCapRings = 2;
-    const internal::CellNeighbours near(pts, 1.0, kCapRings);
+    internal::CellNeighbours near(pts, 1.0, kCapRings);
     if (!near.ok()) return false;
     const std::size_t capped =
         nearest_other(near, pts, queries, double(kCapRings) * near.cell(), dist);
-    if (capped > 0 && capped + dist.size() / 2 + 1 > dist.size())
-        nearest_other(internal::CellNeighbours(pts, 1.0, std::numeric_limits<std::int64_t>::max()),
-                      pts, queries, 0.0, dist);
+    if (capped > 0 && capped + dist.size() / 2 + 1 > dist.size()) {
+        near.set_max_rings(std::numeric_limits<std::int64_t>::max());
+        nearest_other(near, pts, queries, 0.0, dist);
+    }
     return true;
 }
 
