@@ -9,7 +9,6 @@
 #include <CGAL/Random.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <CGAL/compute_average_spacing.h>
-#include <CGAL/poisson_surface_reconstruction.h>
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
@@ -29,6 +28,7 @@
 
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/poisson_solver.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/reconstruction/smooth_points.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
@@ -212,10 +212,9 @@ private:
 void poisson(const std::vector<Pwn>& pwn, double spacing, const ReconstructionOptions& o,
              Mesh& mesh) {
     const ScopedDefaultRandom seeded(0);
-    const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
-        pwn.begin(), pwn.end(), PointOf(), NormalOf(), mesh, spacing, o.sm_angle_deg, o.sm_radius,
-        o.sm_distance);
-    if (!ok) throw AlgorithmError("reconstruction: the Poisson solver failed");
+    if (!rgbd::internal::poisson_surface(pwn, spacing, o.sm_angle_deg, o.sm_radius, o.sm_distance,
+                                         mesh))
+        throw AlgorithmError("reconstruction: the Poisson solver failed");
 }
 
 /// Advancing front's priority for the "front" method: CGAL's (radius of the smallest Delaunay

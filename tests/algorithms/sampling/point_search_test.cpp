@@ -49,7 +49,7 @@ std::vector<Eigen::Vector3d> queries(const std::vector<Eigen::Vector3d>& pts, un
     for (int i = 0; i < 200; ++i) q.push_back(0.1 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
     for (int i = 0; i < 50; ++i) q.push_back(5.0 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
     q.emplace_back(1e9, -1e9, 3.0);
-    q.push_back(pts[7]);
+    if (pts.size() > 7) q.push_back(pts[7]);
     return q;
 }
 
