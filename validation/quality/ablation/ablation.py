@@ -49,8 +49,10 @@ error drawn anew); the table shows the mean over the seeds first, then every run
 
 Verdict per object and stage, on the paired differences default - skip-STAGE over the seeds:
 "earns its place" when F@2mm and completeness are no worse and invented surface no higher on
-the mean; "no measurable effect" when one is worse on the mean by less than twice the standard
-error of the paired difference (the seeds' spread); "HURTS" beyond it. On the busts, the
+the mean; "no measurable harm" when one is worse on the mean by less than twice the standard
+error of the paired difference (the seeds' spread); "HURTS" beyond it. "Measurably better"
+lists the measures (those three, F@1mm, accuracy) the stage improves beyond twice the standard
+error, with the number of seeds on which it did: what the stage is there for. On the busts, the
 issue's targets on every seed: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm.
 """
 import argparse
@@ -362,16 +364,31 @@ def table_row(r):
             f"{fmt(r['far3'], '.4f')} | {fmt(r['grey'], '.4f')} | {pose} |")
 
 
+# The issue's three measures: a stage may not make any of them worse.
 METRICS = [("F@2mm", "f2", -1, ".4f", ""), ("completeness", "completeness_mm", 1, ".3f", " mm"),
            ("invented", "invented", 1, ".3%", "")]
+# Where a stage shows what it is for: the three, and the finer F-score and accuracy.
+GAIN_METRICS = [("F@1mm", "f1", -1, ".4f", "")] + METRICS + [
+    ("accuracy", "accuracy_mm", 1, ".3f", " mm")]
+
+
+def paired(base, skip, key, sign):
+    """Paired differences with - without the stage over the seeds both ran, signed so that > 0 is
+    worse with the stage: (mean, standard error of the mean, seeds better, seeds worse)."""
+    seeds = sorted(set(base) & set(skip))
+    d = np.array([sign * (base[s][key] - skip[s][key]) for s in seeds])
+    se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
+    return float(d.mean()), se, int((d < 0).sum()), int((d > 0).sum())
 
 
 def verdicts(rows):
-    """Per object and stage: the paired differences default - skip-STAGE over the seeds, signed
-    so that > 0 is worse with the stage. "earns its place": no metric worse on the mean; "no
-    measurable effect": worse on the mean but by less than twice the standard error of the
-    paired difference (the seeds' spread), so the sign is not known; "HURTS": worse beyond it
-    (with one seed any worse digit counts)."""
+    """Per object and stage: the paired differences default - skip-STAGE over the seeds. A stage
+    "HURTS" when F@2mm, completeness or invented surface is worse on the mean by more than twice
+    the standard error of the paired difference (the seeds' spread; with one seed any worse
+    digit counts); "no measurable harm" when one is worse on the mean but within that spread;
+    "earns its place" when none is worse on the mean. "Measurably better" lists the measures
+    (those three, F@1mm and accuracy) that the stage improves by more than twice the standard
+    error, with the number of seeds on which it did."""
     out = []
     by = {}
     for r in rows:
@@ -386,28 +403,39 @@ def verdicts(rows):
             skip = v.get(f"skip-{stage}")
             if not skip:
                 continue
-            seeds = sorted(set(base) & set(skip))
-            worse, unsure = [], []
+            n = len(set(base) & set(skip))
+
+            def detail(name, key, spec, unit, mean, se):
+                with_ = np.mean([base[s][key] for s in skip if s in base])
+                without = np.mean([skip[s][key] for s in base if s in skip])
+                return (f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} without" +
+                        (f", paired difference {abs(mean):{spec}}{unit} +- {se:{spec}}{unit}"
+                         if n > 1 else ""))
+            worse, unsure, gains = [], [], []
             for name, key, sign, spec, unit in METRICS:
-                d = np.array([sign * (base[s][key] - skip[s][key]) for s in seeds])
-                mean = float(d.mean())
-                se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
-                with_ = np.mean([base[s][key] for s in seeds])
-                without = np.mean([skip[s][key] for s in seeds])
-                detail = (f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} without" +
-                          (f", paired difference {abs(mean):{spec}}{unit} +- {se:{spec}}{unit}"
-                           if len(d) > 1 else ""))
+                mean, se, _, _ = paired(base, skip, key, sign)
                 if mean > 2 * se:
-                    worse.append(detail)
+                    worse.append(detail(name, key, spec, unit, mean, se))
                 elif mean > 0:
-                    unsure.append(detail)
+                    unsure.append(detail(name, key, spec, unit, mean, se))
+            if n > 1:
+                for name, key, sign, spec, unit in GAIN_METRICS:
+                    mean, se, better, _ = paired(base, skip, key, sign)
+                    if mean < -2 * se:
+                        with_ = np.mean([base[s][key] for s in skip if s in base])
+                        without = np.mean([skip[s][key] for s in base if s in skip])
+                        gains.append(f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} "
+                                     f"({better}/{n} seeds)")
             if worse:
-                parts.append(f"{stage}: HURTS (" + "; ".join(worse) + ")")
+                verdict = f"{stage}: HURTS (" + "; ".join(worse) + ")"
             elif unsure:
-                parts.append(f"{stage}: no measurable effect (worse on the mean, within the "
-                             f"seeds' spread: " + "; ".join(unsure) + ")")
+                verdict = (f"{stage}: no measurable harm (worse on the mean, within the seeds' "
+                           f"spread: " + "; ".join(unsure) + ")")
             else:
-                parts.append(f"{stage}: earns its place")
+                verdict = f"{stage}: earns its place"
+            if gains:
+                verdict += "; measurably better: " + "; ".join(gains)
+            parts.append(verdict)
         n = len(base)
         line = f"- {obj} ({n} seed{'s' if n > 1 else ''}): " + (
             "; ".join(parts) if parts else "no --skip variant run")
