@@ -99,7 +99,8 @@ TEST(PointSearch, FewerPointsThanAskedAndCloudsNoGridHolds) {
     auto wide = scene(3000, 3);
     wide.emplace_back(1e7, 0.0, 0.0);
     expect_same_as_kd_tree(wide, 6);
-    const PointSearch none(std::vector<Eigen::Vector3d>{});
+    const std::vector<Eigen::Vector3d> empty;
+    const PointSearch none(empty);
     std::uint32_t i;
     double d;
     EXPECT_EQ(none.knn(Eigen::Vector3d::Zero(), 1, &i, &d), 0u);
