@@ -68,15 +68,11 @@ double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
 Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& options,
                                 const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "distance";
-    report["noise_model"] = to_string(options.noise_model);
-    report["mark"] = options.mark;
-    const std::string name = detail::view_name(cloud);
-    const detail::Gathered g = detail::gather(cloud);
+    const detail::Gathered g = detail::open_run(cloud, options, "distance", report);
     const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
+    report["noise_model"] = to_string(options.noise_model);
+    const std::string name = detail::view_name(cloud);
     if (n == 0) return detail::nothing_removed(std::move(report), watch);
     const auto pixel = detail::organised_pixels(
         cloud, name,

@@ -67,6 +67,20 @@ inline Gathered gather(const PointCloud& cloud) {
     return g;
 }
 
+/// What a filter over one view does first: checks `options` (InputError), opens `report` with
+/// the filter's `method` name (and "mark" when the options have a `mark` setting), gathers the
+/// live points of `cloud` (gather()) and records their number as "input_points".
+template <class Options>
+Gathered open_run(const PointCloud& cloud, const Options& options, const char* method,
+                  Report& report) {
+    options.check();
+    report["method"] = method;
+    if constexpr (requires { options.mark; }) report["mark"] = options.mark;
+    Gathered g = gather(cloud);
+    report["input_points"] = g.xyz.size();
+    return g;
+}
+
 /// Marks or deletes the points with outlier[i] != 0 (i = position in `g`); returns the count.
 inline std::size_t apply(PointCloud& cloud, const Gathered& g,
                          const std::vector<std::uint8_t>& outlier, bool mark) {

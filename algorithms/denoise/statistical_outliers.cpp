@@ -40,9 +40,9 @@ const char* convention_name(OutlierConvention c) {
 using detail::apply;
 using detail::cancelled;
 using detail::finished;
-using detail::gather;
 using detail::Gathered;
 using detail::nothing_removed;
+using detail::open_run;
 using detail::record_removed;
 using detail::view_name;
 
@@ -51,16 +51,12 @@ using detail::view_name;
 Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& options,
                                    const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "statistical";
+    const Gathered g = open_run(cloud, options, "statistical", report);
+    const std::size_t n = g.xyz.size();
     report["convention"] = convention_name(options.convention);
     report["k_requested"] = options.k;
     report["std_ratio"] = options.std_ratio;
-    report["mark"] = options.mark;
-    const Gathered g = gather(cloud);
-    const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
     if (!report_progress(progress, 0.0)) return cancelled(report, watch);
 
     const bool open3d = options.convention == OutlierConvention::kOpen3d;
@@ -130,15 +126,11 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
 Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
                               const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "radius";
+    const Gathered g = open_run(cloud, options, "radius", report);
+    const std::size_t n = g.xyz.size();
     report["convention"] = convention_name(options.convention);
     report["min_points"] = options.min_points;
-    report["mark"] = options.mark;
-    const Gathered g = gather(cloud);
-    const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
     if (!report_progress(progress, 0.0)) return cancelled(report, watch);
     if (n == 0) {
         report["radius_m"] = options.radius_m;
