@@ -153,11 +153,13 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             const double limit = step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
             return (cam[j] - cam[i]).squaredNorm() <= limit * limit;
         };
-        // visit(j, dr, dc) for every valid pixel j of the 7 x 7 window around (row, col), the
-        // centre excluded (the rare paths after the hot loop).
-        const auto each_in_wide_window = [&](int row, int col, const auto& visit) {
-            for (int dr = -ww; dr <= ww; ++dr)
-                for (int dc = -ww; dc <= ww; ++dc) {
+        // visit(j, dr, dc) for every valid pixel j of the (2 half + 1)^2 window around
+        // (row, col), the centre excluded: the 5 x 5 window of the hot loop (inlined there)
+        // and the 7 x 7 one of the rare paths after it.
+        const auto each_in_window = [&](int half, int row, int col, const auto& visit)
+            __attribute__((always_inline)) {
+            for (int dr = -half; dr <= half; ++dr)
+                for (int dc = -half; dc <= half; ++dc) {
                     if (dr == 0 && dc == 0) continue;
                     const int rr = row + dr, cc = col + dc;
                     if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
@@ -168,7 +170,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
         // Step 1, second chance: supporters of i in its 7 x 7 window (the same relation).
         const auto wide_support = [&](std::int32_t i, int row, int col) {
             int count = 0;
-            each_in_wide_window(row, col, [&](std::int32_t j, int dr, int dc) {
+            each_in_window(ww, row, col, [&](std::int32_t j, int dr, int dc) {
                 if (supports(i, j, dr, dc)) ++count;
             });
             return count;
@@ -180,7 +182,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             double best[DistanceOptions::kMaxKeepK];  // the keep_k smallest squared distances,
                                                       // ascending
             int found = 0;
-            each_in_wide_window(row, col, [&](std::int32_t j, int, int) {
+            each_in_window(ww, row, col, [&](std::int32_t j, int, int) {
                 const double d = (cam[j] - cam[i]).squaredNorm();
                 if (found == keep_k && d >= best[keep_k - 1]) return;
                 int at = found < keep_k ? found++ : keep_k - 1;
@@ -230,20 +232,16 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                         const std::int32_t i = grid[std::size_t(row) * width + col];
                         if (i < 0) continue;
                         int support = 0, valid = 0;
-                        for (int dr = -w; dr <= w; ++dr)
-                            for (int dc = -w; dc <= w; ++dc) {
-                                if (dr == 0 && dc == 0) continue;
-                                const int rr = row + dr, cc = col + dc;
-                                if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
-                                const std::int32_t j = grid[std::size_t(rr) * width + cc];
-                                if (j < 0) continue;
-                                ++valid;
-                                // supports(i, j, dr, dc), written out: GCC does not inline
-                                // the lambda here since it has 4 callers (+20% instructions).
-                                const double limit =
-                                    step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
-                                if ((cam[j] - cam[i]).squaredNorm() <= limit * limit) ++support;
-                            }
+                        // supports(i, j, dr, dc), written out: GCC does not inline the lambda
+                        // here since it has 4 callers (+20% instructions).
+                        const auto tally = [&](std::int32_t j, int dr, int dc)
+                            __attribute__((always_inline)) {
+                            ++valid;
+                            const double limit =
+                                step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
+                            if ((cam[j] - cam[i]).squaredNorm() <= limit * limit) ++support;
+                        };
+                        each_in_window(w, row, col, tally);
                         if (support < options.c_min)
                             reason[i] = kWeak;
                         else if (options.line_sigmas > 0.0 && valid >= options.dense_min &&
@@ -266,13 +264,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                 if (options.c_min_wide > 0 &&
                     wide_support(std::int32_t(i), row, col) >= options.c_min_wide) {
                     int valid = 0;
-                    for (int dr = -w; dr <= w; ++dr)
-                        for (int dc = -w; dc <= w; ++dc) {
-                            const int rr = row + dr, cc = col + dc;
-                            if ((dr != 0 || dc != 0) && rr >= 0 && rr < height && cc >= 0 &&
-                                cc < width && grid[std::size_t(rr) * width + cc] >= 0)
-                                ++valid;
-                        }
+                    each_in_window(w, row, col, [&](std::int32_t, int, int) { ++valid; });
                     if (options.line_sigmas <= 0.0 || valid < options.dense_min ||
                         continues_line(std::int32_t(i), row, col)) {
                         reason[i] = kKeep;
