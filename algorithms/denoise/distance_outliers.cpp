@@ -367,20 +367,12 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             for (std::size_t a = 0; a < m; ++a) pts[a] = cam[alive[a]];
             const internal::KdTree tree(pts);
             std::vector<double> ratio(m);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 256),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  std::vector<std::uint32_t> ids(search);
-                                  std::vector<double> sq(search);
-                                  for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                                      const std::size_t found =
-                                          tree.knn(pts[a], search, ids.data(), sq.data());
-                                      double sum = 0.0;
-                                      for (std::size_t j = 1; j < found; ++j)
-                                          sum += std::sqrt(sq[j]);
-                                      const double dbar = found > 1 ? sum / double(found - 1) : 0.0;
-                                      ratio[a] = dbar * focal / pts[a].z();
-                                  }
-                              });
+            detail::for_each_knn(
+                tree, pts, search, 256,
+                [&](std::size_t a, const std::uint32_t*, const double* sq, std::size_t found) {
+                    const double dbar = detail::mean_distance(sq, found, 1);
+                    ratio[a] = dbar * focal / pts[a].z();
+                });
             std::vector<double> tmp(ratio);
             const double med = lower_median(tmp);
             for (double& t : tmp) t = std::abs(t - med);
