@@ -389,17 +389,12 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         // Local reference (no cameras): measured rho_i = k / (pi d_k^2) from the k nearest
         // other points, expected = the median measured density of the k_ref nearest.
         const internal::KdTree tree(world);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              std::vector<std::uint32_t> ids(k + 1);
-                              std::vector<double> sq(k + 1);
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                  const std::size_t found =
-                                      tree.knn(world[i], k + 1, ids.data(), sq.data());
-                                  const double dk2 = std::max(sq[found - 1], 1e-18);
-                                  measured[i] = double(found - 1) / (std::numbers::pi * dk2);
-                              }
-                          });
+        detail::for_each_knn(
+            tree, world, k + 1, 256,
+            [&](std::size_t i, const std::uint32_t*, const double* sq, std::size_t found) {
+                const double dk2 = std::max(sq[found - 1], 1e-18);
+                measured[i] = double(found - 1) / (std::numbers::pi * dk2);
+            });
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
         const std::size_t k_ref = std::min<std::size_t>(std::size_t(options.k_ref), n - 1);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),

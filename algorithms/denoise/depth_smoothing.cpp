@@ -26,14 +26,11 @@ void SmoothOptions::check() const {
 
 Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "smooth";
+    const detail::Gathered g = detail::open_run(cloud, options, "smooth", report);
+    const std::size_t n = g.xyz.size();
     report["noise_model"] = to_string(options.noise_model);
     const std::string name = detail::view_name(cloud);
-    const detail::Gathered g = detail::gather(cloud);
-    const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
     if (n == 0) {
         report["moved"] = 0;
         report["time_s"] = watch.seconds();

@@ -68,15 +68,11 @@ double estimate_focal(const std::vector<Eigen::Vector3d>& cam,
 Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& options,
                                 const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "distance";
-    report["noise_model"] = to_string(options.noise_model);
-    report["mark"] = options.mark;
-    const std::string name = detail::view_name(cloud);
-    const detail::Gathered g = detail::gather(cloud);
+    const detail::Gathered g = detail::open_run(cloud, options, "distance", report);
     const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
+    report["noise_model"] = to_string(options.noise_model);
+    const std::string name = detail::view_name(cloud);
     if (n == 0) return detail::nothing_removed(std::move(report), watch);
     const auto pixel = detail::organised_pixels(
         cloud, name,
@@ -157,11 +153,13 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             const double limit = step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
             return (cam[j] - cam[i]).squaredNorm() <= limit * limit;
         };
-        // visit(j, dr, dc) for every valid pixel j of the 7 x 7 window around (row, col), the
-        // centre excluded (the rare paths after the hot loop).
-        const auto each_in_wide_window = [&](int row, int col, const auto& visit) {
-            for (int dr = -ww; dr <= ww; ++dr)
-                for (int dc = -ww; dc <= ww; ++dc) {
+        // visit(j, dr, dc) for every valid pixel j of the (2 half + 1)^2 window around
+        // (row, col), the centre excluded: the 5 x 5 window of the hot loop (inlined there)
+        // and the 7 x 7 one of the rare paths after it.
+        const auto each_in_window = [&](int half, int row, int col, const auto& visit)
+            __attribute__((always_inline)) {
+            for (int dr = -half; dr <= half; ++dr)
+                for (int dc = -half; dc <= half; ++dc) {
                     if (dr == 0 && dc == 0) continue;
                     const int rr = row + dr, cc = col + dc;
                     if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
@@ -172,7 +170,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
         // Step 1, second chance: supporters of i in its 7 x 7 window (the same relation).
         const auto wide_support = [&](std::int32_t i, int row, int col) {
             int count = 0;
-            each_in_wide_window(row, col, [&](std::int32_t j, int dr, int dc) {
+            each_in_window(ww, row, col, [&](std::int32_t j, int dr, int dc) {
                 if (supports(i, j, dr, dc)) ++count;
             });
             return count;
@@ -184,7 +182,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             double best[DistanceOptions::kMaxKeepK];  // the keep_k smallest squared distances,
                                                       // ascending
             int found = 0;
-            each_in_wide_window(row, col, [&](std::int32_t j, int, int) {
+            each_in_window(ww, row, col, [&](std::int32_t j, int, int) {
                 const double d = (cam[j] - cam[i]).squaredNorm();
                 if (found == keep_k && d >= best[keep_k - 1]) return;
                 int at = found < keep_k ? found++ : keep_k - 1;
@@ -234,20 +232,16 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                         const std::int32_t i = grid[std::size_t(row) * width + col];
                         if (i < 0) continue;
                         int support = 0, valid = 0;
-                        for (int dr = -w; dr <= w; ++dr)
-                            for (int dc = -w; dc <= w; ++dc) {
-                                if (dr == 0 && dc == 0) continue;
-                                const int rr = row + dr, cc = col + dc;
-                                if (rr < 0 || rr >= height || cc < 0 || cc >= width) continue;
-                                const std::int32_t j = grid[std::size_t(rr) * width + cc];
-                                if (j < 0) continue;
-                                ++valid;
-                                // supports(i, j, dr, dc), written out: GCC does not inline
-                                // the lambda here since it has 4 callers (+20% instructions).
-                                const double limit =
-                                    step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
-                                if ((cam[j] - cam[i]).squaredNorm() <= limit * limit) ++support;
-                            }
+                        // supports(i, j, dr, dc), written out: GCC does not inline the lambda
+                        // here since it has 4 callers (+20% instructions).
+                        const auto tally = [&](std::int32_t j, int dr, int dc)
+                            __attribute__((always_inline)) {
+                            ++valid;
+                            const double limit =
+                                step[i] * offset_norm[dr + ww][dc + ww] + 3.0 * sigma[i];
+                            if ((cam[j] - cam[i]).squaredNorm() <= limit * limit) ++support;
+                        };
+                        each_in_window(w, row, col, tally);
                         if (support < options.c_min)
                             reason[i] = kWeak;
                         else if (options.line_sigmas > 0.0 && valid >= options.dense_min &&
@@ -270,13 +264,7 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
                 if (options.c_min_wide > 0 &&
                     wide_support(std::int32_t(i), row, col) >= options.c_min_wide) {
                     int valid = 0;
-                    for (int dr = -w; dr <= w; ++dr)
-                        for (int dc = -w; dc <= w; ++dc) {
-                            const int rr = row + dr, cc = col + dc;
-                            if ((dr != 0 || dc != 0) && rr >= 0 && rr < height && cc >= 0 &&
-                                cc < width && grid[std::size_t(rr) * width + cc] >= 0)
-                                ++valid;
-                        }
+                    each_in_window(w, row, col, [&](std::int32_t, int, int) { ++valid; });
                     if (options.line_sigmas <= 0.0 || valid < options.dense_min ||
                         continues_line(std::int32_t(i), row, col)) {
                         reason[i] = kKeep;
@@ -379,20 +367,12 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
             for (std::size_t a = 0; a < m; ++a) pts[a] = cam[alive[a]];
             const internal::KdTree tree(pts);
             std::vector<double> ratio(m);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 256),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  std::vector<std::uint32_t> ids(search);
-                                  std::vector<double> sq(search);
-                                  for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                                      const std::size_t found =
-                                          tree.knn(pts[a], search, ids.data(), sq.data());
-                                      double sum = 0.0;
-                                      for (std::size_t j = 1; j < found; ++j)
-                                          sum += std::sqrt(sq[j]);
-                                      const double dbar = found > 1 ? sum / double(found - 1) : 0.0;
-                                      ratio[a] = dbar * focal / pts[a].z();
-                                  }
-                              });
+            detail::for_each_knn(
+                tree, pts, search, 256,
+                [&](std::size_t a, const std::uint32_t*, const double* sq, std::size_t found) {
+                    const double dbar = detail::mean_distance(sq, found, 1);
+                    ratio[a] = dbar * focal / pts[a].z();
+                });
             std::vector<double> tmp(ratio);
             const double med = lower_median(tmp);
             for (double& t : tmp) t = std::abs(t - med);

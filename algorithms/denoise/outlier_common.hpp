@@ -4,13 +4,18 @@
 // cancelled run, and the disjoint sets of the component passes. Not a public header.
 #pragma once
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/progress.hpp"
@@ -65,6 +70,48 @@ inline Gathered gather(const PointCloud& cloud) {
         ++i;
     }
     return g;
+}
+
+/// What a filter over one view does first: checks `options` (InputError), opens `report` with
+/// the filter's `method` name (and "mark" when the options have a `mark` setting), gathers the
+/// live points of `cloud` (gather()) and records their number as "input_points".
+template <class Options>
+Gathered open_run(const PointCloud& cloud, const Options& options, const char* method,
+                  Report& report) {
+    options.check();
+    report["method"] = method;
+    if constexpr (requires { options.mark; }) report["mark"] = options.mark;
+    Gathered g = gather(cloud);
+    report["input_points"] = g.xyz.size();
+    return g;
+}
+
+/// Calls visit(i, ids, sq, found) for every point i of `points`, in parallel over chunks of
+/// `grain` points: ids[0, found) and sq[0, found) are the indices in `tree` of the (up to) `k`
+/// nearest points to points[i] and their squared distances, ascending (a point that is in the
+/// tree comes first, at distance 0). The buffers are allocated once per chunk.
+template <class Visit>
+void for_each_knn(const internal::KdTree& tree, const std::vector<Eigen::Vector3d>& points,
+                  std::size_t k, std::size_t grain, const Visit& visit) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), grain),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<std::uint32_t> ids(k);
+                          std::vector<double> sq(k);
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const std::size_t found =
+                                  tree.knn(points[i], k, ids.data(), sq.data());
+                              visit(i, ids.data(), sq.data(), found);
+                          }
+                      });
+}
+
+/// The mean of sqrt(sq[j]) over j in [skip, found): the mean distance to the neighbours of a
+/// for_each_knn() visit after the first `skip` (1 skips the point itself); 0 when none is left.
+inline double mean_distance(const double* sq, std::size_t found, std::size_t skip) {
+    double sum = 0.0;
+    for (std::size_t j = skip; j < found; ++j) sum += std::sqrt(sq[j]);
+    const std::size_t used = found - std::min(found, skip);
+    return used > 0 ? sum / double(used) : 0.0;
 }
 
 /// Marks or deletes the points with outlier[i] != 0 (i = position in `g`); returns the count.

@@ -1,8 +1,5 @@
 #include "algorithms/denoise/statistical_outliers.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -40,9 +37,10 @@ const char* convention_name(OutlierConvention c) {
 using detail::apply;
 using detail::cancelled;
 using detail::finished;
-using detail::gather;
+using detail::for_each_knn;
 using detail::Gathered;
 using detail::nothing_removed;
+using detail::open_run;
 using detail::record_removed;
 using detail::view_name;
 
@@ -51,16 +49,12 @@ using detail::view_name;
 Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& options,
                                    const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "statistical";
+    const Gathered g = open_run(cloud, options, "statistical", report);
+    const std::size_t n = g.xyz.size();
     report["convention"] = convention_name(options.convention);
     report["k_requested"] = options.k;
     report["std_ratio"] = options.std_ratio;
-    report["mark"] = options.mark;
-    const Gathered g = gather(cloud);
-    const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
     if (!report_progress(progress, 0.0)) return cancelled(report, watch);
 
     const bool open3d = options.convention == OutlierConvention::kOpen3d;
@@ -75,20 +69,12 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
     std::vector<double> mean_distance(n);
     const std::size_t search = open3d ? k : k + 1;
     const std::size_t skip = open3d ? 0 : 1;
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 512), [&](const tbb::blocked_range<std::size_t>& r) {
-            std::vector<std::uint32_t> ids(search);
-            std::vector<double> sq(search);
-            for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                const std::size_t found = tree.knn(g.xyz[i], search, ids.data(), sq.data());
-                double sum = 0.0;
-                for (std::size_t j = skip; j < found; ++j) sum += std::sqrt(sq[j]);
-                const std::size_t used = found - std::min(found, skip);
-                const double mean = used > 0 ? sum / double(used) : 0.0;
-                // PCL stores the per-point mean as float.
-                mean_distance[i] = open3d ? mean : double(float(mean));
-            }
-        });
+    for_each_knn(tree, g.xyz, search, 512,
+                 [&](std::size_t i, const std::uint32_t*, const double* sq, std::size_t found) {
+                     const double mean = detail::mean_distance(sq, found, skip);
+                     // PCL stores the per-point mean as float.
+                     mean_distance[i] = open3d ? mean : double(float(mean));
+                 });
     if (!report_progress(progress, 0.8)) return cancelled(report, watch);
 
     // Sequential reductions in index order: the result is independent of the thread count.
@@ -130,15 +116,11 @@ Report remove_statistical_outliers(PointCloud& cloud, const StatisticalOptions& 
 Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
                               const Progress& progress) {
     Stopwatch watch;
-    options.check();
     Report report;
-    report["method"] = "radius";
+    const Gathered g = open_run(cloud, options, "radius", report);
+    const std::size_t n = g.xyz.size();
     report["convention"] = convention_name(options.convention);
     report["min_points"] = options.min_points;
-    report["mark"] = options.mark;
-    const Gathered g = gather(cloud);
-    const std::size_t n = g.xyz.size();
-    report["input_points"] = n;
     if (!report_progress(progress, 0.0)) return cancelled(report, watch);
     if (n == 0) {
         report["radius_m"] = options.radius_m;
@@ -166,17 +148,12 @@ Report remove_radius_outliers(PointCloud& cloud, const RadiusOptions& options,
     const bool open3d = options.convention == OutlierConvention::kOpen3d;
     const internal::KdTree tree(g.xyz);
     std::vector<std::uint8_t> outlier(n, 0);
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 512), [&](const tbb::blocked_range<std::size_t>& r) {
-            std::vector<std::uint32_t> ids(need);
-            std::vector<double> sq(need);
-            for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                const std::size_t found = tree.knn(g.xyz[i], need, ids.data(), sq.data());
-                bool keep = found == need;
-                if (keep) keep = open3d ? sq[need - 1] < r2 : sq[need - 1] <= r2;
-                outlier[i] = !keep;
-            }
-        });
+    for_each_knn(tree, g.xyz, need, 512,
+                 [&](std::size_t i, const std::uint32_t*, const double* sq, std::size_t found) {
+                     bool keep = found == need;
+                     if (keep) keep = open3d ? sq[need - 1] < r2 : sq[need - 1] <= r2;
+                     outlier[i] = !keep;
+                 });
     if (!report_progress(progress, 0.8)) return cancelled(report, watch);
     record_removed(report, apply(cloud, g, outlier, options.mark), options.mark);
     return finished(std::move(report), watch, progress);

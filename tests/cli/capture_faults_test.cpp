@@ -45,8 +45,7 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
     const std::string rig = rig_of(2);
     const HubSession session("hk");
     const HubPort& port = session.port;
-    fs::remove_all(dir / "rec_hk");
-    session.start_hub("--rig " + rig + " -o rec_hk");
+    session.record(rig, "rec_hk");
     session.start_nodes(2, "--frames 900");
     // Kill the hub once it has recorded frame sets (they trail the frames by the grouping
     // latency) and about a second of frames.
@@ -99,8 +98,7 @@ TEST_F(RgbdCapture, HubKilledMidRecordingLeavesAReadableRecordingAndRestartsClea
 
     // Restarted into a new folder: a new, complete recording.
     const HubSession restart("hk2");
-    fs::remove_all(dir / "rec_hk2");
-    restart.start_hub("--rig " + rig + " -o rec_hk2 --exit-after-bye");
+    restart.record(rig, "rec_hk2", "--exit-after-bye");
     restart.start_nodes(2, "--frames 30");
     EXPECT_TRUE(restart.nodes_succeed(2, 60));
     ASSERT_TRUE(restart.hub_exits(0, 30));
@@ -150,11 +148,9 @@ TEST_F(RgbdCapture, StalledLiveReaderIsSkippedNotQueued) {
 TEST_F(RgbdCapture, ControlThreadWarningsLeaveTheLiveStreamOnStdoutIntact) {
     const HubSession session("warn");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_warn");
     // start() sends the hub's stdout, the live view stream, to hub_warn.out.
-    session.start_hub("--rig " + rig_of(2) +
-                      " -o rec_warn --live - --exit-after-bye --latency-ms 300 "
-                      "--metrics hub_warn.json");
+    session.record(rig_of(2), "rec_warn",
+                   "--live - --exit-after-bye --latency-ms 300 --metrics hub_warn.json");
     session.start_nodes(2, "--frames 90");
     // An intruder says hello as a sensor the rig does not have, 40 times while the hub streams:
     // each hello makes the control thread warn on stderr.

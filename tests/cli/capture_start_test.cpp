@@ -20,10 +20,8 @@ using rgbd::test::slurp;
 TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
     const HubSession session("start");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_start");
-    session.start_hub(
-        "--rig synth/rig.json -o rec_start --exit-after-bye --latency-ms 2000 "
-        "--metrics hub_start.json");
+    session.record("synth/rig.json", "rec_start",
+                   "--exit-after-bye --latency-ms 2000 --metrics hub_start.json");
     const double offsets_ms[8] = {500, -500, 310, -220, 90, -430, 470, -15};
     for (int s = 0; s < 8; ++s)
         session.start_node(s, "--frames 30 --clock-offset-ms " + std::to_string(offsets_ms[s]) +
@@ -67,10 +65,9 @@ TEST_F(RgbdCapture, EightNodesWithClocksOffStartOnOneInstant) {
 TEST_F(RgbdCapture, ALatecomerStartsOnTheFrameGrid) {
     const HubSession session("late");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_late");
     // The hub waits 1 s for the rig's second node, then starts the first alone.
-    session.start_hub("--rig " + rig_of(2) +
-                      " -o rec_late --exit-after-bye --start-wait-s 1 --metrics hub_late.json");
+    session.record(rig_of(2), "rec_late",
+                   "--exit-after-bye --start-wait-s 1 --metrics hub_late.json");
     session.start_node(
         0,
         "--frames 300 --clock-offset-ms 200 --truth truth_late_0.csv --metrics node_late_0.json");

@@ -79,9 +79,9 @@ TEST(Contract, StreamToolsRejectGarbageTruncatedAndEmptyInput) {
         EXPECT_NE(garbage.err.find("garbage.ply"), std::string::npos) << garbage.err;
         Outcome empty = run(std::string("$BIN/") + tool + " - < /dev/null");
         EXPECT_EQ(empty.code, 1) << empty.err;
-        Outcome missing = run(std::string("$BIN/") + tool + " does-not-exist.ply");
-        EXPECT_EQ(missing.code, 1);
-        EXPECT_NE(missing.err.find("does-not-exist.ply"), std::string::npos);
+        Outcome missing = run(std::string("$BIN/") + tool + " does-not-exist.ply -o never.ply");
+        rgbd::test::expect_failure(missing, 1, tool, temp_root());
+        EXPECT_NE(missing.err.find("does-not-exist.ply"), std::string::npos) << missing.err;
     }
 }
 
@@ -182,10 +182,8 @@ TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
     fs::copy(temp_root() / "cap", temp_root() / "badrig", fs::copy_options::recursive);
     std::ofstream(temp_root() / "badrig" / "rig.json") << "{ \"format\": \"rgbd-capture\", ";
     Outcome bad = run("$BIN/rgbd-cloud badrig -o bad.ply");
-    EXPECT_EQ(bad.code, 1);
+    rgbd::test::expect_failure(bad, 1, "rgbd-cloud", temp_root(), "bad.ply");
     EXPECT_NE(bad.err.find("rig.json"), std::string::npos) << bad.err;
-    EXPECT_EQ(line_count(bad.err), 1) << bad.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "bad.ply"));
 
     fs::copy(temp_root() / "cap", temp_root() / "noimage", fs::copy_options::recursive);
     fs::path victim;
@@ -195,23 +193,21 @@ TEST_F(Pipeline, BrokenCapturesGiveOneLineErrorsAndNoOutput) {
     ASSERT_FALSE(victim.empty());
     fs::remove(victim);
     Outcome missing = run("$BIN/rgbd-cloud noimage -o missing.ply");
-    EXPECT_EQ(missing.code, 1);
+    rgbd::test::expect_failure(missing, 1, "rgbd-cloud", temp_root(), "missing.ply");
     EXPECT_NE(missing.err.find(victim.filename().string()), std::string::npos) << missing.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "missing.ply"));
 
-    Outcome nothing = run("$BIN/rgbd-cloud no-such-folder");
-    EXPECT_EQ(nothing.code, 1);
-    EXPECT_NE(nothing.err.find("no-such-folder"), std::string::npos);
+    Outcome nothing = run("$BIN/rgbd-cloud no-such-folder -o nothing.ply");
+    rgbd::test::expect_failure(nothing, 1, "rgbd-cloud", temp_root(), "nothing.ply");
+    EXPECT_NE(nothing.err.find("no-such-folder"), std::string::npos) << nothing.err;
 }
 
 TEST_F(Pipeline, TruncatedStreamIsAnErrorNamingTheDocument) {
     Outcome r =
         run("$BIN/rgbd-cloud cap > full.ply && head -c $(( $(stat -c %s full.ply) - 5000 )) "
             "full.ply > cut.ply && $BIN/rgbd-clean cut.ply -o cut_clean.ply");
-    EXPECT_EQ(r.code, 1);
+    rgbd::test::expect_failure(r, 1, "rgbd-clean", temp_root(), "cut_clean.ply");
     EXPECT_NE(r.err.find("cut.ply"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("document"), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "cut_clean.ply"));
 }
 
 TEST_F(Pipeline, AbsurdParametersAreUsageErrors) {

@@ -28,6 +28,14 @@ public:
     void start_hub(const std::string& args) const {
         start(dir, hub(), "$BIN/rgbd-capture" + port.listen() + " " + args);
     }
+    /// Starts the hub recording the rig file `rig` into the folder `recording` of the scratch
+    /// folder, removed first (a recording of an earlier run would make the hub refuse it):
+    /// "$BIN/rgbd-capture --listen ... --rig RIG -o RECORDING ARGS" (ARGS may end in a pipe).
+    void record(const std::string& rig, const std::string& recording,
+                const std::string& args = "") const {
+        fs::remove_all(dir / recording);
+        start_hub("--rig " + rig + " -o " + recording + (args.empty() ? "" : " " + args));
+    }
     /// Starts node s, "$BIN/rgbd-node --hub ... --sensor playback:synth#k2-S --loop ARGS": sensor s
     /// of the synthetic capture (the fixture's id(s)) replayed in a loop.
     void start_node(int s, const std::string& args) const {

@@ -120,10 +120,9 @@ TEST_F(Calibrate, HelpAndUsageErrors) {
           "board4 -o never.json --min-corners 2", "board4 -o never.json --max-plane-mm -1",
           "board4 -o never.json --max-rms-px 0", "board4 --refine --board b.json -o never.json",
           "board4 -o never.json --no-such-option"}) {
+        SCOPED_TRACE(args);
         const Outcome r = run(std::string("$BIN/rgbd-calibrate ") + args);
-        EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
-        EXPECT_EQ(r.err.rfind("rgbd-calibrate: error: ", 0), 0u) << r.err;
-        EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
+        rgbd::test::expect_failure(r, 2, "rgbd-calibrate", temp_root(), "never.json");
     }
 }
 
@@ -176,11 +175,9 @@ TEST_F(Calibrate, NoBoardVisible) {
     if (!fs::exists(temp_root() / "ballcap"))
         ASSERT_EQ(run("$BIN/rgbd-synth ball.off -o ballcap --sensors 3 --height-m 0.4 -q").code, 0);
     const Outcome r = run("$BIN/rgbd-calibrate ballcap -q -o never.json");
-    EXPECT_EQ(r.code, 1);
+    rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
     EXPECT_NE(r.err.find("no board visible"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("ballcap"), std::string::npos) << r.err;
-    EXPECT_EQ(rgbd::test::line_count(r.err), 1) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
 }
 
 TEST_F(Calibrate, NamesASensorThatNeverSharesTheBoard) {
@@ -208,10 +205,9 @@ TEST_F(Calibrate, NamesASensorThatNeverSharesTheBoard) {
     in.close();
     std::ofstream(cap / "framesets.csv") << out.str() << own;
     const Outcome r = run("$BIN/rgbd-calibrate lonely -q -o never.json");
-    EXPECT_EQ(r.code, 1);
+    rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
     EXPECT_NE(r.err.find("cannot connect k2-3"), std::string::npos) << r.err;
     EXPECT_EQ(r.err.find("k2-1"), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
 }
 
 TEST_F(Calibrate, BoardFileThatDoesNotMatch) {
@@ -236,12 +232,11 @@ TEST_F(Calibrate, BoardFileThatDoesNotMatch) {
     std::ofstream(temp_root() / "multi.json") << "{\n  \"squares_x\": 7,\n\n";
     for (const char* file : {"bad.json", "key.json", "type.json", "marker.json", "array.json",
                              "multi.json", "missing.json"}) {
+        SCOPED_TRACE(file);
         r = run(std::string("$BIN/rgbd-calibrate board4 -q -o never.json --board ") + file);
-        EXPECT_EQ(r.code, 1) << file;
+        rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
         EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
-        EXPECT_EQ(rgbd::test::line_count(r.err), 1) << r.err;
     }
-    EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
 }
 
 TEST_F(Calibrate, BlurredBoardFailsCleanly) {
@@ -251,13 +246,11 @@ TEST_F(Calibrate, BlurredBoardFailsCleanly) {
                       .code,
                   0);
     const Outcome r = run("$BIN/rgbd-calibrate blurred -q -o never.json");
-    EXPECT_EQ(r.code, 1);
+    rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
     // Either no marker survives the blur or the corners do not make a board.
     EXPECT_TRUE(r.err.find("blurred") != std::string::npos ||
                 r.err.find("no board visible") != std::string::npos)
         << r.err;
-    EXPECT_EQ(rgbd::test::line_count(r.err), 1) << r.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
 }
 
 TEST_F(Calibrate, RefineOnTheBust) {
@@ -291,6 +284,5 @@ TEST_F(Calibrate, RefineOnTheBust) {
     EXPECT_LE(after.max_deg, 0.2);
     // Bad --sets: usage error, nothing written.
     const Outcome bad = run("$BIN/rgbd-calibrate bust --refine --sets 0 -o never.json");
-    EXPECT_EQ(bad.code, 2) << bad.err;
-    EXPECT_FALSE(fs::exists(temp_root() / "never.json"));
+    rgbd::test::expect_failure(bad, 2, "rgbd-calibrate", temp_root(), "never.json");
 }

@@ -96,12 +96,11 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
     const int frames = static_cast<int>(std::lround(seconds * 30));
     const HubSession session("8");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec8");
     std::mt19937 rng(8);
     std::uniform_real_distribution<double> uni(-1.0, 1.0);
-    session.start_hub(
-        "--rig synth/rig.json -o rec8 --exit-after-bye --probe-interval-ms 500 --latency-ms 2000 "
-        "--metrics hub8.json");
+    session.record("synth/rig.json", "rec8",
+                   "--exit-after-bye --probe-interval-ms 500 --latency-ms 2000 "
+                   "--metrics hub8.json");
     std::vector<double> offsets, drifts;
     for (int s = 0; s < 8; ++s) {
         offsets.push_back(s == 0 ? 500.0 : s == 1 ? -500.0 : 500.0 * uni(rng));
@@ -218,10 +217,8 @@ TEST_F(RgbdCapture, EightNodesOnLoopbackLoseNothingAndStayInSync) {
 TEST_F(RgbdCapture, KilledNodeRestartsAndTheGapIsRecorded) {
     const HubSession session("kill");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_kill");
-    session.start_hub("--rig " + rig_of(3) +
-                      " -o rec_kill --exit-after-bye --probe-interval-ms 500 "
-                      "--metrics hub_kill.json");
+    session.record(rig_of(3), "rec_kill",
+                   "--exit-after-bye --probe-interval-ms 500 --metrics hub_kill.json");
     for (int s = 0; s < 3; ++s)
         session.start_node(s, "--frames 150 --clock-offset-ms " + std::to_string(100 * s - 100) +
                                   " --metrics node_kill_" + std::to_string(s) + ".json");
@@ -265,9 +262,7 @@ TEST_F(RgbdCapture, GarbageAndTruncatedMessagesAreDroppedAndCounted) {
     const HubSession session("junk");
     const HubPort& port = session.port;
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_junk");
-    session.start_hub("--rig " + rig_of(2) +
-                      " -o rec_junk --exit-after-bye --metrics hub_junk.json");
+    session.record(rig_of(2), "rec_junk", "--exit-after-bye --metrics hub_junk.json");
     for (int s = 0; s < 2; ++s)
         session.start_node(s, "--frames 90 --metrics node_junk_" + std::to_string(s) + ".json");
     // A rogue sender: garbage, truncated and corrupted frames, multi-part junk, and a
@@ -371,8 +366,7 @@ TEST_F(RgbdCapture, FullDiskStopsTheRecordingWithWhatWasWrittenIntact) {
     const SmallDisk disk(mount, "6m");
     if (!disk.mounted()) GTEST_SKIP() << disk.why();
     const HubSession session("full");
-    session.start_hub("--rig " + rig_of(2) +
-                      " -o small_disk/rec --exit-after-bye --metrics hub_full.json");
+    session.record(rig_of(2), "small_disk/rec", "--exit-after-bye --metrics hub_full.json");
     session.start_nodes(2, "--frames 300 --send-timeout-s 3");
     EXPECT_TRUE(session.hub_exits(1, 60));
     const std::string err = slurp(dir / "hub_full.err");
@@ -523,11 +517,10 @@ std::vector<std::pair<rgbd::ViewInfo, std::string>> stream_documents(const fs::p
 TEST_F(RgbdCapture, LiveStreamGivesTheViewsRgbdCloudMakesFromTheRecording) {
     const HubSession session("live");
     const fs::path dir = temp_root();
-    fs::remove_all(dir / "rec_live");
     fs::remove(dir / "live.ply");
-    session.start_hub("--rig " + rig_of(3) +
-                      " -o rec_live --live live.ply --exit-after-bye --latency-ms 300 "
-                      "--probe-interval-ms 500 --metrics hub_live.json");
+    session.record(rig_of(3), "rec_live",
+                   "--live live.ply --exit-after-bye --latency-ms 300 --probe-interval-ms 500 "
+                   "--metrics hub_live.json");
     for (int s = 0; s < 3; ++s)
         session.start_node(s, "--frames 45 --clock-offset-ms " + std::to_string(200 * s - 200));
     ASSERT_TRUE(session.nodes_succeed(3, 60));
@@ -599,10 +592,9 @@ TEST_F(RgbdCapture, LiveSnapshotWithoutRecordingAndAReaderThatGoesAway) {
 
     // The reader of the live stream exits after a few bytes: the hub records on.
     const HubSession closed_reader("closed");
-    fs::remove_all(dir / "rec_closed");
-    closed_reader.start_hub("--rig " + rig +
-                            " -o rec_closed --live - --exit-after-bye --latency-ms 300 "
-                            "--metrics hub_closed.json | head -c 100 >/dev/null");
+    closed_reader.record(rig, "rec_closed",
+                         "--live - --exit-after-bye --latency-ms 300 --metrics hub_closed.json "
+                         "| head -c 100 >/dev/null");
     closed_reader.start_nodes(2, "--frames 45");
     ASSERT_TRUE(closed_reader.nodes_succeed(2, 60));
     ASSERT_TRUE(closed_reader.hub_exits(0, 30));

@@ -25,7 +25,6 @@ Peers run at radius 1.5, 2.5 and 4 s; the summary compares ours with each peer's
 Usage: validation/quality/holes/measure_boundary.py [--build build] [--points 30000]
        [--out results.jsonl]
 """
-import argparse
 import os
 import subprocess
 import sys
@@ -37,8 +36,8 @@ import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 import rgbd_stream  # noqa: E402
+from hole_common import argument_parser, fill_tool, poisson_samples, robust_spacing
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 MESHES = ["cgal_with_holes/head.off", "cgal_with_holes/holes.off",
           "cgal_with_holes/mech-holes-shark.off", "stanford_bunny/stanford-bunny.obj"]
 PEER_RADII = [1.5, 2.5, 4.0]
@@ -96,17 +95,11 @@ def pcl_boundary(xyz, normals, radius, binary, tmp):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
-    ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data"))
-    ap.add_argument("--points", type=int, default=30000)
-    ap.add_argument("--seed", type=int, default=1)
+    ap = argument_parser(__doc__, points=30000, seed=1)
     ap.add_argument("--pcl", default=None, help="pcl_boundary binary (default: BUILD/bin)")
     ap.add_argument("--out", default=None, help="JSON lines file")
     args = ap.parse_args()
-    tool = os.path.join(args.build, "bin", "rgbd-fill")
-    if not os.path.exists(tool):
-        sys.exit(f"{tool}: not built (ninja -C {args.build} rgbd-fill)")
+    tool = fill_tool(args.build)
     pcl = args.pcl or os.path.join(args.build, "bin", "pcl_boundary")
     if not os.path.exists(pcl):
         print(f"note: {pcl} not found (needs libpcl-dev: ninja -C build pcl_boundary); PCL "
@@ -126,14 +119,11 @@ def main():
             mesh.remove_degenerate_triangles()
             edges = boundary_edges(mesh)
             v = np.asarray(mesh.vertices)
-            o3d.utility.random.seed(args.seed)
-            pcd = mesh.sample_points_poisson_disk(args.points, init_factor=5)
+            pcd = poisson_samples(mesh, args.points, args.seed)
             xyz = np.asarray(pcd.points).astype(np.float64)
             pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
             normals = np.asarray(pcd.normals).astype(np.float64)
-            tree = o3d.geometry.KDTreeFlann(pcd)
-            nn = np.array([np.sqrt(tree.search_knn_vector_3d(p, 2)[2][1]) for p in xyz])
-            s = float(np.median(nn))
+            s = robust_spacing(pcd, xyz)
             d = segment_distance(xyz, v[edges[:, 0]], v[edges[:, 1]]) / s
             rim, closed = d < 0.5, d > 3.0
             row = {"mesh": name, "points": len(xyz), "spacing": s,

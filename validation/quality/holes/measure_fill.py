@@ -20,7 +20,6 @@ by mechanism: M1 red, M2 green, M3 blue, M4 yellow) and the filled clouds as PLY
 
 Usage: validation/quality/holes/measure_fill.py [--build build] [--out-dir /tmp/fill]
 """
-import argparse
 import json
 import os
 import struct
@@ -34,8 +33,8 @@ import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 import rgbd_stream  # noqa: E402
+from hole_common import argument_parser, fill_tool, poisson_samples, robust_spacing
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 MECHANISMS = ["one", "four", "three", "interpolation"]
 COLORS = {1: (230, 40, 40), 2: (40, 200, 40), 3: (40, 80, 230), 4: (240, 210, 20)}
 
@@ -95,20 +94,14 @@ def rng_noise(seed):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
-    ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data"))
-    ap.add_argument("--points", type=int, default=60000)
+    ap = argument_parser(__doc__, points=60000, seed=3)
     ap.add_argument("--holes", type=int, default=8)
-    ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--noise-mm", type=float, default=0.0,
                     help="Gaussian noise along the normal added to the samples (scanner-like)")
     ap.add_argument("--out-dir", default=None)
     ap.add_argument("--out", default=None, help="JSON lines file")
     args = ap.parse_args()
-    tool = os.path.join(args.build, "bin", "rgbd-fill")
-    if not os.path.exists(tool):
-        sys.exit(f"{tool}: not built")
+    tool = fill_tool(args.build)
     path = os.path.join(args.data, "meshes", "max_planck", "max-planck.obj")
     if not os.path.exists(path):
         sys.exit(f"skip: {path} missing")
@@ -119,14 +112,12 @@ def main():
     v = (v - v.min(0)) * (0.45 / (v.max(0) - v.min(0))[1])
     mesh.vertices = o3d.utility.Vector3dVector(v)
     mesh.compute_vertex_normals()
-    o3d.utility.random.seed(args.seed)
-    pcd = mesh.sample_points_poisson_disk(args.points, init_factor=5)
+    pcd = poisson_samples(mesh, args.points, args.seed)
     xyz = np.asarray(pcd.points).copy()
     normals = np.asarray(pcd.normals)
     if args.noise_mm > 0:
         xyz += rng_noise(args.seed).normal(0, args.noise_mm * 1e-3, (len(xyz), 1)) * normals
-    tree = o3d.geometry.KDTreeFlann(pcd)
-    s = float(np.median([np.sqrt(tree.search_knn_vector_3d(p, 2)[2][1]) for p in xyz]))
+    s = robust_spacing(pcd, xyz)
     rng = np.random.default_rng(args.seed)
     centres, radii = [], []
     while len(centres) < args.holes:

@@ -16,32 +16,18 @@ namespace fs = std::filesystem;
 
 struct Base {
     fs::path root;
-    fs::path files[4];
+    std::array<fs::path, 4> files;
     std::string original[4];
 };
-
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 const Base& base() {
     static const Base b = [] {
         Base b;
         b.root = rgbd::fuzz::scratch() / "capture";
         fs::remove_all(b.root);
-        rgbd::io::CaptureWriter writer(b.root, rgbd::fuzz::small_rig());
-        cv::Mat depth(6, 8, CV_32FC1, cv::Scalar(1.5f));
-        cv::Mat color(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
-        writer.add_frame("k0", 0, 1000, depth, color);
-        writer.add_frame("k0", 1, 34'000'000, depth, color);
-        writer.add_frameset({0, 1000, 0, {0}});
-        writer.add_frameset({1, 34'000'000, 0, {1}});
-        b.files[0] = b.root / "rig.json";
-        b.files[1] = b.root / "k0" / "frames.csv";
-        b.files[2] = b.root / "framesets.csv";
-        b.files[3] = writer.depth_file("k0", 0);
-        for (int i = 0; i < 4; ++i) b.original[i] = slurp(b.files[i]);
+        b.files =
+            rgbd::fuzz::write_small_capture(b.root, cv::Mat(6, 8, CV_32FC1, cv::Scalar(1.5f)));
+        for (int i = 0; i < 4; ++i) b.original[i] = rgbd::fuzz::slurp(b.files[i]);
         return b;
     }();
     return b;

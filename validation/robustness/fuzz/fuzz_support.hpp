@@ -7,10 +7,14 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 
 #include "io/capture_folder.hpp"
@@ -42,6 +46,12 @@ inline const std::filesystem::path& scratch() {
     };
     static const Folder folder;
     return folder.path;
+}
+
+/// The bytes of the file at `path` ("" when it cannot be read).
+inline std::string slurp(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 /// Writes `size` bytes to `path` (replacing it).
@@ -90,6 +100,24 @@ inline io::Rig small_rig() {
     s.depth.cy = s.color.cy = 2.5;
     rig.sensors.push_back(s);
     return rig;
+}
+
+/// Writes the capture folder of the capture-folder seeds and target at `root` (which must not
+/// exist or be empty): sensor k0 of small_rig() with two frames 33 ms apart, each its own frame
+/// set, of the 8x6 depth image `depth_m` (metres) and a uniform colour; the first frame with
+/// the pose `first_pose` when given. Returns the files the target's selector byte 0-3 picks:
+/// rig.json, k0/frames.csv, framesets.csv, the first depth image.
+inline std::array<std::filesystem::path, 4> write_small_capture(
+    const std::filesystem::path& root, const cv::Mat& depth_m,
+    const std::optional<Pose>& first_pose = std::nullopt) {
+    io::CaptureWriter writer(root, small_rig());
+    const cv::Mat color(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
+    writer.add_frame("k0", 0, 1000, depth_m, color, first_pose);
+    writer.add_frame("k0", 1, 34'000'000, depth_m, color);
+    writer.add_frameset({0, 1000, 0, {0}});
+    writer.add_frameset({1, 34'000'000, 0, {1}});
+    return {root / "rig.json", root / "k0" / "frames.csv", root / "framesets.csv",
+            writer.depth_file("k0", 0)};
 }
 
 }  // namespace rgbd::fuzz

@@ -24,11 +24,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace rgbd;
 
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 class Corpus {
 public:
     Corpus(const fs::path& out, const std::string& target) : dir_(out / target) {
@@ -94,10 +89,10 @@ void ply_stream(const fs::path& out) {
 void mesh_readers(const fs::path& out, const fs::path& tmp) {
     Corpus c(out, "fuzz_mesh_readers");
     io::write_mesh(tmp / "m.ply", tetrahedron());
-    c.add(0, slurp(tmp / "m.ply"));
+    c.add(0, fuzz::slurp(tmp / "m.ply"));
     c.add(0, kAsciiPly);
     io::write_point_cloud(tmp / "c.ply", small_cloud(true, true));
-    c.add(0, slurp(tmp / "c.ply"));
+    c.add(0, fuzz::slurp(tmp / "c.ply"));
     c.add(1, "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n4 1 2 3 1\n");
     c.add(1, "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2\n");
     c.add(2,
@@ -116,21 +111,12 @@ void mesh_readers(const fs::path& out, const fs::path& tmp) {
 
 void capture_folder(const fs::path& out, const fs::path& tmp) {
     Corpus c(out, "fuzz_capture_folder");
-    const fs::path root = tmp / "capture";
-    io::CaptureWriter writer(root, fuzz::small_rig());
     cv::Mat depth(6, 8, CV_32FC1, cv::Scalar(1.5f));
     depth.at<float>(2, 3) = std::nanf("");
-    const cv::Mat color(6, 8, CV_8UC3, cv::Scalar(10, 200, 30));
     Pose pose = Pose::Identity();
     pose.translation() = Eigen::Vector3d(0.1, 0.2, 0.3);
-    writer.add_frame("k0", 0, 1000, depth, color, pose);
-    writer.add_frame("k0", 1, 34'000'000, depth, color);
-    writer.add_frameset({0, 1000, 0, {0}});
-    writer.add_frameset({1, 34'000'000, 0, {1}});
-    c.add(0, slurp(root / "rig.json"));
-    c.add(1, slurp(root / "k0" / "frames.csv"));
-    c.add(2, slurp(root / "framesets.csv"));
-    c.add(3, slurp(writer.depth_file("k0", 0)));
+    const auto files = fuzz::write_small_capture(tmp / "capture", depth, pose);
+    for (int role = 0; role < 4; ++role) c.add(char(role), fuzz::slurp(files[role]));
 }
 
 void foreign_layouts(const fs::path& out) {
