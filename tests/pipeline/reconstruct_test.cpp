@@ -11,15 +11,15 @@
 #include <filesystem>
 
 #include "examples/example_data.hpp"
+#include "tests/support/tool_runner.hpp"
 #include "toolkit/error.hpp"
 
 namespace {
 
 const rgbd::io::Capture& capture() {
     static const rgbd::io::Capture c = rgbd::io::open_capture(
-        examples::make_capture(std::filesystem::temp_directory_path() /
-                                   ("rgbd_pipeline_test_" + std::to_string(::getpid())),
-                               8, /*above_and_below=*/true));
+        examples::make_capture(rgbd::test::scratch_dir("rgbd_pipeline_test"), 8,
+                               /*above_and_below=*/true));
     return c;
 }
 
