@@ -373,12 +373,15 @@ GAIN_METRICS = [("F@1mm", "f1", -1, ".4f", "")] + METRICS + [
 
 
 def paired(base, skip, key, sign):
-    """Paired differences with - without the stage over the seeds both ran, signed so that > 0 is
-    worse with the stage: (mean, standard error of the mean, seeds better, seeds worse)."""
+    """Over the seeds both ran: the means of `key` with and without the stage, and the paired
+    differences signed so that > 0 is worse with the stage: (with, without, mean difference,
+    its standard error, seeds on which the stage was better)."""
     seeds = sorted(set(base) & set(skip))
     d = np.array([sign * (base[s][key] - skip[s][key]) for s in seeds])
     se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
-    return float(d.mean()), se, int((d < 0).sum()), int((d > 0).sum())
+    with_ = float(np.mean([base[s][key] for s in seeds]))
+    without = float(np.mean([skip[s][key] for s in seeds]))
+    return with_, without, float(d.mean()), se, int((d < 0).sum())
 
 
 def verdicts(rows):
@@ -404,26 +407,20 @@ def verdicts(rows):
             if not skip:
                 continue
             n = len(set(base) & set(skip))
-
-            def detail(name, key, spec, unit, mean, se):
-                with_ = np.mean([base[s][key] for s in skip if s in base])
-                without = np.mean([skip[s][key] for s in base if s in skip])
-                return (f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} without" +
-                        (f", paired difference {abs(mean):{spec}}{unit} +- {se:{spec}}{unit}"
-                         if n > 1 else ""))
             worse, unsure, gains = [], [], []
             for name, key, sign, spec, unit in METRICS:
-                mean, se, _, _ = paired(base, skip, key, sign)
+                with_, without, mean, se, _ = paired(base, skip, key, sign)
+                detail = (f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} without" +
+                          (f", paired difference {abs(mean):{spec}}{unit} +- {se:{spec}}{unit}"
+                           if n > 1 else ""))
                 if mean > 2 * se:
-                    worse.append(detail(name, key, spec, unit, mean, se))
+                    worse.append(detail)
                 elif mean > 0:
-                    unsure.append(detail(name, key, spec, unit, mean, se))
+                    unsure.append(detail)
             if n > 1:
                 for name, key, sign, spec, unit in GAIN_METRICS:
-                    mean, se, better, _ = paired(base, skip, key, sign)
+                    with_, without, mean, se, better = paired(base, skip, key, sign)
                     if mean < -2 * se:
-                        with_ = np.mean([base[s][key] for s in skip if s in base])
-                        without = np.mean([skip[s][key] for s in base if s in skip])
                         gains.append(f"{name} {with_:{spec}}{unit} vs {without:{spec}}{unit} "
                                      f"({better}/{n} seeds)")
             if worse:
