@@ -149,7 +149,6 @@ using Pwn = std::pair<Point_3, Vector_3>;
 /// the point; its colour was copied from the nearest seen point of its view, or is grey.
 constexpr const char* kUncolouredFlag = "uncoloured";
 using PointOf = CGAL::First_of_pair_property_map<Pwn>;
-using NormalOf = CGAL::Second_of_pair_property_map<Pwn>;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
 
