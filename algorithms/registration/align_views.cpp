@@ -37,6 +37,8 @@ constexpr std::size_t kMinSampled = 1000;
 /// such a sample (50 views of a person: 50,000 points), and a winning safety net gets the finest
 /// rounds on every point afterwards.
 constexpr std::size_t kSafetyStride = 8;
+/// The safety net's start wins when its matched share beats the pairwise start's by more.
+constexpr double kSafetyGain = 0.05;
 /// Joint matches look for partners within this many pairs of the pair graph (a ring of 8 at 45
 /// degrees: the views at 45 and 90 degrees; a 50-frame turn: two frames either side).
 constexpr int kPartnerHops = 2;
@@ -150,6 +152,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         all_oriented = all_oriented && work[v].reg.oriented;
         all_colour = all_colour && colour_of[v] != 0;
     }
+    result.working_time_s = watch.seconds();
     if (!report_progress(progress, 0.05)) throw AlgorithmError("align_views: cancelled");
     const bool use_colour = all_colour && options.colour_weight > 0;
 
@@ -262,30 +265,37 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         return joint.overlap();
     };
 
+    Stopwatch joint_watch;
     if (options.pairwise && poses_known) {
         // Safety net: on smooth, nearly symmetric shapes pairs can slide where the joint
         // rounds, pinned from both sides, do not. Run those from the initial poses too and keep
         // them when they match clearly more points (the pairs then show their disagreement).
+        // A matched share can not exceed 1: when the pairwise start already matches more than
+        // 1 - kSafetyGain, the safety net can not win, and is not run.
         joint_rounds(true, 0.35, 0.6, 1);
         const double pair_score = overlap_score(kSafetyStride);
-        std::vector<Pose> pair_result(nv);
-        for (std::size_t v = 0; v < nv; ++v) pair_result[v] = work[v].pose;
-        const auto counters = std::make_pair(moved_iterations, converged);
-        const int pair_iterations = result.iterations;
-        for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
-        std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
-        joint_rounds(false, 0.6, 0.8, kSafetyStride);
-        const double joint_score = overlap_score(kSafetyStride);
-        result.joint_only_fitness = joint_score;
         result.pairwise_fitness = pair_score;
-        if (joint_score > pair_score + 0.05) {
-            joint_rounds(true, 0.8, 0.9, 1);  // the finest rounds on every point
-            result.start = "initial poses (joint rounds matched more than the pairwise stage)";
-        } else {
-            for (std::size_t v = 0; v < nv; ++v) work[v].pose = pair_result[v];
-            std::tie(moved_iterations, converged) = counters;
-            result.iterations = pair_iterations;
-            result.start = "pairwise stage and pose graph";
+        result.start = "pairwise stage and pose graph";
+        if (pair_score + kSafetyGain < 1.0) {
+            Stopwatch safety_watch;
+            std::vector<Pose> pair_result(nv);
+            for (std::size_t v = 0; v < nv; ++v) pair_result[v] = work[v].pose;
+            const auto counters = std::make_pair(moved_iterations, converged);
+            const int pair_iterations = result.iterations;
+            for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
+            std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
+            joint_rounds(false, 0.6, 0.8, kSafetyStride);
+            const double joint_score = overlap_score(kSafetyStride);
+            result.joint_only_fitness = joint_score;
+            result.safety_net_time_s = safety_watch.seconds();
+            if (joint_score > pair_score + kSafetyGain) {
+                joint_rounds(true, 0.8, 0.9, 1);  // the finest rounds on every point
+                result.start = "initial poses (joint rounds matched more than the pairwise stage)";
+            } else {
+                for (std::size_t v = 0; v < nv; ++v) work[v].pose = pair_result[v];
+                std::tie(moved_iterations, converged) = counters;
+                result.iterations = pair_iterations;
+            }
         }
     } else {
         joint_rounds(options.pairwise, 0.35, 0.9, 1);
@@ -294,6 +304,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
 
     // Final per-view evaluation at the finest distance.
     joint.match(result.max_distances_m.back());
+    result.joint_time_s = joint_watch.seconds() - result.safety_net_time_s;
     std::vector<std::size_t> matched(nv);
     std::vector<double> sq_sum(nv, 0.0);
     for (std::size_t v = 0; v < nv; ++v) {

@@ -219,12 +219,16 @@ struct MultiViewResult {
     std::vector<PairAlignment> pairs;  ///< the pairwise stage (empty when off)
     /// Where the joint rounds that won started. With known initial poses the joint rounds also
     /// run from them (all rounds) and win when their mean matched share beats the pairwise
-    /// start's by more than 0.05 (smooth, nearly symmetric shapes where pairs slide).
+    /// start's by more than 0.05 (smooth, nearly symmetric shapes where pairs slide); they are
+    /// not run when the pairwise start matches more than 0.95, since a share can not exceed 1.
     std::string start;
     double pairwise_fitness = 0.0;    ///< mean matched share from the pairwise start
     double joint_only_fitness = 0.0;  ///< ... from the initial poses (0 when not run)
     LoopClosure loop;
-    double pairwise_time_s = 0.0;
+    double working_time_s = 0.0;          ///< working copies: down-sampling, normals, kd-trees
+    double pairwise_time_s = 0.0;         ///< pairwise stage and pose graph
+    double safety_net_time_s = 0.0;       ///< joint rounds from the initial poses (0 when not run)
+    double joint_time_s = 0.0;            ///< joint rounds that refine the winning start
     Verdict verdict = Verdict::kFail;     ///< the worst of the views' verdicts
     double spacing_m = 0.0;               ///< ŝ used
     double voxel_m = 0.0;                 ///< voxel used for the working copies
