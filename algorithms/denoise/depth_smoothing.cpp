@@ -29,7 +29,6 @@ Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progr
     Report report;
     const detail::Gathered g = detail::open_run(cloud, options, "smooth", report);
     const std::size_t n = g.xyz.size();
-    report["noise_model"] = to_string(options.noise_model);
     const std::string name = detail::view_name(cloud);
     if (n == 0) {
         report["moved"] = 0;

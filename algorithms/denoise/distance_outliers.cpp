@@ -71,7 +71,6 @@ Report remove_distance_outliers(PointCloud& cloud, const DistanceOptions& option
     Report report;
     const detail::Gathered g = detail::open_run(cloud, options, "distance", report);
     const std::size_t n = g.xyz.size();
-    report["noise_model"] = to_string(options.noise_model);
     const std::string name = detail::view_name(cloud);
     if (n == 0) return detail::nothing_removed(std::move(report), watch);
     const auto pixel = detail::organised_pixels(

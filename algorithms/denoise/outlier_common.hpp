@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/denoise/sensor_noise.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/point_cloud.hpp"
@@ -73,14 +74,17 @@ inline Gathered gather(const PointCloud& cloud) {
 }
 
 /// What a filter over one view does first: checks `options` (InputError), opens `report` with
-/// the filter's `method` name (and "mark" when the options have a `mark` setting), gathers the
-/// live points of `cloud` (gather()) and records their number as "input_points".
+/// the filter's `method` name (and "mark" when the options have a `mark` setting,
+/// "noise_model" when they have a `noise_model`), gathers the live points of `cloud` (gather())
+/// and records their number as "input_points".
 template <class Options>
 Gathered open_run(const PointCloud& cloud, const Options& options, const char* method,
                   Report& report) {
     options.check();
     report["method"] = method;
     if constexpr (requires { options.mark; }) report["mark"] = options.mark;
+    if constexpr (requires { options.noise_model; })
+        report["noise_model"] = to_string(options.noise_model);
     Gathered g = gather(cloud);
     report["input_points"] = g.xyz.size();
     return g;

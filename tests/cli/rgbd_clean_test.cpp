@@ -8,6 +8,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
@@ -30,6 +32,23 @@ nlohmann::json clean_documents(const std::string& options, const std::string& na
                           ".json > " + name + ".ply");
     EXPECT_EQ(r.code, 0) << r.err;
     return r.code == 0 ? metrics("m_" + name + ".json")["documents"] : nlohmann::json::array();
+}
+
+/// The per-view metrics of rgbd-clean with options `a` (output A.ply) and with options `b`
+/// (B.ply) on views.ply, paired view by view: empty (and a test failure) unless each run gives
+/// a document for each of the fixture's 4 views.
+std::vector<std::pair<nlohmann::json, nlohmann::json>> compare_views(const std::string& a,
+                                                                     const std::string& a_name,
+                                                                     const std::string& b,
+                                                                     const std::string& b_name) {
+    const auto first = clean_documents(a, a_name);
+    const auto second = clean_documents(b, b_name);
+    EXPECT_EQ(first.size(), 4u);
+    EXPECT_EQ(second.size(), 4u);
+    std::vector<std::pair<nlohmann::json, nlohmann::json>> views;
+    if (first.size() == 4 && second.size() == 4)
+        for (std::size_t v = 0; v < 4; ++v) views.emplace_back(first[v], second[v]);
+    return views;
 }
 
 /// A 4-sensor ring capture of an ellipsoid, rendered once; views.ply = its organised views.
@@ -61,29 +80,23 @@ TEST_F(RgbdClean, DistanceIsTheDefaultOnOrganisedViews) {
 }
 
 TEST_F(RgbdClean, MarkEqualsDelete) {
-    const auto marked = clean_documents("--distance --mark", "marked");
-    const auto deleted = clean_documents("--distance", "deleted");
+    const auto views = compare_views("--distance --mark", "marked", "--distance", "deleted");
     // Both outputs are valid streams.
     const Outcome info = run("$BIN/rgbd-info marked.ply deleted.ply");
     EXPECT_EQ(info.code, 0) << info.err;
-    ASSERT_EQ(marked.size(), 4u);
-    ASSERT_EQ(deleted.size(), 4u);
-    for (std::size_t v = 0; v < 4; ++v) {
-        EXPECT_EQ(marked[v]["marked"], deleted[v]["removed"]);
-        EXPECT_EQ(marked[v]["input_points"], deleted[v]["input_points"]);
+    for (const auto& [marked, deleted] : views) {
+        EXPECT_EQ(marked["marked"], deleted["removed"]);
+        EXPECT_EQ(marked["input_points"], deleted["input_points"]);
     }
 }
 
 // --knn-test adds Pass B: it runs, reports its threshold and can only remove more.
 TEST_F(RgbdClean, KnnTestAddsThePassBStatistic) {
-    const auto plain = clean_documents("--distance", "plain");
-    const auto knn = clean_documents("--distance --knn-test", "knn");
-    ASSERT_EQ(plain.size(), 4u);
-    ASSERT_EQ(knn.size(), 4u);
-    for (std::size_t v = 0; v < 4; ++v) {
-        EXPECT_EQ(plain[v]["statistical"], 0);
-        EXPECT_TRUE(knn[v].contains("r_threshold"));
-        EXPECT_GE(knn[v]["removed"].get<int>(), plain[v]["removed"].get<int>());
+    for (const auto& [plain, knn] :
+         compare_views("--distance", "plain", "--distance --knn-test", "knn")) {
+        EXPECT_EQ(plain["statistical"], 0);
+        EXPECT_TRUE(knn.contains("r_threshold"));
+        EXPECT_GE(knn["removed"].get<int>(), plain["removed"].get<int>());
     }
 }
 
@@ -133,17 +146,14 @@ TEST_F(RgbdClean, HighRecallRemovesMoreAndExplicitOptionsWin) {
 // --smooth keeps what --distance keeps and moves the survivors along their rays; on a view
 // without a grid it is an error naming the view.
 TEST_F(RgbdClean, SmoothMovesTheSurvivorsAndDeletesNothingMore) {
-    const auto rough = clean_documents("--distance", "rough");
-    const auto smooth = clean_documents("--distance --smooth", "smooth");
-    ASSERT_EQ(rough.size(), 4u);
-    ASSERT_EQ(smooth.size(), 4u);
-    for (std::size_t v = 0; v < 4; ++v) {
-        EXPECT_EQ(smooth[v]["removed"], rough[v]["removed"]);
-        const auto& s = smooth[v]["smooth"];
+    for (const auto& [rough, smooth] :
+         compare_views("--distance", "rough", "--distance --smooth", "smooth")) {
+        EXPECT_EQ(smooth["removed"], rough["removed"]);
+        const auto& s = smooth["smooth"];
         EXPECT_GT(s["moved"].get<int>(), 0);
         EXPECT_GT(s["mean_shift_mm"].get<double>(), 0.0);
-        EXPECT_EQ(s["input_points"].get<int>() + rough[v]["removed"].get<int>(),
-                  rough[v]["input_points"].get<int>());
+        EXPECT_EQ(s["input_points"].get<int>() + rough["removed"].get<int>(),
+                  rough["input_points"].get<int>());
     }
     Outcome merged =
         run("$BIN/rgbd-align views.ply --merge -q > merged_s.ply && "

@@ -100,7 +100,10 @@ def work_folder(script, work=None, needs=None):
 
 
 def write_json_lines(path, rows):
-    """One JSON object per line (the --out files of the measurement scripts)."""
+    """One JSON object per line (the --out files of the measurement scripts); nothing when
+    `path` is empty or None (no --out given)."""
+    if not path:
+        return
     with open(path, "w") as f:
         for r in rows:
             f.write(json.dumps(r) + "\n")

@@ -13,13 +13,15 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..")
 
 def argument_parser(doc, points, seed):
     """--build (the build folder), --data (the test data, ../shared/data beside the repository),
-    --points (samples per mesh, default `points`) and --seed (default `seed`); the script adds
-    its own options and --out."""
+    --points (samples per mesh, default `points`), --seed (default `seed`) and --out (the JSON
+    lines file of the results, rgbd_stream.write_json_lines); the script adds its own
+    options."""
     ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
     ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data"))
     ap.add_argument("--points", type=int, default=points)
     ap.add_argument("--seed", type=int, default=seed)
+    ap.add_argument("--out", default=None, help="JSON lines file")
     return ap
 
 

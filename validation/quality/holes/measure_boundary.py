@@ -97,7 +97,6 @@ def pcl_boundary(xyz, normals, radius, binary, tmp):
 def main():
     ap = argument_parser(__doc__, points=30000, seed=1)
     ap.add_argument("--pcl", default=None, help="pcl_boundary binary (default: BUILD/bin)")
-    ap.add_argument("--out", default=None, help="JSON lines file")
     args = ap.parse_args()
     tool = fill_tool(args.build)
     pcl = args.pcl or os.path.join(args.build, "bin", "pcl_boundary")
@@ -163,8 +162,7 @@ def main():
             row["target_met"] = bool(o["recall"] >= 0.95 and o["false_rate"] <= 0.02)
             print(f"  target (recall >= 0.95, false <= 0.02): "
                   f"{'met' if row['target_met'] else 'NOT met'}")
-    if args.out:
-        rgbd_stream.write_json_lines(args.out, results)
+    rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":

@@ -99,7 +99,6 @@ def main():
     ap.add_argument("--noise-mm", type=float, default=0.0,
                     help="Gaussian noise along the normal added to the samples (scanner-like)")
     ap.add_argument("--out-dir", default=None)
-    ap.add_argument("--out", default=None, help="JSON lines file")
     args = ap.parse_args()
     tool = fill_tool(args.build)
     path = os.path.join(args.data, "meshes", "max_planck", "max-planck.obj")
@@ -192,8 +191,7 @@ def main():
     best = min(results, key=lambda r: (r["closure"] < 0.95, r.get("rms_mm", 99)))
     print(f"within 1 mm RMS: {', '.join(r['mechanism'] for r in ok) or 'none'}"
           f"; best (closure >= 0.95 first, then RMS): {best['mechanism']}")
-    if args.out:
-        rgbd_stream.write_json_lines(args.out, results)
+    rgbd_stream.write_json_lines(args.out, results)
 
 
 if __name__ == "__main__":
