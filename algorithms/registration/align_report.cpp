@@ -26,6 +26,8 @@ void MultiViewOptions::check() const {
                "align_views: max_points_per_view must be 0 (no bound) or at least 100");
     RGBD_CHECK(std::isfinite(min_motion_spacing) && min_motion_spacing >= 0,
                "align_views: min_motion_spacing must be >= 0");
+    RGBD_CHECK(std::isfinite(min_fit_gain) && min_fit_gain >= 0 && min_fit_gain < 1,
+               "align_views: min_fit_gain must be in [0, 1)");
     RGBD_CHECK(rounds >= 1 && rounds <= 1000, "align_views: rounds must be in [1, 1000]");
     RGBD_CHECK(fail_fitness >= 0 && fail_fitness <= 1 && warn_fitness >= 0 && warn_fitness <= 1,
                "align_views: fitness thresholds must be in [0, 1]");

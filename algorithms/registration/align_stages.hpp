@@ -112,6 +112,8 @@ public:
     /// After match(): share of the sampled working points (every `stride`-th of each view)
     /// that matched.
     double overlap() const;
+    /// After match(): RMS distance of all views' matched points (m); 0 when none matched.
+    double rms() const;
 
 private:
     struct Match {

@@ -240,8 +240,19 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             // ~1000 points per view); the finest round on all of them.
             const std::size_t stride = sampled_stride(
                 std::max(min_stride, std::size_t{1} << std::min(options.rounds - 1 - round, 3)));
+            double previous_rms = 0.0, previous_share = 0.0;
             for (int it = 0; it < max_it; ++it) {
                 joint.match(dmax, stride);
+                // The previous update's gain in fit (matched RMS distance and share).
+                const double share = joint.overlap(), rms = joint.rms();
+                if (after_pairwise && it > 0 && options.min_fit_gain > 0 &&
+                    previous_rms - rms < options.min_fit_gain * previous_rms &&
+                    share - previous_share < options.min_fit_gain * previous_share) {
+                    round_converged = true;
+                    break;
+                }
+                previous_rms = rms;
+                previous_share = share;
                 const std::optional<double> max_motion =
                     joint.step(dmax, kMinMatches, moved_iterations);
                 if (!max_motion) break;

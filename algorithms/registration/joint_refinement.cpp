@@ -163,6 +163,16 @@ double JointRefinement::overlap() const {
     return static_cast<double>(m) / static_cast<double>(std::max<std::size_t>(sampled_, 1));
 }
 
+double JointRefinement::rms() const {
+    std::size_t m = 0;
+    double sum = 0.0;
+    for (std::size_t v = 0; v < matched_.size(); ++v) {
+        m += matched_[v];
+        sum += sq_sum_[v];
+    }
+    return m ? std::sqrt(sum / static_cast<double>(m)) : 0.0;
+}
+
 std::optional<double> JointRefinement::step(double dmax, std::size_t min_matches,
                                             std::vector<int>& moved) {
     const std::size_t nv = work_.size();

@@ -241,6 +241,37 @@ TEST(AlignViews, TurnOfTwentyFourViewsKeepsEveryConsecutivePairAndClosesTheLoop)
     EXPECT_LE(result.loop.after_rotation_deg, result.loop.before_rotation_deg + 1e-9);
 }
 
+TEST(AlignViews, JointRoundsAfterThePoseGraphStopWhenTheFitStopsImproving) {
+    // After the pairwise stage and the pose graph the views of a turn are close: the joint
+    // rounds end once an iteration improves the matched RMS distance and share by less than
+    // min_fit_gain, instead of creeping for their 10 iterations, and the poses stay as good.
+    const Ring ring = make_ring(24, 2, 5);
+    rgbd::registration::MultiViewOptions creeping;
+    creeping.min_fit_gain = 0.0;  // only the motion criterion
+    const auto stopped = rgbd::registration::align_views(ring.views, {});
+    const auto crept = rgbd::registration::align_views(ring.views, creeping);
+    const auto worst_pair = [&](const rgbd::registration::MultiViewResult& result) {
+        double worst = 0;
+        for (std::size_t i = 0; i < ring.views.size(); ++i) {
+            const std::size_t j = (i + 1) % ring.views.size();
+            const Pose est =
+                result.views[i].world_from_sensor.inverse() * result.views[j].world_from_sensor;
+            worst = std::max(
+                worst, rgbd::rotation_error_deg(est, ring.truth[i].inverse() * ring.truth[j]));
+        }
+        return worst;
+    };
+    std::cout << "turn of 24: " << stopped.iterations << " joint iterations (worst pair "
+              << worst_pair(stopped) << " deg) against " << crept.iterations << " ("
+              << worst_pair(crept) << " deg) without the fit test\n";
+    EXPECT_LT(stopped.iterations, crept.iterations);
+    EXPECT_LT(worst_pair(stopped), 0.2);
+    expect_close(ring, stopped, 0.3, 0.002);
+    rgbd::registration::MultiViewOptions bad;
+    bad.min_fit_gain = 1.0;
+    EXPECT_THROW(rgbd::registration::align_views(ring.views, bad), rgbd::InputError);
+}
+
 TEST(AlignViews, BadInput) {
     std::vector<PointCloud> views(1);
     EXPECT_THROW(rgbd::registration::align_views(views, {}), rgbd::InputError);
