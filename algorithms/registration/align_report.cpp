@@ -88,10 +88,10 @@ Report MultiViewResult::to_json() const {
         if (!v.reason.empty()) j["reason"] = v.reason;
         r["views"].push_back(j);
     }
-    r["working_time_s"] = working_time_s;
-    r["pairwise_time_s"] = pairwise_time_s;
-    r["safety_net_time_s"] = safety_net_time_s;
-    r["joint_time_s"] = joint_time_s;
+    r["times_s"] = {{"working_copies", working_time_s},
+                    {"pairwise", pairwise_time_s},
+                    {"safety_net", safety_net_time_s},
+                    {"joint", joint_time_s}};
     r["start"] = start;
     r["pairwise_fitness"] = pairwise_fitness;
     r["joint_only_fitness"] = joint_only_fitness;
