@@ -354,21 +354,30 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
                         // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
                         const double tol = q.z() / c.focal * tan_max +
                                            3.0 * sigma_z_m(options.noise_model, q.z(), 0.0);
-                        // Branch-free over the 3 x 3 window: a missing return is +inf (never
-                        // NaN), which changes neither the minimum nor the "seen" test; pixels
-                        // outside the map's box have no return either, so are skipped.
+                        // The 3 x 3 window: a missing return is +inf (never NaN), which changes
+                        // neither the minimum nor the "seen" test; pixels outside the map's box
+                        // have no return either, so are skipped. The centre pixel first: a
+                        // return there within tol shows the point (most points, for the views
+                        // that face them), and then the rest of the window cannot change the
+                        // outcome. Otherwise the whole window, branch-free.
                         bool seen = false;
                         double nearest = std::numeric_limits<double>::infinity();
-                        const int r0 = std::max(row - 1, c.y0),
-                                  r1 = std::min(row + 1, c.y0 + c.bh - 1);
-                        const int c0 = std::max(col - 1, c.x0),
-                                  c1 = std::min(col + 1, c.x0 + c.bw - 1);
-                        for (int rr = r0; rr <= r1; ++rr) {
-                            const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
-                            for (int cc = c0; cc <= c1; ++cc) {
-                                const double d = line[cc - c.x0];
-                                nearest = std::min(nearest, d);
-                                seen |= std::abs(d - q.z()) <= tol;
+                        if (row >= c.y0 && row < c.y0 + c.bh && col >= c.x0 && col < c.x0 + c.bw)
+                            seen = std::abs(double(c.depth[std::size_t(row - c.y0) * c.bw +
+                                                           std::size_t(col - c.x0)]) -
+                                            q.z()) <= tol;
+                        if (!seen) {
+                            const int r0 = std::max(row - 1, c.y0),
+                                      r1 = std::min(row + 1, c.y0 + c.bh - 1);
+                            const int c0 = std::max(col - 1, c.x0),
+                                      c1 = std::min(col + 1, c.x0 + c.bw - 1);
+                            for (int rr = r0; rr <= r1; ++rr) {
+                                const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
+                                for (int cc = c0; cc <= c1; ++cc) {
+                                    const double d = line[cc - c.x0];
+                                    nearest = std::min(nearest, d);
+                                    seen |= std::abs(d - q.z()) <= tol;
+                                }
                             }
                         }
                         const bool any = nearest < std::numeric_limits<double>::infinity();
