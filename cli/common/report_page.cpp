@@ -1,5 +1,6 @@
 #include "cli/common/report_page.hpp"
 
+#include <tbb/parallel_invoke.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -188,52 +189,65 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         in.input ? in.input->sensors : std::vector<Pose>{}, 0.5 * (lo + hi), std::nullopt);
     const render::Camera camera = render::fit_camera(fit->vertices, orientation, in.camera);
     render::PictureOptions plain;
-    if (in.input) {
-        images.push_back({"input.png",
-                          "input points (" + std::to_string(in.input->vertices.size()) + ")",
-                          render::render_picture(*in.input, camera, plain).image});
-    }
-    if (result)
-        images.push_back({"result.png",
-                          "result (" + std::to_string(result->triangles.size()) + " triangles)",
-                          render::render_picture(*result, camera, plain).image});
-    if (baseline)
-        images.push_back(
-            {"baseline.png",
-             in.baseline_name + " (" + std::to_string(baseline->triangles.size()) + " triangles)",
-             render::render_picture(*baseline, camera, plain).image});
-    // Heat maps: one range for both.
     std::string against;
-    auto distances = [&](const Geometry& g) {
-        if (in.reference) return evaluation::distances_to_surface(g.vertices, *in.reference);
-        return evaluation::distances_to_points(g.vertices, in.input->vertices);
-    };
     if (in.reference)
         against = "distance to the reference";
     else if (in.input)
         against = "distance to the input points";
-    else
-        return {};
-    if (result) result->scalars = distances(*result);
-    if (baseline) baseline->scalars = distances(*baseline);
+    auto distances = [&](const Geometry& g) {
+        if (in.reference) return evaluation::distances_to_surface(g.vertices, *in.reference);
+        return evaluation::distances_to_points(g.vertices, in.input->vertices);
+    };
+    // The plain pictures and the heat maps' distances do not depend on each other: side by
+    // side (each is parallel inside, but has sequential parts). Pictures keep their order.
+    ReportImage input_image, result_image, baseline_image;
+    std::vector<double> result_distances, baseline_distances;
+    tbb::parallel_invoke(
+        [&] {
+            if (in.input)
+                input_image = {"input.png",
+                               "input points (" + std::to_string(in.input->vertices.size()) + ")",
+                               render::render_picture(*in.input, camera, plain).image};
+        },
+        [&] {
+            if (result)
+                result_image = {
+                    "result.png",
+                    "result (" + std::to_string(result->triangles.size()) + " triangles)",
+                    render::render_picture(*result, camera, plain).image};
+        },
+        [&] {
+            if (baseline)
+                baseline_image = {"baseline.png",
+                                  in.baseline_name + " (" +
+                                      std::to_string(baseline->triangles.size()) + " triangles)",
+                                  render::render_picture(*baseline, camera, plain).image};
+        },
+        [&] {
+            if (against.empty()) return;
+            if (result) result_distances = distances(*result);
+            if (baseline) baseline_distances = distances(*baseline);
+        });
+    for (ReportImage* image : {&input_image, &result_image, &baseline_image})
+        if (!image->file.empty()) images.push_back(std::move(*image));
+    if (against.empty()) return {};
+
+    // Heat maps: one range for both.
     auto p98 = [](std::vector<double> d) { return count_quantile(d, 0.98); };
     double vmax = 0;
-    if (result) vmax = std::max(vmax, p98(result->scalars));
-    if (baseline) vmax = std::max(vmax, p98(baseline->scalars));
+    if (result) vmax = std::max(vmax, p98(result_distances));
+    if (baseline) vmax = std::max(vmax, p98(baseline_distances));
     render::PictureOptions heat;
     heat.scalar_min = 0.0;
     heat.scalar_max = vmax > 0 ? vmax : 1e-3;
     heat.scalar_label = "mm";
     heat.scalar_display_scale = 1000.0;
     info["heat_map"] = {{"distance", against}, {"max_m", *heat.scalar_max}};
-    if (result)
-        images.push_back({"result_error.png", "result: " + against + " (mm)",
-                          render::render_picture(*result, camera, heat).image});
-    if (baseline)
-        images.push_back({"baseline_error.png", in.baseline_name + ": " + against + " (mm)",
-                          render::render_picture(*baseline, camera, heat).image});
     // Close-ups of the result's top quarter along up (a head, a face: the fine detail users
-    // judge), same colours and heat range, camera fitted to those vertices only.
+    // judge), same colours and heat range, camera fitted to those vertices only. The colour
+    // close-up draws the result without the distances (a geometry with scalars is drawn as a
+    // heat map whatever the options); the others draw copies that carry them.
+    std::optional<render::Camera> close;
     if (result && result->vertices.size() >= 100) {
         std::vector<double> heights;
         heights.reserve(result->vertices.size());
@@ -243,17 +257,42 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         std::vector<Eigen::Vector3d> top;
         for (std::size_t i = 0; i < heights.size(); ++i)
             if (heights[i] >= top_quarter) top.push_back(result->vertices[i]);
-        const render::Camera close = render::fit_camera(top, orientation, in.camera);
-        // The colour close-up without the heat map's distances (a geometry with scalars is
-        // drawn as a heat map whatever the options).
-        std::vector<double> scalars = std::move(result->scalars);
-        result->scalars.clear();
-        images.push_back({"result_closeup.png", "result, close-up of the top quarter",
-                          render::render_picture(*result, close, plain).image});
-        result->scalars = std::move(scalars);
-        images.push_back({"result_closeup_error.png", "result, close-up: " + against + " (mm)",
-                          render::render_picture(*result, close, heat).image});
+        close = render::fit_camera(top, orientation, in.camera);
     }
+    std::optional<Geometry> result_heat, baseline_heat;
+    if (result) {
+        result_heat = *result;
+        result_heat->scalars = std::move(result_distances);
+    }
+    if (baseline) {
+        baseline_heat = std::move(*baseline);
+        baseline_heat->scalars = std::move(baseline_distances);
+    }
+    ReportImage result_error, baseline_error, closeup, closeup_error;
+    tbb::parallel_invoke(
+        [&] {
+            if (result_heat)
+                result_error = {"result_error.png", "result: " + against + " (mm)",
+                                render::render_picture(*result_heat, camera, heat).image};
+        },
+        [&] {
+            if (baseline_heat)
+                baseline_error = {"baseline_error.png", in.baseline_name + ": " + against + " (mm)",
+                                  render::render_picture(*baseline_heat, camera, heat).image};
+        },
+        [&] {
+            if (close)
+                closeup = {"result_closeup.png", "result, close-up of the top quarter",
+                           render::render_picture(*result, *close, plain).image};
+        },
+        [&] {
+            if (close)
+                closeup_error = {"result_closeup_error.png",
+                                 "result, close-up: " + against + " (mm)",
+                                 render::render_picture(*result_heat, *close, heat).image};
+        });
+    for (ReportImage* image : {&result_error, &baseline_error, &closeup, &closeup_error})
+        if (!image->file.empty()) images.push_back(std::move(*image));
     return against;
 }
 
