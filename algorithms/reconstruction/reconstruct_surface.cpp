@@ -12,6 +12,7 @@
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
@@ -357,37 +358,54 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["front_time_s"] = af_watch.seconds();
 }
 
-/// IDW colours from the k nearest coloured points; observed points (measured, and coloured by
-/// the colour camera: neither `synthetic` nor `uncoloured`, whose colour is a copy from
-/// elsewhere or a grey fallback) win when one is near.
-bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& o, double spacing) {
+/// The coloured points the mesh's colours come from, and their searches: all of them, and the
+/// observed ones (measured, and coloured by the colour camera: neither `synthetic` nor
+/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) on their own.
+struct ColourSources {
+    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
+    std::vector<Rgb> all_rgb, orig_rgb;
+    bool separate = false;
+    std::optional<rgbd::internal::PointSearch> all_tree, orig_tree;
+};
+
+/// Fills `s` from the cloud's coloured points; false when the cloud has no colours. Independent
+/// of the mesh: runs while the surface is reconstructed.
+bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
     if (!cloud.has_colors()) return false;
     const auto colors = cloud.colors();
     const auto synthetic = cloud.flag(prop::kSynthetic);
     const auto uncoloured = cloud.flag(kUncolouredFlag);
-    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
-    std::vector<Rgb> all_rgb, orig_rgb;
-    all_xyz.reserve(cloud.size());
-    all_rgb.reserve(cloud.size());
+    s.all_xyz.reserve(cloud.size());
+    s.all_rgb.reserve(cloud.size());
     const bool flagged = synthetic.has_value() || uncoloured.has_value();
     for (auto idx : cloud.points) {
         const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
-        all_xyz.push_back(p);
-        all_rgb.push_back(colors.get(idx));
+        s.all_xyz.push_back(p);
+        s.all_rgb.push_back(colors.get(idx));
         if (flagged && (!synthetic || (*synthetic)[idx] == 0) &&
             (!uncoloured || (*uncoloured)[idx] == 0)) {
-            orig_xyz.push_back(p);
-            orig_rgb.push_back(colors.get(idx));
+            s.orig_xyz.push_back(p);
+            s.orig_rgb.push_back(colors.get(idx));
         }
     }
     // The measured points searched on their own only when some points are not measured (with
     // all of them measured, both searches would find the same neighbours).
-    const bool separate = !orig_xyz.empty() && orig_xyz.size() < all_xyz.size();
+    s.separate = !s.orig_xyz.empty() && s.orig_xyz.size() < s.all_xyz.size();
     // Cell grids, not kd-trees: millions of points on a dense sequence against the mesh's
     // vertices, and a kd-tree's build is sequential.
-    const rgbd::internal::PointSearch all_tree(all_xyz);
-    std::optional<rgbd::internal::PointSearch> orig_tree;
-    if (separate) orig_tree.emplace(orig_xyz);
+    s.all_tree.emplace(s.all_xyz);
+    if (s.separate) s.orig_tree.emplace(s.orig_xyz);
+    return true;
+}
+
+/// IDW colours of the mesh's vertices from the k nearest coloured points of `s`; observed
+/// points win when one is near.
+void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o, double spacing) {
+    const bool separate = s.separate;
+    const rgbd::internal::PointSearch& all_tree = *s.all_tree;
+    const auto& orig_tree = s.orig_tree;
+    const std::vector<Rgb>& all_rgb = s.all_rgb;
+    const std::vector<Rgb>& orig_rgb = s.orig_rgb;
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
 
@@ -431,7 +449,6 @@ bool colorize(Mesh& mesh, const PointCloud& cloud, const ReconstructionOptions& 
                       });
     VertexColorMap map = add_vertex_colors(mesh);
     for (std::size_t v = 0; v < vertices.size(); ++v) map[vertices[v]] = result[v];
-    return true;
 }
 
 }  // namespace
@@ -477,46 +494,65 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         pwn, 6, CGAL::parameters::point_map(PointOf()));
     Mesh mesh;
     Report steps = Report::object();
-    if (options.method == "poisson") {
-        poisson(pwn, average_spacing, options, mesh);
-    } else {
-        std::vector<Eigen::Vector3d> xyz, normals;
-        xyz.reserve(pwn.size());
-        normals.reserve(pwn.size());
-        for (const Pwn& p : pwn) {
-            xyz.push_back(to_eigen(p.first));
-            normals.push_back(to_eigen(p.second));
+    // The colour sources do not depend on the mesh: prepared in a task beside the surface (the
+    // advancing front is a sequential step), which stays on this thread (its CGAL random
+    // generator is this thread's, seeded above).
+    ColourSources colour_sources;
+    bool colored = false;
+    double colour_prepare_time = 0.0;
+    tbb::task_group colour_task;
+    colour_task.run([&] {
+        Stopwatch prepare_watch;
+        colored = prepare_colours(cloud, colour_sources);
+        colour_prepare_time = prepare_watch.seconds();
+    });
+    double mesh_time = 0.0;
+    try {
+        if (options.method == "poisson") {
+            poisson(pwn, average_spacing, options, mesh);
+        } else {
+            std::vector<Eigen::Vector3d> xyz, normals;
+            xyz.reserve(pwn.size());
+            normals.reserve(pwn.size());
+            for (const Pwn& p : pwn) {
+                xyz.push_back(to_eigen(p.first));
+                normals.push_back(to_eigen(p.second));
+            }
+            if (options.method == "front")
+                front(std::move(xyz), std::move(normals), used_spacing, options, mesh, steps);
+            else
+                advancing_front(xyz, normals, nullptr, options, mesh);
         }
-        if (options.method == "front")
-            front(std::move(xyz), std::move(normals), used_spacing, options, mesh, steps);
-        else
-            advancing_front(xyz, normals, nullptr, options, mesh);
-    }
-    if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
+        if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
 
-    PMP::remove_isolated_vertices(mesh);
-    mesh.collect_garbage();
-    RGBD_CHECK_AS(
-        AlgorithmError, mesh.number_of_faces() > 0,
-        "reconstruction: " + view_name(cloud) + ": " + options.method + " produced no triangles");
-    steps["components_dropped"] =
-        internal::drop_small_components(mesh, options.min_component_fraction);
-    const bool clean = options.clean && options.method != "poisson";
-    if (clean)
-        steps["folds"] =
-            internal::remove_folds_and_spikes(mesh, options.fold_angle_deg, options.spike_angle_deg,
-                                              3, options.min_component_fraction);
-    std::vector<Mesh::Face_index> added;
-    if (options.watertight && !CGAL::is_closed(mesh))
-        steps["holes"] = internal::close_holes(mesh, options.up, 300, &added);
-    if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
-    if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
-    if (options.target_faces > 0)
-        steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);
-    if (!report_progress(progress, 0.9)) throw AlgorithmError("reconstruction: cancelled");
-    const double mesh_time = watch.seconds();
+        PMP::remove_isolated_vertices(mesh);
+        mesh.collect_garbage();
+        RGBD_CHECK_AS(AlgorithmError, mesh.number_of_faces() > 0,
+                      "reconstruction: " + view_name(cloud) + ": " + options.method +
+                          " produced no triangles");
+        steps["components_dropped"] =
+            internal::drop_small_components(mesh, options.min_component_fraction);
+        const bool clean = options.clean && options.method != "poisson";
+        if (clean)
+            steps["folds"] = internal::remove_folds_and_spikes(mesh, options.fold_angle_deg,
+                                                               options.spike_angle_deg, 3,
+                                                               options.min_component_fraction);
+        std::vector<Mesh::Face_index> added;
+        if (options.watertight && !CGAL::is_closed(mesh))
+            steps["holes"] = internal::close_holes(mesh, options.up, 300, &added);
+        if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
+        if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
+        if (options.target_faces > 0)
+            steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);
+        if (!report_progress(progress, 0.9)) throw AlgorithmError("reconstruction: cancelled");
+        mesh_time = watch.seconds();
+    } catch (...) {
+        colour_task.wait();
+        throw;
+    }
+    colour_task.wait();
     Stopwatch color_watch;
-    const bool colored = colorize(mesh, cloud, options, spacing);
+    if (colored) colorize(mesh, colour_sources, options, spacing);
     report_progress(progress, 1.0);
 
     if (report) {
@@ -539,7 +575,7 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         for (auto it = steps.begin(); it != steps.end(); ++it) r[it.key()] = it.value();
         r["colored"] = colored;
         r["mesh_time_s"] = mesh_time;
-        r["color_time_s"] = color_watch.seconds();
+        r["color_time_s"] = colour_prepare_time + color_watch.seconds();
         r["time_s"] = watch.seconds();
     }
     return mesh;
