@@ -89,9 +89,7 @@ PointCloud to_point_cloud(const ColoredPoints& points) {
 // ------------------------------------------------------------------------------ Draco
 
 void DracoSettings::check() const {
-    RGBD_CHECK(std::isfinite(position_quantum_m) && position_quantum_m >= 1e-6 &&
-                   position_quantum_m <= 0.1,
-               "Draco: position quantum must be in [1e-6, 0.1] m");
+    check_range("Draco: position quantum", position_quantum_m, Range::closed(1e-6, 0.1), "m");
     RGBD_CHECK(color_bits >= 1 && color_bits <= 8, "Draco: colour bits must be 1..8");
     RGBD_CHECK(speed >= 0 && speed <= 10, "Draco: speed must be 0..10");
 }

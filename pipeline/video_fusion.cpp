@@ -16,11 +16,9 @@ namespace rgbd::pipeline {
 void VideoFusionOptions::check() const {
     cloud.check();
     distance.check();
-    RGBD_CHECK(std::isfinite(voxel_m) && voxel_m >= 0 && voxel_m <= 0.5,
-               "video fusion: voxel must be in [0, 0.5] m (0 = from the rig)");
-    RGBD_CHECK(std::isfinite(duplicate_radius_voxels) && duplicate_radius_voxels >= 0 &&
-                   duplicate_radius_voxels <= 10,
-               "video fusion: duplicate radius must be in [0, 10] voxels");
+    check_range("video fusion: voxel", voxel_m, Range::closed(0, 0.5), "m (0 = from the rig)");
+    check_range("video fusion: duplicate radius", duplicate_radius_voxels, Range::closed(0, 10),
+                "voxels");
     RGBD_CHECK(std::isfinite(max_delta_e) && max_delta_e >= 0,
                "video fusion: max Delta E must be >= 0");
     RGBD_CHECK(std::isfinite(extraction.crop_radius_m) && extraction.crop_radius_m >= 0,

@@ -177,7 +177,7 @@ int main(int argc, char** argv) {
             options.rig = rgbd::synth::parse_rig_kind(rig);
             options.up = rgbd::synth::parse_up_axis(up);
             options.motion = rgbd::synth::parse_motion_kind(motion_kind);
-            if (!(fps > 0 && fps <= 1000)) throw rgbd::InputError("--fps must be in (0, 1000]");
+            rgbd::check_range("--fps", fps, rgbd::Range::open_closed(0, 1000));
             options.frame_period_s = 1.0 / fps;
             if (noise == "none")
                 options.noise = rgbd::synth::NoiseOptions::none();
@@ -193,8 +193,7 @@ int main(int argc, char** argv) {
             if (vm.count("stops")) {
                 if (options.rig != rgbd::synth::RigKind::kTurntable)
                     throw rgbd::InputError("--stops needs --rig turntable");
-                if (stops < 1 || stops > 3600)
-                    throw rgbd::InputError("--stops must be in [1, 3600]");
+                rgbd::check_range("--stops", stops, rgbd::Range::closed(1, 3600));
                 options.turntable_stops = stops;
                 options.turntable_step_deg = 360.0 / stops;
             }

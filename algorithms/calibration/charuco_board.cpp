@@ -71,10 +71,9 @@ Pose pose_from_rvec(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
 }  // namespace
 
 void BoardSpec::check() const {
-    RGBD_CHECK(squares_x >= 2 && squares_x <= 40 && squares_y >= 2 && squares_y <= 40,
-               "board squares must be in [2, 40] along each side");
-    RGBD_CHECK(std::isfinite(square_m) && square_m >= 0.005 && square_m <= 2.0,
-               "board square must be in [0.005, 2] m");
+    check_range("board squares_x", squares_x, Range::closed(2, 40));
+    check_range("board squares_y", squares_y, Range::closed(2, 40));
+    check_range("board square", square_m, Range::closed(0.005, 2.0), "m");
     RGBD_CHECK(std::isfinite(marker_m) && marker_m > 0.2 * square_m && marker_m < square_m,
                "board marker must be smaller than the square and over a fifth of it");
     RGBD_CHECK(dictionaries().count(dictionary) == 1,
@@ -100,7 +99,7 @@ BoardSpec BoardSpec::from_json(const nlohmann::json& json) {
     const auto count = [](const std::string& key, const nlohmann::json& value) {
         if (!value.is_number_integer()) throw InputError("key '" + key + "' must be an integer");
         const std::int64_t n = value.get<std::int64_t>();
-        if (n < 2 || n > 40) throw InputError("key '" + key + "' must be in [2, 40]");
+        check_range("key '" + key + "'", n, Range::closed(2, 40));
         return static_cast<int>(n);
     };
     for (const auto& [key, value] : json.items()) {
@@ -145,8 +144,7 @@ cv::Mat board_image(const BoardSpec& board, double pixels_per_m) {
 void DetectionOptions::check() const {
     RGBD_CHECK(min_corners >= 4, "detection: min_corners must be >= 4");
     RGBD_CHECK(std::isfinite(max_rms_px) && max_rms_px > 0, "detection: max_rms_px must be > 0");
-    RGBD_CHECK(std::isfinite(min_spread) && min_spread >= 0 && min_spread <= 1,
-               "detection: min_spread must be in [0, 1]");
+    check_range("detection: min_spread", min_spread, Range::closed(0, 1));
 }
 
 DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,

@@ -82,7 +82,7 @@ double huber_weight(double r, double k) { return r <= k ? 1.0 : k / r; }
 
 void RigSolveOptions::check() const {
     RGBD_CHECK(anchor >= 0, "anchor must be >= 0");
-    RGBD_CHECK(max_iterations >= 1 && max_iterations <= 10000, "iterations must be in [1, 10000]");
+    check_range("iterations", max_iterations, Range::closed(1, 10000));
     RGBD_CHECK(std::isfinite(huber_px) && huber_px > 0, "Huber scale must be > 0 px");
 }
 

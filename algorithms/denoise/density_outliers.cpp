@@ -27,27 +27,20 @@
 namespace rgbd::denoise {
 
 void DensityOptions::check() const {
-    RGBD_CHECK(std::isfinite(theta_max_deg) && theta_max_deg > 0.0 && theta_max_deg <= 89.0,
-               "density outliers: theta_max must be in (0, 89] degrees");
-    RGBD_CHECK(k >= 2 && k <= 1000, "density outliers: k must be in [2, 1000]");
-    RGBD_CHECK(k_ref >= 1 && k_ref <= 10000, "density outliers: k_ref must be in [1, 10000]");
-    RGBD_CHECK(std::isfinite(beta) && beta >= 0.0 && beta <= 100.0,
-               "density outliers: beta must be in [0, 100]");
-    RGBD_CHECK(std::isfinite(beta_local) && beta_local >= 0.0 && beta_local <= 100.0,
-               "density outliers: beta_local must be in [0, 100]");
-    RGBD_CHECK(std::isfinite(consensus_ratio) && consensus_ratio >= 0.0 && consensus_ratio <= 1.0,
-               "density outliers: consensus_ratio must be in [0, 1]");
-    RGBD_CHECK(
-        std::isfinite(consensus_sigmas) && consensus_sigmas > 0.0 && consensus_sigmas <= 1000.0,
-        "density outliers: consensus_sigmas must be in (0, 1000]");
-    RGBD_CHECK(std::isfinite(consensus_radius) && consensus_radius > 0.0 && consensus_radius <= 2.0,
-               "density outliers: consensus_radius must be in (0, 2]");
-    RGBD_CHECK(
-        std::isfinite(cluster_spacing) && cluster_spacing >= 0.0 && cluster_spacing <= 1000.0,
-        "density outliers: cluster_spacing must be in [0, 1000]");
-    RGBD_CHECK(std::isfinite(min_cluster_fraction) && min_cluster_fraction >= 0.0 &&
-                   min_cluster_fraction <= 1.0,
-               "density outliers: min_cluster_fraction must be in [0, 1]");
+    check_range("density outliers: theta_max", theta_max_deg, Range::open_closed(0.0, 89.0),
+                "degrees");
+    check_range("density outliers: k", k, Range::closed(2, 1000));
+    check_range("density outliers: k_ref", k_ref, Range::closed(1, 10000));
+    check_range("density outliers: beta", beta, Range::closed(0.0, 100.0));
+    check_range("density outliers: beta_local", beta_local, Range::closed(0.0, 100.0));
+    check_range("density outliers: consensus_ratio", consensus_ratio, Range::closed(0.0, 1.0));
+    check_range("density outliers: consensus_sigmas", consensus_sigmas,
+                Range::open_closed(0.0, 1000.0));
+    check_range("density outliers: consensus_radius", consensus_radius,
+                Range::open_closed(0.0, 2.0));
+    check_range("density outliers: cluster_spacing", cluster_spacing, Range::closed(0.0, 1000.0));
+    check_range("density outliers: min_cluster_fraction", min_cluster_fraction,
+                Range::closed(0.0, 1.0));
 }
 
 namespace {

@@ -15,13 +15,10 @@
 namespace rgbd::denoise {
 
 void SmoothOptions::check() const {
-    RGBD_CHECK(half_window >= 1 && half_window <= 7,
-               "depth smoothing: half_window must be in [1, 7]");
-    RGBD_CHECK(std::isfinite(gate_sigmas) && gate_sigmas > 0.0 && gate_sigmas <= 100.0,
-               "depth smoothing: gate_sigmas must be in (0, 100]");
+    check_range("depth smoothing: half_window", half_window, Range::closed(1, 7));
+    check_range("depth smoothing: gate_sigmas", gate_sigmas, Range::open_closed(0.0, 100.0));
     const int side = 2 * half_window + 1;
-    RGBD_CHECK(min_support >= 1 && min_support <= side * side,
-               "depth smoothing: min_support must be in [1, " + std::to_string(side * side) + "]");
+    check_range("depth smoothing: min_support", min_support, Range::closed(1, side * side));
 }
 
 Report smooth_depth(PointCloud& cloud, const SmoothOptions& options, const Progress& progress) {

@@ -19,23 +19,17 @@
 namespace rgbd::denoise {
 
 void DistanceOptions::check() const {
-    RGBD_CHECK(std::isfinite(theta_max_deg) && theta_max_deg > 0.0 && theta_max_deg <= 89.0,
-               "distance outliers: theta_max must be in (0, 89] degrees");
-    RGBD_CHECK(c_min >= 0 && c_min <= 24, "distance outliers: c_min must be in [0, 24]");
-    RGBD_CHECK(std::isfinite(line_sigmas) && line_sigmas >= 0.0 && line_sigmas <= 1000.0,
-               "distance outliers: line_sigmas must be in [0, 1000]");
-    RGBD_CHECK(dense_min >= 0 && dense_min <= 24,
-               "distance outliers: dense_min must be in [0, 24]");
-    RGBD_CHECK(c_min_wide >= 0 && c_min_wide <= 48,
-               "distance outliers: c_min_wide must be in [0, 48]");
-    RGBD_CHECK(std::isfinite(keep_knn) && keep_knn >= 0.0 && keep_knn <= 1000.0,
-               "distance outliers: keep_knn must be in [0, 1000]");
-    RGBD_CHECK(keep_k >= 1 && keep_k <= kMaxKeepK, "distance outliers: keep_k must be in [1, 48]");
-    RGBD_CHECK(n_speckle >= 0 && n_speckle <= 10000000,
-               "distance outliers: n_speckle must be in [0, 10000000]");
-    RGBD_CHECK(k >= 1 && k <= 1000, "distance outliers: k must be in [1, 1000]");
-    RGBD_CHECK(std::isfinite(alpha) && alpha >= 0.0 && alpha <= 1000.0,
-               "distance outliers: alpha must be in [0, 1000]");
+    check_range("distance outliers: theta_max", theta_max_deg, Range::open_closed(0.0, 89.0),
+                "degrees");
+    check_range("distance outliers: c_min", c_min, Range::closed(0, 24));
+    check_range("distance outliers: line_sigmas", line_sigmas, Range::closed(0.0, 1000.0));
+    check_range("distance outliers: dense_min", dense_min, Range::closed(0, 24));
+    check_range("distance outliers: c_min_wide", c_min_wide, Range::closed(0, 48));
+    check_range("distance outliers: keep_knn", keep_knn, Range::closed(0.0, 1000.0));
+    check_range("distance outliers: keep_k", keep_k, Range::closed(1, kMaxKeepK));
+    check_range("distance outliers: n_speckle", n_speckle, Range::closed(0, 10000000));
+    check_range("distance outliers: k", k, Range::closed(1, 1000));
+    check_range("distance outliers: alpha", alpha, Range::closed(0.0, 1000.0));
 }
 
 namespace {

@@ -13,19 +13,17 @@
 namespace rgbd::denoise {
 
 void StatisticalOptions::check() const {
-    RGBD_CHECK(k >= 1 && k <= 10000, "statistical outliers: k must be in [1, 10000]");
+    check_range("statistical outliers: k", k, Range::closed(1, 10000));
     RGBD_CHECK(std::isfinite(std_ratio) && std_ratio >= 0.0 && std_ratio <= 1e6,
                "statistical outliers: std_ratio must be finite and >= 0");
 }
 
 void RadiusOptions::check() const {
-    RGBD_CHECK(min_points >= 0 && min_points <= 100000,
-               "radius outliers: min_points must be in [0, 100000]");
+    check_range("radius outliers: min_points", min_points, Range::closed(0, 100000));
     RGBD_CHECK(std::isfinite(radius_m) && radius_m >= 0.0,
                "radius outliers: radius_m must be finite and >= 0 (0 = from spacing)");
-    RGBD_CHECK(std::isfinite(radius_spacing_factor) && radius_spacing_factor > 0.0 &&
-                   radius_spacing_factor <= 1e4,
-               "radius outliers: radius_spacing_factor must be in (0, 10000]");
+    check_range("radius outliers: radius_spacing_factor", radius_spacing_factor,
+                Range::open_closed(0.0, 1e4));
 }
 
 namespace {

@@ -61,19 +61,15 @@ FaceGeometry face_geometry(const std::array<Eigen::Vector3d, 3>& c) {
 void MeshQualityOptions::check() const {
     RGBD_CHECK(!sliver_angles_deg.empty(), "mesh quality: at least one sliver angle is needed");
     for (double a : sliver_angles_deg)
-        RGBD_CHECK(std::isfinite(a) && a > 0.0 && a <= 60.0,
-                   "mesh quality: sliver angles must be in (0, 60] degrees");
-    RGBD_CHECK(std::isfinite(fold_angle_deg) && fold_angle_deg > 0.0 && fold_angle_deg < 180.0,
-               "mesh quality: fold_angle_deg must be in (0, 180)");
-    RGBD_CHECK(std::isfinite(spike_angle_deg) && spike_angle_deg > 0.0 && spike_angle_deg < 180.0,
-               "mesh quality: spike_angle_deg must be in (0, 180)");
+        check_range("mesh quality: sliver angles", a, Range::open_closed(0.0, 60.0), "degrees");
+    check_range("mesh quality: fold_angle_deg", fold_angle_deg, Range::open(0.0, 180.0));
+    check_range("mesh quality: spike_angle_deg", spike_angle_deg, Range::open(0.0, 180.0));
     RGBD_CHECK(std::isfinite(far_tau_m) && far_tau_m > 0.0,
                "mesh quality: far_tau_m must be positive");
     RGBD_CHECK(std::isfinite(grey_tau_m) && grey_tau_m > 0.0,
                "mesh quality: grey_tau_m must be positive");
-    RGBD_CHECK(grey_tolerance >= 0 && grey_tolerance <= 255,
-               "mesh quality: grey_tolerance must be in [0, 255]");
-    RGBD_CHECK(samples > 0 && samples <= 100000000, "mesh quality: samples must be in [1, 1e8]");
+    check_range("mesh quality: grey_tolerance", grey_tolerance, Range::closed(0, 255));
+    check_range("mesh quality: samples", samples, Range::closed(1, 100000000));
 }
 
 Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_points,

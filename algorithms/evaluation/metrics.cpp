@@ -160,7 +160,7 @@ void MetricOptions::check() const {
     RGBD_CHECK(!taus_m.empty(), "metrics: at least one threshold tau is needed");
     for (double t : taus_m)
         RGBD_CHECK(std::isfinite(t) && t > 0.0, "metrics: thresholds tau must be positive");
-    RGBD_CHECK(samples > 0 && samples <= 100000000, "metrics: samples must be in [1, 1e8]");
+    check_range("metrics: samples", samples, Range::closed(1, 100000000));
     RGBD_CHECK(std::isfinite(invented_tau_m) && invented_tau_m > 0.0,
                "metrics: invented_tau_m must be positive");
 }

@@ -20,15 +20,10 @@ void CloudOptions::check() const {
     RGBD_CHECK(std::isfinite(z_min_m) && z_min_m >= 0.0, "depth window z_min_m must be >= 0");
     RGBD_CHECK(std::isfinite(z_max_m) && z_max_m >= 0.0, "depth window z_max_m must be >= 0");
     RGBD_CHECK(z_max_m == 0.0 || z_max_m > z_min_m, "depth window z_max_m must exceed z_min_m");
-    RGBD_CHECK(std::isfinite(sigma_factor) && sigma_factor >= 0.0 && sigma_factor <= 100.0,
-               "sigma_factor must be in [0, 100]");
-    RGBD_CHECK(
-        std::isfinite(occlusion_margin_m) && occlusion_margin_m >= 0.0 && occlusion_margin_m <= 1.0,
-        "occlusion_margin_m must be in [0, 1] m");
-    RGBD_CHECK(std::isfinite(splat_scale) && splat_scale >= 0.5 && splat_scale <= 10.0,
-               "splat_scale must be in [0.5, 10]");
-    RGBD_CHECK(max_splat_radius_px >= 1 && max_splat_radius_px <= 64,
-               "max_splat_radius_px must be in [1, 64]");
+    check_range("sigma_factor", sigma_factor, Range::closed(0.0, 100.0));
+    check_range("occlusion_margin_m", occlusion_margin_m, Range::closed(0.0, 1.0), "m");
+    check_range("splat_scale", splat_scale, Range::closed(0.5, 10.0));
+    check_range("max_splat_radius_px", max_splat_radius_px, Range::closed(1, 64));
 }
 
 namespace {

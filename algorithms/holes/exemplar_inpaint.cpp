@@ -17,8 +17,8 @@ namespace rgbd::holes {
 void ExemplarOptions::check() const {
     RGBD_CHECK(patch >= 3 && patch <= 51 && patch % 2 == 1,
                "exemplar inpainting: the patch side must be odd, in [3, 51] pixels");
-    RGBD_CHECK(std::isfinite(search_window) && search_window >= 1 && search_window <= 100,
-               "exemplar inpainting: the search window must be in [1, 100] hole boxes");
+    check_range("exemplar inpainting: the search window", search_window, Range::closed(1, 100),
+                "hole boxes");
 }
 
 namespace {

@@ -14,14 +14,11 @@
 namespace rgbd::holes {
 
 void FreeSpaceOptions::check() const {
-    RGBD_CHECK(std::isfinite(pixel) && pixel >= 0.25 && pixel <= 20,
-               "free space: pixel must be in [0.25, 20] spacings");
-    RGBD_CHECK(std::isfinite(margin) && margin >= 0 && margin <= 100,
-               "free space: margin must be in [0, 100] spacings");
-    RGBD_CHECK(std::isfinite(max_angle_deg) && max_angle_deg > 0 && max_angle_deg < 90,
-               "free space: the facing angle must be in (0, 90) degrees");
-    RGBD_CHECK(background_border >= 0 && background_border <= 1000,
-               "free space: the background border must be in [0, 1000] pixels");
+    check_range("free space: pixel", pixel, Range::closed(0.25, 20), "spacings");
+    check_range("free space: margin", margin, Range::closed(0, 100), "spacings");
+    check_range("free space: the facing angle", max_angle_deg, Range::open(0, 90), "degrees");
+    check_range("free space: the background border", background_border, Range::closed(0, 1000),
+                "pixels");
 }
 
 namespace {

@@ -52,9 +52,8 @@ constexpr EnumName<HoleKind> kHoleKindNames[] = {{HoleKind::kUnknown, "unknown"}
 const char* to_string(HoleKind kind) { return name_of(kHoleKindNames, kind, "unknown"); }
 
 void NeighbourhoodOptions::check() const {
-    RGBD_CHECK(k >= 3 && k <= 256, "holes: k must be in [3, 256]");
-    RGBD_CHECK(std::isfinite(radius_factor) && radius_factor >= 0.0 && radius_factor <= 50.0,
-               "holes: radius factor must be in [0, 50]");
+    check_range("holes: k", k, Range::closed(3, 256));
+    check_range("holes: radius factor", radius_factor, Range::closed(0.0, 50.0));
     RGBD_CHECK(max_neighbours >= k && max_neighbours <= 1024,
                "holes: max_neighbours must be in [k, 1024]");
 }
@@ -68,34 +67,28 @@ void BoundaryOptions::check() const {
                    w_angle >= 0 && w_halfdisk >= 0 && w_shape >= 0 &&
                    w_angle + w_halfdisk + w_shape > 0,
                "holes: criterion weights must be >= 0 and not all 0");
-    RGBD_CHECK(std::isfinite(threshold) && threshold > 0.0 && threshold <= 1.0,
-               "holes: threshold must be in (0, 1]");
+    check_range("holes: threshold", threshold, Range::open_closed(0.0, 1.0));
     RGBD_CHECK(std::isfinite(lambda_b0) && std::isfinite(lambda_b1) && lambda_b0 >= lambda_b1 &&
                    lambda_b1 >= 0 && lambda_b0 + lambda_b1 <= 1.0 + 1e-9,
                "holes: lambda_b must be ordered and sum to at most 1");
-    RGBD_CHECK(coherence_passes >= 0 && coherence_passes <= 100,
-               "holes: coherence passes must be in [0, 100]");
-    RGBD_CHECK(min_loop_points >= 1 && min_loop_points <= 100000,
-               "holes: min loop points must be in [1, 100000]");
-    RGBD_CHECK(
-        std::isfinite(small_max_diameter) && small_max_diameter > 0 && small_max_diameter <= 1e4,
-        "holes: small-hole diameter must be in (0, 1e4] spacings");
+    check_range("holes: coherence passes", coherence_passes, Range::closed(0, 100));
+    check_range("holes: min loop points", min_loop_points, Range::closed(1, 100000));
+    check_range("holes: small-hole diameter", small_max_diameter, Range::open_closed(0, 1e4),
+                "spacings");
     RGBD_CHECK(small_max_points >= 1, "holes: small-hole point limit must be >= 1");
     RGBD_CHECK(std::isfinite(hysteresis_threshold) && hysteresis_threshold >= 0 &&
                    hysteresis_threshold <= threshold,
                "holes: hysteresis threshold must be in [0, threshold]");
-    RGBD_CHECK(hysteresis_rings >= 0 && hysteresis_rings <= 100,
-               "holes: hysteresis rings must be in [0, 100]");
-    RGBD_CHECK(std::isfinite(link_distance) && link_distance > 0 && link_distance <= 20,
-               "holes: link distance must be in (0, 20] spacings");
+    check_range("holes: hysteresis rings", hysteresis_rings, Range::closed(0, 100));
+    check_range("holes: link distance", link_distance, Range::open_closed(0, 20), "spacings");
     check_visibility("holes", visible_max_angle_deg, ray_clearance);
 }
 
 void check_visibility(const char* who, double max_angle_deg, double ray_clearance) {
-    RGBD_CHECK(std::isfinite(max_angle_deg) && max_angle_deg > 0 && max_angle_deg < 90,
-               std::string(who) + ": visibility angle must be in (0, 90) degrees");
-    RGBD_CHECK(std::isfinite(ray_clearance) && ray_clearance > 0 && ray_clearance <= 20,
-               std::string(who) + ": ray clearance must be in (0, 20] spacings");
+    check_range(std::string(who) + ": visibility angle", max_angle_deg, Range::open(0, 90),
+                "degrees");
+    check_range(std::string(who) + ": ray clearance", ray_clearance, Range::open_closed(0, 20),
+                "spacings");
 }
 
 namespace {

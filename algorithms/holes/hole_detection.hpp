@@ -215,8 +215,8 @@ bool sensor_sees_region(const SensorView& sensor, const Eigen::Vector3d& centre,
                         const internal::KdTree& tree, double max_angle_deg, double ray_clearance);
 
 /// The options check of sensor_sees_region's parameters, for the options structs that carry
-/// them: InputError "<who>: visibility angle must be in (0, 90) degrees" or "<who>: ray clearance
-/// must be in (0, 20] spacings".
+/// them: InputError "<who>: visibility angle must be in (0, 90) degrees, got <value>" or "<who>:
+/// ray clearance must be in (0, 20] spacings, got <value>" (check_range).
 void check_visibility(const char* who, double max_angle_deg, double ray_clearance);
 
 }  // namespace rgbd::holes

@@ -41,21 +41,17 @@ FillMechanism parse_fill_mechanism(const std::string& name) {
 }
 
 void FillOptions::check() const {
-    RGBD_CHECK(std::isfinite(step) && step > 0.05 && step <= 10,
-               "fill: step must be in (0.05, 10]");
-    RGBD_CHECK(quadric_k >= 6 && quadric_k <= 500, "fill: quadric_k must be in [6, 500]");
-    RGBD_CHECK(color_k >= 1 && color_k <= 100, "fill: color_k must be in [1, 100]");
+    check_range("fill: step", step, Range::open_closed(0.05, 10));
+    check_range("fill: quadric_k", quadric_k, Range::closed(6, 500));
+    check_range("fill: color_k", color_k, Range::closed(1, 100));
     RGBD_CHECK(std::isfinite(duplicate_distance) && duplicate_distance > 0 &&
                    duplicate_distance < step * 1.5,
                "fill: duplicate distance must be in (0, 1.5 x step)");
     RGBD_CHECK(std::isfinite(max_fit_rms) && max_fit_rms > 0,
                "fill: the quadric's residual limit must be positive");
-    RGBD_CHECK(max_sweeps >= 1 && max_sweeps <= 1000, "fill: max_sweeps must be in [1, 1000]");
-    RGBD_CHECK(std::isfinite(grid_clearance) && grid_clearance > 0 && grid_clearance <= 5,
-               "fill: grid clearance must be in (0, 5] spacings");
-    RGBD_CHECK(
-        std::isfinite(inside_max_gap_deg) && inside_max_gap_deg > 30 && inside_max_gap_deg < 360,
-        "fill: inside gap must be in (30, 360) degrees");
+    check_range("fill: max_sweeps", max_sweeps, Range::closed(1, 1000));
+    check_range("fill: grid clearance", grid_clearance, Range::open_closed(0, 5), "spacings");
+    check_range("fill: inside gap", inside_max_gap_deg, Range::open(30, 360), "degrees");
 }
 
 namespace {

@@ -18,38 +18,27 @@
 namespace rgbd::holes {
 
 void InpaintOptions::check() const {
-    RGBD_CHECK(std::isfinite(pixel) && pixel >= 0.5 && pixel <= 10,
-               "inpaint: pixel size must be in [0.5, 10] spacings");
-    RGBD_CHECK(std::isfinite(telea_radius) && telea_radius >= 1 && telea_radius <= 50,
-               "inpaint: Telea radius must be in [1, 50] pixels");
+    check_range("inpaint: pixel size", pixel, Range::closed(0.5, 10), "spacings");
+    check_range("inpaint: Telea radius", telea_radius, Range::closed(1, 50), "pixels");
     RGBD_CHECK(patch >= 3 && patch <= 51 && patch % 2 == 1,
                "inpaint: the exemplar patch side must be odd, in [3, 51] pixels");
-    RGBD_CHECK(std::isfinite(search_window) && search_window >= 1 && search_window <= 100,
-               "inpaint: the exemplar search window must be in [1, 100] hole boxes");
-    RGBD_CHECK(std::isfinite(wrap) && wrap >= 0 && wrap <= 0.5,
-               "inpaint: wrap padding must be in [0, 0.5] of the width");
-    RGBD_CHECK(min_component >= 1 && min_component <= 1000000,
-               "inpaint: minimum component must be in [1, 1e6] pixels");
-    RGBD_CHECK(std::isfinite(step) && step >= 0.25 && step <= 10,
-               "inpaint: step must be in [0.25, 10] spacings");
-    RGBD_CHECK(std::isfinite(clearance) && clearance >= 0 && clearance <= 5,
-               "inpaint: clearance must be in [0, 5] spacings");
-    RGBD_CHECK(std::isfinite(min_rim_radial) && min_rim_radial >= -1 && min_rim_radial <= 1,
-               "inpaint: minimum rim n.radial must be in [-1, 1]");
-    RGBD_CHECK(std::isfinite(top_fraction) && top_fraction > 0 && top_fraction <= 0.5,
-               "inpaint: top fraction must be in (0, 0.5]");
-    RGBD_CHECK(std::isfinite(top_component) && top_component >= 0 && top_component <= 1,
-               "inpaint: top component share must be in [0, 1]");
+    check_range("inpaint: the exemplar search window", search_window, Range::closed(1, 100),
+                "hole boxes");
+    check_range("inpaint: wrap padding", wrap, Range::closed(0, 0.5), "of the width");
+    check_range("inpaint: minimum component", min_component, Range::closed(1, 1000000), "pixels");
+    check_range("inpaint: step", step, Range::closed(0.25, 10), "spacings");
+    check_range("inpaint: clearance", clearance, Range::closed(0, 5), "spacings");
+    check_range("inpaint: minimum rim n.radial", min_rim_radial, Range::closed(-1, 1));
+    check_range("inpaint: top fraction", top_fraction, Range::open_closed(0, 0.5));
+    check_range("inpaint: top component share", top_component, Range::closed(0, 1));
     check_visibility("inpaint", visible_max_angle_deg, ray_clearance);
     RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,
                "inpaint: the ellipsoid's residual limit must be positive");
     RGBD_CHECK(std::isfinite(max_biharmonic_slope) && max_biharmonic_slope >= 0,
                "inpaint: the biharmonic slope limit must not be negative");
-    RGBD_CHECK(std::isfinite(max_open_rim) && max_open_rim >= 0 && max_open_rim <= 1,
-               "inpaint: the open rim share must be in [0, 1]");
+    check_range("inpaint: the open rim share", max_open_rim, Range::closed(0, 1));
     RGBD_CHECK(max_step_rms > 0, "inpaint: the step test's RMS limit must be positive");
-    RGBD_CHECK(std::isfinite(max_contradicted) && max_contradicted >= 0 && max_contradicted <= 1,
-               "inpaint: the contradicted share must be in [0, 1]");
+    check_range("inpaint: the contradicted share", max_contradicted, Range::closed(0, 1));
     free_space.check();
 }
 

@@ -109,36 +109,30 @@ void ReconstructionOptions::check() const {
     RGBD_CHECK(target_faces == 0 || (target_faces >= 4 && target_faces <= 2000000000u),
                "reconstruction: target_faces must be 0 (keep) or in [4, 2e9], got " +
                    std::to_string(target_faces));
-    RGBD_CHECK(min_component_fraction >= 0 && min_component_fraction <= 1,
-               "reconstruction: min_component_fraction must be in [0, 1]");
-    RGBD_CHECK(smooth_radius > 0 && smooth_radius <= 50,
-               "reconstruction: smooth_radius must be in (0, 50] x spacing");
-    RGBD_CHECK(smooth_iterations >= 0 && smooth_iterations <= 10,
-               "reconstruction: smooth_iterations must be in [0, 10]");
-    RGBD_CHECK(front_voxel >= 0 && front_voxel <= 20,
-               "reconstruction: front_voxel must be in [0, 20] x spacing");
-    RGBD_CHECK(front_max_edge > 0 && front_max_edge <= 1000,
-               "reconstruction: front_max_edge must be in (0, 1000] x spacing");
-    RGBD_CHECK(front_max_normal_angle_deg > 0 && front_max_normal_angle_deg <= 180,
-               "reconstruction: front_max_normal_angle_deg must be in (0, 180]");
-    RGBD_CHECK(front_max_facet_angle_deg > 0 && front_max_facet_angle_deg <= 90,
-               "reconstruction: front_max_facet_angle_deg must be in (0, 90]");
+    check_range("reconstruction: min_component_fraction", min_component_fraction,
+                Range::closed(0, 1));
+    check_range("reconstruction: smooth_radius", smooth_radius, Range::open_closed(0, 50),
+                "x spacing");
+    check_range("reconstruction: smooth_iterations", smooth_iterations, Range::closed(0, 10));
+    check_range("reconstruction: front_voxel", front_voxel, Range::closed(0, 20), "x spacing");
+    check_range("reconstruction: front_max_edge", front_max_edge, Range::open_closed(0, 1000),
+                "x spacing");
+    check_range("reconstruction: front_max_normal_angle_deg", front_max_normal_angle_deg,
+                Range::open_closed(0, 180));
+    check_range("reconstruction: front_max_facet_angle_deg", front_max_facet_angle_deg,
+                Range::open_closed(0, 90));
     RGBD_CHECK(max_points == 0 || max_points >= 100,
                "reconstruction: max_points must be 0 or >= 100");
-    RGBD_CHECK(sm_angle_deg > 0 && sm_angle_deg <= 30,
-               "reconstruction: sm_angle_deg must be in (0, 30]");
-    RGBD_CHECK(sm_radius > 0 && sm_radius < 1e4, "reconstruction: sm_radius must be in (0, 1e4)");
-    RGBD_CHECK(sm_distance > 0 && sm_distance < 100,
-               "reconstruction: sm_distance must be in (0, 100)");
+    check_range("reconstruction: sm_angle_deg", sm_angle_deg, Range::open_closed(0, 30));
+    check_range("reconstruction: sm_radius", sm_radius, Range::open(0, 1e4));
+    check_range("reconstruction: sm_distance", sm_distance, Range::open(0, 100));
     RGBD_CHECK(!up || (up->allFinite() && up->norm() > 0),
                "reconstruction: the up direction must be a finite non-zero vector");
     RGBD_CHECK(af_radius_ratio_bound > 0, "reconstruction: af_radius_ratio_bound must be > 0");
     RGBD_CHECK(af_beta > 0 && af_beta < M_PI, "reconstruction: af_beta must be in (0, pi)");
-    RGBD_CHECK(fold_angle_deg > 0 && fold_angle_deg <= 180,
-               "reconstruction: fold_angle_deg must be in (0, 180]");
-    RGBD_CHECK(spike_angle_deg >= 0 && spike_angle_deg < 60,
-               "reconstruction: spike_angle_deg must be in [0, 60)");
-    RGBD_CHECK(color_k >= 1 && color_k <= 256, "reconstruction: color_k must be in [1, 256]");
+    check_range("reconstruction: fold_angle_deg", fold_angle_deg, Range::open_closed(0, 180));
+    check_range("reconstruction: spike_angle_deg", spike_angle_deg, Range::closed_open(0, 60));
+    check_range("reconstruction: color_k", color_k, Range::closed(1, 256));
     RGBD_CHECK(color_original_radius >= 0, "reconstruction: color_original_radius must be >= 0");
 }
 

@@ -19,44 +19,31 @@ const char* to_string(Verdict verdict) { return name_of(kVerdictNames, verdict);
 void MultiViewOptions::check() const {
     icp.check();
     RGBD_CHECK(std::isfinite(voxel_m) && voxel_m >= 0, "align_views: voxel_m must be >= 0");
-    RGBD_CHECK(std::isfinite(voxel_factor) && voxel_factor > 0 && voxel_factor <= 100,
-               "align_views: voxel_factor must be in (0, 100]");
-    RGBD_CHECK(normal_k >= 3 && normal_k <= 1024, "align_views: normal_k must be in [3, 1024]");
+    check_range("align_views: voxel_factor", voxel_factor, Range::open_closed(0, 100));
+    check_range("align_views: normal_k", normal_k, Range::closed(3, 1024));
     RGBD_CHECK(max_points_per_view == 0 || max_points_per_view >= 100,
                "align_views: max_points_per_view must be 0 (no bound) or at least 100");
     RGBD_CHECK(std::isfinite(min_motion_spacing) && min_motion_spacing >= 0,
                "align_views: min_motion_spacing must be >= 0");
-    RGBD_CHECK(std::isfinite(min_fit_gain) && min_fit_gain >= 0 && min_fit_gain < 1,
-               "align_views: min_fit_gain must be in [0, 1)");
-    RGBD_CHECK(rounds >= 1 && rounds <= 1000, "align_views: rounds must be in [1, 1000]");
-    RGBD_CHECK(fail_fitness >= 0 && fail_fitness <= 1 && warn_fitness >= 0 && warn_fitness <= 1,
-               "align_views: fitness thresholds must be in [0, 1]");
+    check_range("align_views: min_fit_gain", min_fit_gain, Range::closed_open(0, 1));
+    check_range("align_views: rounds", rounds, Range::closed(1, 1000));
+    check_range("align_views: fail_fitness", fail_fitness, Range::closed(0, 1));
+    check_range("align_views: warn_fitness", warn_fitness, Range::closed(0, 1));
     RGBD_CHECK(max_rotation_deg > 0 && max_translation_m > 0,
                "align_views: pose-change limits must be positive");
-    RGBD_CHECK(pair_neighbours >= 1 && pair_neighbours <= 64,
-               "align_views: pair_neighbours must be in [1, 64]");
-    RGBD_CHECK(max_pair_angle_deg > 0 && max_pair_angle_deg <= 180,
-               "align_views: max_pair_angle_deg must be in (0, 180]");
-    RGBD_CHECK(std::isfinite(feature_voxel_factor) && feature_voxel_factor >= 1 &&
-                   feature_voxel_factor <= 100,
-               "align_views: feature_voxel_factor must be in [1, 100]");
-    RGBD_CHECK(std::isfinite(feature_radius_factor) && feature_radius_factor >= 1 &&
-                   feature_radius_factor <= 100,
-               "align_views: feature_radius_factor must be in [1, 100]");
-    RGBD_CHECK(ransac_iterations >= 1 && ransac_iterations <= 10000000,
-               "align_views: ransac_iterations must be in [1, 1e7]");
+    check_range("align_views: pair_neighbours", pair_neighbours, Range::closed(1, 64));
+    check_range("align_views: max_pair_angle_deg", max_pair_angle_deg, Range::open_closed(0, 180));
+    check_range("align_views: feature_voxel_factor", feature_voxel_factor, Range::closed(1, 100));
+    check_range("align_views: feature_radius_factor", feature_radius_factor, Range::closed(1, 100));
+    check_range("align_views: ransac_iterations", ransac_iterations, Range::closed(1, 10000000));
     RGBD_CHECK(max_prior_rotation_deg > 0, "align_views: max_prior_rotation_deg must be > 0");
     RGBD_CHECK(std::isfinite(max_prior_translation_m) && max_prior_translation_m > 0,
                "align_views: max_prior_translation_m must be > 0");
-    RGBD_CHECK(std::isfinite(global_min_gain) && global_min_gain >= 0 && global_min_gain <= 1,
-               "align_views: global_min_gain must be in [0, 1]");
-    RGBD_CHECK(std::isfinite(colour_weight) && colour_weight >= 0 && colour_weight <= 100,
-               "align_views: colour_weight must be in [0, 100]");
-    RGBD_CHECK(std::isfinite(colour_sigma) && colour_sigma > 0 && colour_sigma <= 1,
-               "align_views: colour_sigma must be in (0, 1]");
-    RGBD_CHECK(pair_fail_fitness >= 0 && pair_fail_fitness <= 1 && pair_warn_fitness >= 0 &&
-                   pair_warn_fitness <= 1,
-               "align_views: pair fitness thresholds must be in [0, 1]");
+    check_range("align_views: global_min_gain", global_min_gain, Range::closed(0, 1));
+    check_range("align_views: colour_weight", colour_weight, Range::closed(0, 100));
+    check_range("align_views: colour_sigma", colour_sigma, Range::open_closed(0, 1));
+    check_range("align_views: pair_fail_fitness", pair_fail_fitness, Range::closed(0, 1));
+    check_range("align_views: pair_warn_fitness", pair_warn_fitness, Range::closed(0, 1));
     RGBD_CHECK(prune_rotation_deg > 0 && prune_translation_spacing > 0,
                "align_views: prune thresholds must be positive");
 }

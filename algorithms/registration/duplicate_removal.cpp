@@ -42,8 +42,7 @@ enum class Action : std::uint8_t { kAdd, kDuplicate, kReplace, kWorse };
 }  // namespace
 
 void DuplicateOptions::check() const {
-    RGBD_CHECK(std::isfinite(radius_spacing) && radius_spacing > 0 && radius_spacing <= 100,
-               "duplicate removal: radius_spacing must be in (0, 100]");
+    check_range("duplicate removal: radius_spacing", radius_spacing, Range::open_closed(0, 100));
     RGBD_CHECK(std::isfinite(max_delta_e) && max_delta_e >= 0,
                "duplicate removal: max_delta_e must be >= 0");
     RGBD_CHECK(std::isfinite(spacing_m) && spacing_m >= 0,

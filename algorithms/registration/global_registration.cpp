@@ -139,11 +139,10 @@ std::vector<Fpfh> compute_fpfh(const std::vector<Eigen::Vector3d>& xyz,
 }
 
 void RansacOptions::check() const {
-    RGBD_CHECK(iterations >= 1 && iterations <= 100000000,
-               "ransac: iterations must be in [1, 1e8]");
+    check_range("ransac: iterations", iterations, Range::closed(1, 100000000));
     RGBD_CHECK(std::isfinite(inlier_distance) && inlier_distance > 0,
                "ransac: inlier_distance must be positive");
-    RGBD_CHECK(edge_ratio > 0 && edge_ratio <= 1, "ransac: edge_ratio must be in (0, 1]");
+    check_range("ransac: edge_ratio", edge_ratio, Range::open_closed(0, 1));
     RGBD_CHECK(max_prior_rotation_deg > 0, "ransac: max_prior_rotation_deg must be positive");
     RGBD_CHECK(!prior || prior->matrix().allFinite(), "ransac: prior pose is not finite");
 }

@@ -47,8 +47,7 @@ Gathered gather(const PointCloud& cloud, const char* role) {
 }  // namespace
 
 void IcpCriteria::check() const {
-    RGBD_CHECK(max_iterations >= 1 && max_iterations <= 100000,
-               "icp: max_iterations must be in [1, 100000]");
+    check_range("icp: max_iterations", max_iterations, Range::closed(1, 100000));
     RGBD_CHECK(relative_fitness >= 0 && relative_rmse >= 0 && min_rotation_deg >= 0 &&
                    min_translation_spacing >= 0,
                "icp: convergence thresholds must be non-negative");
@@ -61,13 +60,10 @@ void IcpOptions::check() const {
     RGBD_CHECK(!max_distances_m.empty() || !max_distance_factors.empty(),
                "icp: give max_distances_m or max_distance_factors");
     for (double f : max_distance_factors)
-        RGBD_CHECK(std::isfinite(f) && f > 0 && f < 1e4,
-                   "icp: max distance factors must be in (0, 1e4)");
+        check_range("icp: max distance factors", f, Range::open(0, 1e4));
     RGBD_CHECK(std::isfinite(spacing_m) && spacing_m >= 0, "icp: spacing_m must be >= 0");
-    RGBD_CHECK(std::isfinite(kernel_scale) && kernel_scale > 0 && kernel_scale <= 100,
-               "icp: kernel_scale must be in (0, 100]");
-    RGBD_CHECK(max_normal_angle_deg > 0 && max_normal_angle_deg <= 360,
-               "icp: max_normal_angle_deg must be in (0, 360]");
+    check_range("icp: kernel_scale", kernel_scale, Range::open_closed(0, 100));
+    check_range("icp: max_normal_angle_deg", max_normal_angle_deg, Range::open_closed(0, 360));
 }
 
 Report AlignResult::to_json() const {

@@ -145,8 +145,7 @@ int solve(std::vector<Pose>& x, const std::vector<PoseGraphEdge>& e,
 }  // namespace
 
 void PoseGraphOptions::check() const {
-    RGBD_CHECK(max_iterations >= 1 && max_iterations <= 10000,
-               "pose graph: max_iterations must be in [1, 10000]");
+    check_range("pose graph: max_iterations", max_iterations, Range::closed(1, 10000));
     RGBD_CHECK(prune_rotation_deg > 0 && prune_translation_m > 0,
                "pose graph: prune thresholds must be positive");
 }

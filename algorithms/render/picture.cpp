@@ -427,7 +427,7 @@ void CameraOptions::check() const {
     RGBD_CHECK(!azimuth_deg || std::isfinite(*azimuth_deg), "azimuth must be finite");
     RGBD_CHECK(!elevation_deg || (std::isfinite(*elevation_deg) && std::abs(*elevation_deg) <= 90),
                "elevation must be within -90..90 degrees");
-    RGBD_CHECK(margin >= 0 && margin < 0.4, "margin must be in [0, 0.4)");
+    check_range("margin", margin, Range::closed_open(0, 0.4));
     RGBD_CHECK(std::isfinite(distance_factor) && distance_factor > 1.2,
                "distance factor must be > 1.2");
 }

@@ -52,20 +52,13 @@ bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d
 }  // namespace
 
 void StandOptions::check() const {
-    RGBD_CHECK(std::isfinite(max_tilt_deg) && max_tilt_deg > 0 && max_tilt_deg < 90,
-               "stand: max tilt must be in (0, 90) deg");
-    RGBD_CHECK(std::isfinite(inlier_m) && inlier_m > 0 && inlier_m < 1,
-               "stand: inlier distance must be in (0, 1) m");
-    RGBD_CHECK(std::isfinite(margin_m) && margin_m >= 0 && margin_m < 1,
-               "stand: margin must be in [0, 1) m");
-    RGBD_CHECK(std::isfinite(search_fraction) && search_fraction > 0 && search_fraction <= 1,
-               "stand: search fraction must be in (0, 1]");
-    RGBD_CHECK(std::isfinite(min_support) && min_support > 0 && min_support < 1,
-               "stand: min support must be in (0, 1)");
-    RGBD_CHECK(std::isfinite(min_above) && min_above >= 0 && min_above < 1,
-               "stand: min above must be in [0, 1)");
-    RGBD_CHECK(std::isfinite(contact_band_m) && contact_band_m >= 0 && contact_band_m < 1,
-               "stand: contact band must be in [0, 1) m");
+    check_range("stand: max tilt", max_tilt_deg, Range::open(0, 90), "deg");
+    check_range("stand: inlier distance", inlier_m, Range::open(0, 1), "m");
+    check_range("stand: margin", margin_m, Range::closed_open(0, 1), "m");
+    check_range("stand: search fraction", search_fraction, Range::open_closed(0, 1));
+    check_range("stand: min support", min_support, Range::open(0, 1));
+    check_range("stand: min above", min_above, Range::closed_open(0, 1));
+    check_range("stand: contact band", contact_band_m, Range::closed_open(0, 1), "m");
     RGBD_CHECK(iterations >= 1 && max_samples >= 3, "stand: iterations >= 1, samples >= 3");
 }
 

@@ -16,19 +16,12 @@ namespace rgbd::upsample {
 
 void UpsampleOptions::check() const {
     RGBD_CHECK(neighbors == 4 || neighbors == 8, "upsample: neighbors must be 4 or 8");
-    RGBD_CHECK(std::isfinite(sigma_spatial) && sigma_spatial > 0.0 && sigma_spatial <= 10.0,
-               "upsample: sigma_spatial must be in (0, 10]");
-    RGBD_CHECK(std::isfinite(sigma_color) && sigma_color > 0.0 && sigma_color <= 1000.0,
-               "upsample: sigma_color must be in (0, 1000]");
-    RGBD_CHECK(std::isfinite(theta_max_deg) && theta_max_deg > 0.0 && theta_max_deg < 90.0,
-               "upsample: theta_max_deg must be in (0, 90)");
-    RGBD_CHECK(std::isfinite(sigma_factor) && sigma_factor >= 0.0 && sigma_factor <= 100.0,
-               "upsample: sigma_factor must be in [0, 100]");
-    RGBD_CHECK(std::isfinite(grazing_max_deg) && grazing_max_deg > 0.0 && grazing_max_deg < 90.0,
-               "upsample: grazing_max_deg must be in (0, 90)");
-    RGBD_CHECK(
-        std::isfinite(max_offset_factor) && max_offset_factor > 0.0 && max_offset_factor <= 10.0,
-        "upsample: max_offset_factor must be in (0, 10]");
+    check_range("upsample: sigma_spatial", sigma_spatial, Range::open_closed(0.0, 10.0));
+    check_range("upsample: sigma_color", sigma_color, Range::open_closed(0.0, 1000.0));
+    check_range("upsample: theta_max_deg", theta_max_deg, Range::open(0.0, 90.0));
+    check_range("upsample: sigma_factor", sigma_factor, Range::closed(0.0, 100.0));
+    check_range("upsample: grazing_max_deg", grazing_max_deg, Range::open(0.0, 90.0));
+    check_range("upsample: max_offset_factor", max_offset_factor, Range::open_closed(0.0, 10.0));
 }
 
 namespace {

@@ -36,8 +36,8 @@ bool is_jpeg(const fs::path& path) {
 PlaybackSensor::PlaybackSensor(const fs::path& root, const std::string& sensor_id,
                                const PlaybackOptions& options)
     : capture_(io::open_capture(root)), options_(options) {
-    RGBD_CHECK(options.default_rate_hz > 0 && options.default_rate_hz <= 1000,
-               "playback: default rate must be in (0, 1000] Hz");
+    check_range("playback: default rate", options.default_rate_hz, Range::open_closed(0, 1000),
+                "Hz");
     RGBD_CHECK(options.max_frames >= 0, "playback: max frames must be >= 0");
     std::string id = sensor_id;
     if (id.empty()) {

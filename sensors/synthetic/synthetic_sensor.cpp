@@ -35,7 +35,7 @@ struct Scene {
 }  // namespace
 
 SyntheticSensor::SyntheticSensor(const SyntheticOptions& o) : options_(o) {
-    RGBD_CHECK(o.rate_hz > 0 && o.rate_hz <= 1000, "synthetic sensor: rate must be in (0, 1000]");
+    check_range("synthetic sensor: rate", o.rate_hz, Range::open_closed(0, 1000));
     RGBD_CHECK(
         o.color_width > 0 && o.color_height > 0 && o.color_width <= 4096 && o.color_height <= 4096,
         "synthetic sensor: bad colour size");

@@ -25,20 +25,11 @@ const char* kTools[] = {"rgbd-cloud",    "rgbd-clean",       "rgbd-align", "rgbd
                         "rgbd-upsample", "rgbd-render",      "rgbd-fill",  "rgbd-calibrate",
                         "rgbd-view"};
 
-/// A small 4-sensor ring capture of an ellipsoid-like mesh, rendered once for the suite.
+/// A small 6-sensor ring capture of a bumpy ellipsoid (render_bumpy_ring), rendered once for the
+/// suite.
 class Pipeline : public ::testing::Test {
 protected:
-    static void SetUpTestSuite() {
-        const fs::path cap = temp_root() / "cap";
-        if (fs::exists(cap)) return;
-        // A closed mesh: a bumpy ellipsoid.
-        rgbd::test::write_ellipsoid_off(
-            temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25,
-            [](double th, double ph) { return 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th); });
-        const Outcome r =
-            run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
-        ASSERT_EQ(r.code, 0) << r.err;
-    }
+    static void SetUpTestSuite() { rgbd::test::render_bumpy_ring(temp_root()); }
 };
 
 }  // namespace

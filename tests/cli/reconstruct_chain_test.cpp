@@ -23,16 +23,9 @@ namespace {
 
 RGBD_TOOL_TEST_SCRATCH("rgbd_reconstruct_chain_test")
 
-/// A 6-sensor Kinect v2 ring of a bumpy ellipsoid (colour 1920x1080 over depth 512x424, so
-/// super-resolution runs), rendered once per test process.
-void render_capture() {
-    if (fs::exists(temp_root() / "cap")) return;
-    rgbd::test::write_ellipsoid_off(
-        temp_root() / "blob.off", 48, 24, 0.3, 0.5, 0.25,
-        [](double th, double ph) { return 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th); });
-    const Outcome r = run("$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
-    ASSERT_EQ(r.code, 0) << r.err;
-}
+/// A 6-sensor Kinect v2 ring of a bumpy ellipsoid (render_bumpy_ring: colour over lower-resolution
+/// depth, so super-resolution runs), rendered once per test process.
+void render_capture() { rgbd::test::render_bumpy_ring(temp_root()); }
 
 rgbd::Mesh read_mesh_document(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);

@@ -1,11 +1,14 @@
 // A closed test mesh for the contract tests: a UV ellipsoid (poles on the y axis) written as
-// OFF, optionally with a bump that scales its x and z radii.
+// OFF, optionally with a bump that scales its x and z radii; and the pipeline tests' ring capture
+// of a bumpy one.
 #pragma once
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+
+#include "tests/support/tool_runner.hpp"
 
 namespace rgbd::test {
 
@@ -35,6 +38,21 @@ inline void write_ellipsoid_off(const std::filesystem::path& path, int nu, int n
         }
     for (int i = 0; i < nu; ++i)
         off << "3 " << south << " " << id(nv - 1, i) << " " << id(nv - 1, i + 1) << "\n";
+}
+
+/// The pipeline tests' capture: `dir`/blob.off, a 48 x 24 ellipsoid with radii (0.3, 0.5,
+/// 0.25) m whose x and z radii carry a bump 1 + 0.08 sin(3 phi) sin(2 theta), rendered by
+/// rgbd-synth into `dir`/cap as a 6-sensor Kinect v2 ring (colour 1920x1080 over depth 512x424,
+/// object 0.5 m high, seed 3). Does nothing when `dir`/cap exists; a fatal test failure when
+/// rgbd-synth fails.
+inline void render_bumpy_ring(const std::filesystem::path& dir) {
+    if (std::filesystem::exists(dir / "cap")) return;
+    write_ellipsoid_off(dir / "blob.off", 48, 24, 0.3, 0.5, 0.25, [](double th, double ph) {
+        return 1.0 + 0.08 * std::sin(3 * ph) * std::sin(2 * th);
+    });
+    const Outcome r =
+        run_in(dir, "$BIN/rgbd-synth blob.off -o cap --sensors 6 --height-m 0.5 --seed 3 -q");
+    ASSERT_EQ(r.code, 0) << r.err;
 }
 
 }  // namespace rgbd::test

@@ -42,19 +42,12 @@ std::string frame_name(int index) {
 
 void BoardMotion::check() const {
     board.check();
-    RGBD_CHECK(std::isfinite(margin_m) && margin_m >= 0 && margin_m <= 1,
-               "board margin must be in [0, 1] m");
-    RGBD_CHECK(std::isfinite(radius_m) && radius_m >= 0 && radius_m <= 10,
-               "board motion radius must be in [0, 10] m");
-    RGBD_CHECK(
-        std::isfinite(facing_jitter_deg) && facing_jitter_deg >= 0 && facing_jitter_deg <= 90,
-        "board facing jitter must be in [0, 90] deg");
-    RGBD_CHECK(std::isfinite(roll_deg) && roll_deg >= 0 && roll_deg <= 180,
-               "board roll must be in [0, 180] deg");
-    RGBD_CHECK(std::isfinite(blur_px) && blur_px >= 0 && blur_px <= 50,
-               "board blur must be in [0, 50] px");
-    RGBD_CHECK(std::isfinite(texture_mm) && texture_mm >= 0.05 && texture_mm <= 5,
-               "board texel must be in [0.05, 5] mm");
+    check_range("board margin", margin_m, Range::closed(0, 1), "m");
+    check_range("board motion radius", radius_m, Range::closed(0, 10), "m");
+    check_range("board facing jitter", facing_jitter_deg, Range::closed(0, 90), "deg");
+    check_range("board roll", roll_deg, Range::closed(0, 180), "deg");
+    check_range("board blur", blur_px, Range::closed(0, 50), "px");
+    check_range("board texel", texture_mm, Range::closed(0.05, 5), "mm");
 }
 
 nlohmann::json BoardMotion::to_json() const {

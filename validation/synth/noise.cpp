@@ -62,18 +62,16 @@ NoiseOptions NoiseOptions::none() {
 }
 
 void NoiseOptions::check() const {
-    RGBD_CHECK(std::isfinite(lateral_sigma_px) && lateral_sigma_px >= 0 && lateral_sigma_px <= 10,
-               "lateral jitter must be in [0, 10] px");
-    RGBD_CHECK(flying_fraction >= 0 && flying_fraction <= 1, "flying fraction must be in [0, 1]");
+    check_range("lateral jitter", lateral_sigma_px, Range::closed(0, 10), "px");
+    check_range("flying fraction", flying_fraction, Range::closed(0, 1));
     RGBD_CHECK(std::isfinite(discontinuity_m) && discontinuity_m > 0,
                "discontinuity threshold must be > 0");
     RGBD_CHECK(
         grazing_start_deg >= 0 && grazing_end_deg <= 90 && grazing_start_deg < grazing_end_deg,
         "grazing angles must satisfy 0 <= start < end <= 90");
-    RGBD_CHECK(dropout_rate >= 0 && dropout_rate <= 1, "dropout rate must be in [0, 1]");
-    RGBD_CHECK(outlier_rate >= 0 && outlier_rate <= 1, "outlier rate must be in [0, 1]");
-    RGBD_CHECK(std::isfinite(color_sigma) && color_sigma >= 0 && color_sigma <= 100,
-               "colour noise must be in [0, 100] grey levels");
+    check_range("dropout rate", dropout_rate, Range::closed(0, 1));
+    check_range("outlier rate", outlier_rate, Range::closed(0, 1));
+    check_range("colour noise", color_sigma, Range::closed(0, 100), "grey levels");
 }
 
 nlohmann::json NoiseOptions::to_json() const {

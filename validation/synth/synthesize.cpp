@@ -87,47 +87,32 @@ void scale_camera(PinholeIntrinsics& c, double f) {
 // ---------------------------------------------------------------- options
 
 void SynthOptions::check() const {
-    RGBD_CHECK(sensors >= 1 && sensors <= 64, "number of sensors must be in [1, 64]");
-    RGBD_CHECK(std::isfinite(ring_radius_m) && ring_radius_m > 0.1 && ring_radius_m < 100,
-               "ring radius must be in (0.1, 100) m");
+    check_range("number of sensors", sensors, Range::closed(1, 64));
+    check_range("ring radius", ring_radius_m, Range::open(0.1, 100), "m");
     RGBD_CHECK(std::isfinite(ring_height_m) && std::abs(ring_height_m) < 100,
                "ring height must be finite and below 100 m");
-    RGBD_CHECK(std::isfinite(tilt_deg) && std::abs(tilt_deg) < 80, "tilt must be in (-80, 80) deg");
-    RGBD_CHECK(std::isfinite(turntable_distance_m) && turntable_distance_m > 0.05 &&
-                   turntable_distance_m < 100,
-               "turntable distance must be in (0.05, 100) m");
-    RGBD_CHECK(turntable_stops >= 1 && turntable_stops <= 3600,
-               "turntable stops must be in [1, 3600]");
+    check_range("tilt", tilt_deg, Range::open(-80, 80), "deg");
+    check_range("turntable distance", turntable_distance_m, Range::open(0.05, 100), "m");
+    check_range("turntable stops", turntable_stops, Range::closed(1, 3600));
     RGBD_CHECK(std::isfinite(turntable_step_deg), "turntable step must be finite");
-    RGBD_CHECK(std::isfinite(axis_tilt_deg) && std::abs(axis_tilt_deg) <= 45,
-               "axis tilt must be in [-45, 45] deg");
-    RGBD_CHECK(std::isfinite(axis_shift_mm) && axis_shift_mm >= 0 && axis_shift_mm <= 1000,
-               "axis shift must be in [0, 1000] mm");
-    RGBD_CHECK(std::isfinite(angle_noise_deg) && angle_noise_deg >= 0 && angle_noise_deg <= 45,
-               "angle noise must be in [0, 45] deg");
+    check_range("axis tilt", axis_tilt_deg, Range::closed(-45, 45), "deg");
+    check_range("axis shift", axis_shift_mm, Range::closed(0, 1000), "mm");
+    check_range("angle noise", angle_noise_deg, Range::closed(0, 45), "deg");
     RGBD_CHECK(!stand || rig == RigKind::kTurntable, "a stand needs the turntable rig");
-    RGBD_CHECK(std::isfinite(resolution_scale) && resolution_scale >= 0.1 && resolution_scale <= 4,
-               "resolution scale must be in [0.1, 4]");
-    RGBD_CHECK(std::isfinite(height_m) && height_m > 0.001 && height_m <= 100,
-               "object height must be in (0.001, 100] m");
+    check_range("resolution scale", resolution_scale, Range::closed(0.1, 4));
+    check_range("object height", height_m, Range::open_closed(0.001, 100), "m");
     noise.check();
-    RGBD_CHECK(std::isfinite(calib_error_deg) && calib_error_deg >= 0 && calib_error_deg <= 180,
-               "calibration rotation error must be in [0, 180] deg");
-    RGBD_CHECK(std::isfinite(calib_error_mm) && calib_error_mm >= 0 && calib_error_mm <= 10000,
-               "calibration translation error must be in [0, 10000] mm");
-    RGBD_CHECK(std::isfinite(clock_offset_max_ms) && clock_offset_max_ms >= 0 &&
-                   clock_offset_max_ms <= 3.6e6,
-               "clock offset must be in [0, 3.6e6] ms");
-    RGBD_CHECK(frames >= 1 && frames <= 100000, "frames must be in [1, 100000]");
-    RGBD_CHECK(std::isfinite(frame_period_s) && frame_period_s > 0 && frame_period_s < 3600,
-               "frame period must be in (0, 3600) s");
+    check_range("calibration rotation error", calib_error_deg, Range::closed(0, 180), "deg");
+    check_range("calibration translation error", calib_error_mm, Range::closed(0, 10000), "mm");
+    check_range("clock offset", clock_offset_max_ms, Range::closed(0, 3.6e6), "ms");
+    check_range("frames", frames, Range::closed(1, 100000));
+    check_range("frame period", frame_period_s, Range::open(0, 3600), "s");
     texture.check();
     RGBD_CHECK(motion == MotionKind::kNone || rig == RigKind::kRing,
                "a moving object needs the ring rig");
     RGBD_CHECK(std::isfinite(motion_deg) && std::abs(motion_deg) <= 3600,
                "motion must be within +-3600 deg (per second for a turn)");
-    RGBD_CHECK(std::isfinite(motion_period_s) && motion_period_s > 0 && motion_period_s < 3600,
-               "motion period must be in (0, 3600) s");
+    check_range("motion period", motion_period_s, Range::open(0, 3600), "s");
 }
 
 MotionKind parse_motion_kind(const std::string& name) {

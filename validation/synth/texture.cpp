@@ -10,11 +10,11 @@ namespace rgbd::synth {
 void TextureOptions::check() const {
     RGBD_CHECK(std::isfinite(hue_period_m) && hue_period_m > 0, "texture hue period must be > 0");
     RGBD_CHECK(std::isfinite(hue_offset_deg), "texture hue offset must be finite");
-    RGBD_CHECK(saturation >= 0 && saturation <= 1, "texture saturation must be in [0, 1]");
-    RGBD_CHECK(value >= 0 && value <= 1, "texture value must be in [0, 1]");
+    check_range("texture saturation", saturation, Range::closed(0, 1));
+    check_range("texture value", value, Range::closed(0, 1));
     RGBD_CHECK(std::isfinite(checker_size_m) && checker_size_m >= 0,
                "texture checker size must be >= 0");
-    RGBD_CHECK(checker_dark >= 0 && checker_dark <= 1, "texture checker_dark must be in [0, 1]");
+    check_range("texture checker_dark", checker_dark, Range::closed(0, 1));
 }
 
 nlohmann::json TextureOptions::to_json() const {
