@@ -10,7 +10,9 @@ sensor, away from the centroid), then runs TriangleMesh.create_from_point_cloud_
 each depth (Open3D's defaults: scale 1.1, samples per node 1.5, point weight 2), optionally
 trims vertices below a density quantile, and writes OUT_DIR/spr_d<depth>.ply. One JSON line
 per depth on stdout: depth, time_s (Poisson + trim), normals_time_s, vertices, triangles, file.
-Exit code 3 when open3d cannot be imported.
+Exit code 3 when open3d cannot be imported. --threads is Open3D's n_threads (-1: all cores);
+its multi-threaded solver crashes now and then (a race: Open3D issue 6828, PoissonRecon issue
+298), and rgbd-eval then runs this script again with --threads 1.
 
 Usage: open3d_screened_poisson.py --input POINTS.ply --out-dir DIR [--depths 8,9,10]
                                   [--trim-quantile 0.02] [--threads N]
@@ -65,6 +67,8 @@ def main():
     ap.add_argument("--depths", default="8,9,10")
     ap.add_argument("--trim-quantile", type=float, default=0.0)
     ap.add_argument("--no-colors", action="store_true")
+    ap.add_argument("--threads", type=int, default=-1,
+                    help="Open3D's n_threads for Poisson (-1: all cores)")
     a = ap.parse_args()
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     xyz, nrm, sen, rgb = read_points(a.input)
@@ -87,7 +91,8 @@ def main():
     normals_time = time.perf_counter() - t0
     for d in [int(x) for x in a.depths.split(",")]:
         t0 = time.perf_counter()
-        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=d)
+        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+            pcd, depth=d, n_threads=a.threads)
         if a.trim_quantile > 0:
             dens = np.asarray(dens)
             mesh.remove_vertices_by_mask(dens < np.quantile(dens, a.trim_quantile))
