@@ -225,7 +225,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     std::vector<char> converged(nv, 0);
 
     // Joint rounds from the current poses: all rounds (coarse to fine) from the initial poses,
-    // the finest two (at most 10 iterations each) after the pairwise stage and the pose graph.
+    // the finest two (at most 10 iterations each) after the pairwise stage and the pose graph;
+    // only the latter also end when the fit stops improving (MultiViewOptions::min_fit_gain).
     // Progress runs from `p0` to `p1` over the rounds (never backwards). No round samples more
     // finely than every `min_stride`-th point.
     auto joint_rounds = [&](bool after_pairwise, double p0, double p1, std::size_t min_stride) {

@@ -108,13 +108,16 @@ struct MultiViewOptions {
     /// multiple of ŝ. (Re-matching makes joint updates jitter at a few µm, so the pairwise
     /// rotation / translation thresholds of icp.criteria are not used here.)
     double min_motion_spacing = 0.02;
-    /// A round also ends when an iteration's re-matching shows that the previous update
-    /// improved the fit by less than this fraction: the matched points' RMS distance fell by less
-    /// than min_fit_gain of itself and their share of the working points rose by less than
-    /// min_fit_gain of itself (Open3D's relative_rmse / relative_fitness test, at a level for
-    /// costly joint iterations). The views then creep along a flat valley of the objective
-    /// (on a 50-frame turntable person: 1.4 mm -> 0.09 mm per iteration over 20 iterations,
-    /// the RMS distance 1.663 -> 1.650 mm), which moves no pose towards the truth. 0 = off.
+    /// A round of the finest two that refine a start (the pairwise stage and pose graph, or a
+    /// winning safety net) also ends when an iteration's re-matching shows that the previous
+    /// update improved the fit by less than this fraction (rounds from the initial poses do not
+    /// use this test: there the views travel in many steps of small gain each): the matched points'
+    /// RMS distance fell by less than min_fit_gain of itself and their share of the working points
+    /// rose by less than min_fit_gain of itself (Open3D's relative_rmse / relative_fitness test, at
+    /// a level for costly joint iterations). The views then creep along a flat valley of the
+    /// objective (on a 50-frame turntable person: 1.4 mm -> 0.09 mm per iteration over 20
+    /// iterations, the RMS distance 1.663 -> 1.650 mm), which moves no pose towards the truth. 0 =
+    /// off.
     double min_fit_gain = 0.005;
     /// Verdict thresholds: FAIL below fail_fitness or when a pose moved more than
     /// max_rotation_deg / max_translation_m from its initial value; WARN below warn_fitness.
