@@ -64,7 +64,8 @@ double lambert(const Eigen::Vector3d& n, const Eigen::Vector3d& light) {
     return std::abs(n.dot(light)) / len;  // two-sided: Poisson and scans mix orientations
 }
 
-std::string format_number(double v) {
+/// A colour-bar label: 3 significant digits (%.3g).
+std::string bar_label(double v) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.3g", v);
     return buf;
@@ -92,10 +93,10 @@ void add_color_bar(Picture& pic, const cv::Mat& model, const PictureOptions& opt
     const int thick = font > 0.7 ? 2 : 1;
     const cv::Scalar ink(40, 40, 40);
     const int tx = bar.x + bar.width + 4;
-    cv::putText(out, format_number(pic.scalar_max * options.scalar_display_scale),
+    cv::putText(out, bar_label(pic.scalar_max * options.scalar_display_scale),
                 cv::Point(tx, bar.y + static_cast<int>(10 * font)), cv::FONT_HERSHEY_SIMPLEX, font,
                 ink, thick, cv::LINE_AA);
-    cv::putText(out, format_number(pic.scalar_min * options.scalar_display_scale),
+    cv::putText(out, bar_label(pic.scalar_min * options.scalar_display_scale),
                 cv::Point(tx, bar.y + bar.height), cv::FONT_HERSHEY_SIMPLEX, font, ink, thick,
                 cv::LINE_AA);
     if (!options.scalar_label.empty())
