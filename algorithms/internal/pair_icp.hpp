@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/registration/icp.hpp"
 #include "toolkit/pose.hpp"
 
 namespace rgbd::internal {
@@ -54,19 +55,15 @@ struct PairIcpSettings {
     bool stride_coarse_stages = true;
 };
 
-struct PairIcpOutcome {
-    Pose target_from_source = Pose::Identity();
-    std::size_t matched = 0;   ///< source points within eval_distance (normal gate applied)
-    double fitness = 0.0;      ///< matched / source points
-    double rmse = 0.0;         ///< m, point-to-point over matched pairs
-    double plane_rmse = 0.0;   ///< m, point-to-plane over matched pairs
+/// The fit of align_pair (pose, matched pairs, fitness, RMS distances, iterations,
+/// convergence; "matched" = within eval_distance, normal gate applied) and what the ring
+/// alignment needs besides.
+struct PairIcpOutcome : registration::AlignResult {
     double colour_rmse = 0.0;  ///< intensity residual of Park's model over matched pairs
     /// Matched pairs whose colour agrees (|residual| <= 3 colour_sigma); = matched without
     /// the colour term. Scores hypotheses: on a surface that slides, geometry alone prefers
     /// the most overlap, colour prefers the right place.
     std::size_t consistent = 0;
-    int iterations = 0;
-    bool converged = false;  ///< the last stage met a stop test before max_iterations
     /// Information of the pose of the source frame: sum over matched pairs of G^T G with
     /// G = [-[p]x, I] and p the source point in its own frame (order: rotation, translation).
     Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();

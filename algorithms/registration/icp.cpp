@@ -122,18 +122,9 @@ AlignResult align_pair(const PointCloud& source, const PointCloud& target,
     settings.min_rotation_rad = options.criteria.min_rotation_deg * kDegToRad;
     settings.min_translation = options.criteria.min_translation_spacing * spacing;
     settings.stride_coarse_stages = false;
-    const internal::PairIcpOutcome out = internal::pair_icp(
-        src_reg, tgt_reg, tree, initial_target_from_source, settings, distances.back());
-
-    AlignResult result;
-    result.target_from_source = out.target_from_source;
-    result.correspondences = out.matched;
-    result.fitness = out.fitness;
-    result.inlier_rmse = out.rmse;
-    result.plane_rmse = out.plane_rmse;
-    result.iterations = out.iterations;
-    result.converged = out.converged;
-    return result;
+    // The outcome is an AlignResult plus what the ring alignment needs (colour, information).
+    return internal::pair_icp(src_reg, tgt_reg, tree, initial_target_from_source, settings,
+                              distances.back());
 }
 
 }  // namespace rgbd::registration

@@ -223,10 +223,10 @@ PairIcpOutcome pair_icp(const RegCloud& source, const RegCloud& target, const Kd
     const Sums s = accumulate(source, target, target_tree, pose, pose * source.centroid,
                               eval_distance, settings, false, 1, hint, chunk_sums);
     out.target_from_source = pose;
-    out.matched = s.matched;
+    out.correspondences = s.matched;
     out.consistent = s.consistent;
     out.fitness = source.xyz.empty() ? 0.0 : double(s.matched) / double(source.xyz.size());
-    out.rmse = s.matched ? std::sqrt(s.sq_dist / s.matched) : 0.0;
+    out.inlier_rmse = s.matched ? std::sqrt(s.sq_dist / s.matched) : 0.0;
     out.plane_rmse = s.matched ? std::sqrt(s.sq_plane / s.matched) : 0.0;
     out.colour_rmse = s.matched ? std::sqrt(s.sq_colour / s.matched) : 0.0;
     out.information = s.info;

@@ -211,13 +211,13 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
         pa.target_from_source = best.target_from_source;
         // Fitness as the share of the smaller view: overlap, not view size.
         pa.fitness =
-            std::min(1.0, static_cast<double>(best.matched) /
+            std::min(1.0, static_cast<double>(best.correspondences) /
                               static_cast<double>(std::min(work[pa.target].reg.xyz.size(),
                                                            work[pa.source].reg.xyz.size())));
-        pa.inlier_rmse = best.rmse;
+        pa.inlier_rmse = best.inlier_rmse;
         pa.colour_rmse = best.colour_rmse;
         pa.reason.clear();
-        if (best.matched < 30 || pa.fitness < options.pair_fail_fitness) {
+        if (best.correspondences < 30 || pa.fitness < options.pair_fail_fitness) {
             pa.verdict = Verdict::kFail;
             pa.reason = "too little overlap";
         } else if (pa.fitness < options.pair_warn_fitness) {
