@@ -16,6 +16,7 @@
 #include "io/internal/atomic_file.hpp"
 #include "io/internal/capture_common.hpp"
 #include "io/internal/depth_png.hpp"
+#include "io/internal/text.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -114,7 +115,7 @@ void CaptureWriter::add_frame(const std::string& sensor_id, std::int64_t index,
         std::to_string(index) + "," + std::to_string(time_ns) + "," + depth_rel + "," + color_rel;
     if (posed) {
         if (world_from_depth) {
-            for (double v : pose_to_3x4(*world_from_depth)) line += "," + fmt(v);
+            for (double v : pose_to_3x4(*world_from_depth)) line += "," + internal::format_exact(v);
         } else {
             line += std::string(12, ',');
         }

@@ -40,11 +40,7 @@ std::string lower_extension(const fs::path& path) {
 
 std::vector<std::string_view> split(std::string_view s) { return internal::split_whitespace(s); }
 
-std::string fmt(double v) {
-    char buf[64];
-    const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
-    return std::string(buf, ptr);
-}
+using internal::format_exact;
 
 /// Reads the whole file as lines without comments ('#') and blank lines, with line numbers.
 struct Lines {
@@ -306,7 +302,7 @@ void write_off(std::ostream& out, const fs::path& path, const Mesh& mesh) {
         const Point_3& p = mesh.point(v);
         check_point(path, p, n);
         index[v.idx()] = n++;
-        text += fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+        text += format_exact(p.x()) + " " + format_exact(p.y()) + " " + format_exact(p.z());
         if (colors) {
             const MeshColor c = (*colors)[v];
             text += " " + std::to_string(c.red()) + " " + std::to_string(c.green()) + " " +
@@ -338,18 +334,19 @@ void write_obj(std::ostream& out, const fs::path& path, const Mesh& mesh) {
         const Point_3& p = mesh.point(v);
         check_point(path, p, n);
         index[v.idx()] = ++n;
-        text += "v " + fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+        text += "v " + format_exact(p.x()) + " " + format_exact(p.y()) + " " + format_exact(p.z());
         if (colors) {
             const MeshColor c = (*colors)[v];
-            text += " " + fmt(c.red() / 255.0) + " " + fmt(c.green() / 255.0) + " " +
-                    fmt(c.blue() / 255.0);
+            text += " " + format_exact(c.red() / 255.0) + " " + format_exact(c.green() / 255.0) +
+                    " " + format_exact(c.blue() / 255.0);
         }
         text += "\n";
     }
     if (has_normals)
         for (V v : mesh.vertices()) {
             const Vector_3& nv = normals[v];
-            text += "vn " + fmt(nv.x()) + " " + fmt(nv.y()) + " " + fmt(nv.z()) + "\n";
+            text += "vn " + format_exact(nv.x()) + " " + format_exact(nv.y()) + " " +
+                    format_exact(nv.z()) + "\n";
         }
     for (auto f : mesh.faces()) {
         text += "f";
@@ -456,10 +453,11 @@ void write_point_cloud(const fs::path& path, const PointCloud& cloud) {
         for (auto idx : cloud.points) {
             const Point_3& p = cloud.points.point(idx);
             check_point(path, p, i++);
-            text += fmt(p.x()) + " " + fmt(p.y()) + " " + fmt(p.z());
+            text += format_exact(p.x()) + " " + format_exact(p.y()) + " " + format_exact(p.z());
             if (normals) {
                 const Vector_3& n = cloud.points.normal(idx);
-                text += " " + fmt(n.x()) + " " + fmt(n.y()) + " " + fmt(n.z());
+                text += " " + format_exact(n.x()) + " " + format_exact(n.y()) + " " +
+                        format_exact(n.z());
             }
             text += "\n";
             if (text.size() > (1u << 20)) {

@@ -60,12 +60,6 @@ bool to_double(const std::string& s, double& v) {
     return ec == std::errc() && p == s.data() + s.size() && b != s.data() + s.size();
 }
 
-std::string fmt(double v) {
-    char buf[64];
-    const auto [p, ec] = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
-    return std::string(buf, p);
-}
-
 /// A pose with exactly the given numbers, after checking that they form a rigid transform.
 Pose exact_pose(const std::array<double, 12>& m) {
     pose_from_3x4(m);  // throws InputError when not rigid

@@ -37,8 +37,6 @@ std::vector<std::string> split_ws(const std::string& line);
 /// Whole-string integer / double parses (a leading '+' is allowed); false on any junk.
 bool to_int64(const std::string& s, std::int64_t& v);
 bool to_double(const std::string& s, double& v);
-/// Shortest text that reads back to the same double (17 significant digits at most).
-std::string fmt(double v);
 /// A pose with exactly the given numbers, after checking that they form a rigid transform.
 Pose exact_pose(const std::array<double, 12>& m);
 /// Appends one line; on failure (disk full) the file is cut back to its previous length so it

@@ -1,6 +1,9 @@
-// Small text helpers shared by the io readers (PLY headers, OFF/OBJ/XYZ/PCD lines).
+// Small text helpers shared by the io readers and writers (PLY headers, OFF/OBJ/XYZ/PCD lines,
+// capture folder text files).
 #pragma once
 
+#include <charconv>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -17,6 +20,13 @@ inline std::vector<std::string_view> split_whitespace(std::string_view s) {
         if (i > start) out.push_back(s.substr(start, i - start));
     }
     return out;
+}
+
+/// A double as text files write it: %.17g, which reads back as the same double.
+inline std::string format_exact(double v) {
+    char buf[64];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
+    return std::string(buf, end);
 }
 
 }  // namespace rgbd::io::internal
