@@ -29,7 +29,7 @@ struct PinholeIntrinsics {
     int width = 0;   ///< image width in pixels
     int height = 0;  ///< image height in pixels
     double fx = 0, fy = 0, cx = 0, cy = 0;
-    Distortion distortion;
+    Distortion distortion = {};  ///< none unless set
 
     /// Throws InputError when sizes or focal lengths are not positive or values are not finite.
     void check() const;

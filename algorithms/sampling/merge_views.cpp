@@ -26,7 +26,7 @@ bool copy_column(const PointSet& from, PointSet& into, const std::string& name, 
     const auto target = into.property_map<T>(name);
     if (!target.second) return false;
     std::size_t i = begin;
-    for (const PointSet::Index idx : from)
+    for (PointSet::Index idx : from)
         target.first[PointSet::Index(static_cast<std::uint32_t>(i++))] = source.first[idx];
     return true;
 }
@@ -99,7 +99,7 @@ PointCloud merge_views(std::vector<PointCloud>&& views) {
         const std::size_t size = view.points.size();
         if (columns) {
             std::size_t i = begin;
-            for (const PointSet::Index idx : view.points)
+            for (PointSet::Index idx : view.points)
                 out.points.point(PointSet::Index(static_cast<std::uint32_t>(i++))) =
                     view.points.point(idx);
             // properties_and_types() lists every property but "index" and "point".

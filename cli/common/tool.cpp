@@ -319,7 +319,7 @@ std::vector<long long> parse_range(const std::string& text, long long count) {
     std::vector<std::string> fields;
     while (std::getline(ss, item, ':')) fields.push_back(item);
     if (text.empty() || fields.empty() || fields.size() > 3 ||
-        text.back() == ':' && fields.size() == 3)
+        (text.back() == ':' && fields.size() == 3))
         throw UsageError("bad range '" + text + "' (expected N or A:B[:STEP])");
     auto number = [&](const std::string& s, long long fallback) -> long long {
         if (s.empty()) return fallback;

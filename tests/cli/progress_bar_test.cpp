@@ -68,7 +68,9 @@ TEST(ProgressBar, LogModeHeartbeatWhileTheAlgorithmIsSilent) {
         ASSERT_TRUE(std::regex_match(got[i], m, beat)) << got[i];
         EXPECT_EQ(std::stoi(m[1]), 90) << "percent went backwards: " << got[i];
         const double t = std::stod(m[2]);
-        if (i > 0) EXPECT_LE(t - last_t, 2 * kBeat) << "no line for too long: " << got[i];
+        if (i > 0) {
+            EXPECT_LE(t - last_t, 2 * kBeat) << "no line for too long: " << got[i];
+        }
         EXPECT_GT(t, last_t);
         last_t = t;
     }

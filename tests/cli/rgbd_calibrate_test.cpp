@@ -172,8 +172,9 @@ TEST_F(Calibrate, AnotherAnchorKeepsItsPose) {
 
 TEST_F(Calibrate, NoBoardVisible) {
     rgbd::test::write_ellipsoid_off(temp_root() / "ball.off", 40, 20, 0.2, 0.2, 0.2);
-    if (!fs::exists(temp_root() / "ballcap"))
+    if (!fs::exists(temp_root() / "ballcap")) {
         ASSERT_EQ(run("$BIN/rgbd-synth ball.off -o ballcap --sensors 3 --height-m 0.4 -q").code, 0);
+    }
     const Outcome r = run("$BIN/rgbd-calibrate ballcap -q -o never.json");
     rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
     EXPECT_NE(r.err.find("no board visible"), std::string::npos) << r.err;
@@ -240,11 +241,12 @@ TEST_F(Calibrate, BoardFileThatDoesNotMatch) {
 }
 
 TEST_F(Calibrate, BlurredBoardFailsCleanly) {
-    if (!fs::exists(temp_root() / "blurred"))
+    if (!fs::exists(temp_root() / "blurred")) {
         ASSERT_EQ(run("$BIN/rgbd-synth --target charuco -q -o blurred --sensors 4 --frames 6 "
                       "--board-blur-px 8")
                       .code,
                   0);
+    }
     const Outcome r = run("$BIN/rgbd-calibrate blurred -q -o never.json");
     rgbd::test::expect_failure(r, 1, "rgbd-calibrate", temp_root(), "never.json");
     // Either no marker survives the blur or the corners do not make a board.
@@ -258,12 +260,13 @@ TEST_F(Calibrate, RefineOnTheBust) {
     // sensor, so --refine refused), 8 frame sets of the still bust combined per pixel.
     const fs::path mesh = fs::path(RGBD_SHARED_DATA) / "meshes/max_planck/max-planck.obj";
     if (!fs::exists(mesh)) GTEST_SKIP() << "shared data absent: " << mesh;
-    if (!fs::exists(temp_root() / "bust"))
+    if (!fs::exists(temp_root() / "bust")) {
         ASSERT_EQ(run("$BIN/rgbd-synth " + mesh.string() +
                       " -o bust --up y --height-m 0.45 --sensors 6 --frames 8 --seed 1 "
                       "--calib-error-deg 3 --calib-error-mm 30 -q")
                       .code,
                   0);
+    }
     const Outcome r =
         run("$BIN/rgbd-calibrate bust --refine -o refined.json --metrics refine_m.json");
     ASSERT_EQ(r.code, 0) << r.err;

@@ -393,7 +393,9 @@ TEST_F(RgbdCapture, FullDiskStopsTheRecordingWithWhatWasWrittenIntact) {
     EXPECT_GT(frames, 2u);
     for (const auto& set : cap.framesets)
         for (int s = 0; s < 2; ++s)
-            if (set.frames[s] >= 0) EXPECT_TRUE(cap.find_frame(id(s), set.frames[s]).has_value());
+            if (set.frames[s] >= 0) {
+                EXPECT_TRUE(cap.find_frame(id(s), set.frames[s]).has_value());
+            }
     for (const auto& e : fs::recursive_directory_iterator(mount / "rec"))
         EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
 }

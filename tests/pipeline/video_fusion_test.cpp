@@ -122,7 +122,7 @@ TEST(VideoFusion, WhereColoursDisagreeTheBetterObservedViewWins) {
         rgbd::pipeline::fusion_view(wall_frame(near, {90, 160, 120}), 0, options, std::nullopt));
     const auto red = rgbd::io::to_colored_points(
         rgbd::pipeline::fusion_view(wall_frame(far, {40, 40, 220}), 1, options, std::nullopt));
-    for (const Eigen::Vector3d red_sensor :
+    for (const Eigen::Vector3d& red_sensor :
          {Eigen::Vector3d(0, 0, -3.0), Eigen::Vector3d(0, 0, -1.0)}) {
         rgbd::Report report;
         const auto fused = rgbd::pipeline::fuse_points(

@@ -47,7 +47,9 @@ TEST(FrameGrouper, RandomPhasesKeepSpreadWithinToleranceAndUseFramesOnce) {
     for (const auto& set : sets) {
         EXPECT_LE(set.spread_ns, 10 * kMs);
         for (std::size_t s = 0; s < n; ++s)
-            if (set.frames[s] >= 0) EXPECT_TRUE(used[s].insert(set.frames[s]).second);
+            if (set.frames[s] >= 0) {
+                EXPECT_TRUE(used[s].insert(set.frames[s]).second);
+            }
     }
     for (std::size_t s = 0; s < n; ++s) EXPECT_EQ(used[s].size(), 200u);
     EXPECT_EQ(g.late(), 0);

@@ -100,7 +100,9 @@ TEST_F(PlaybackOfACapture, LoopsAndStopsAtTheLimit) {
         ASSERT_TRUE(sensor.next(frame));
         EXPECT_EQ(frame.source_position, f % 4);
         if (f == 0) first_device = frame.device_ns;
-        if (f == 4) EXPECT_EQ(frame.device_ns - first_device, 100'000'000);
+        if (f == 4) {
+            EXPECT_EQ(frame.device_ns - first_device, 100'000'000);
+        }
     }
     EXPECT_FALSE(sensor.next(frame));
 }

@@ -147,7 +147,9 @@ TEST(DetectBoard, HalfVisibleBoard) {
     sliver.translation().x() += edge_x + 0.5 * b.width_m() - 0.1;
     const auto out = calibration::detect_board(render_board(b, sliver, Pose::Identity(), k), k, b);
     EXPECT_FALSE(out.observation);
-    if (out.markers > 0) EXPECT_FALSE(out.rejected.empty());
+    if (out.markers > 0) {
+        EXPECT_FALSE(out.rejected.empty());
+    }
 }
 
 TEST(MedianDepth, NoiseAveragedAndMovingPixelsLeftOut) {

@@ -123,7 +123,9 @@ TEST(DepthSmoothing, FlaggedPointsAreNeitherMovedNorUsed) {
     std::size_t i = 0;
     for (auto idx : cloud.points) {
         const int col = int(pixel[idx] % kW);
-        if (col < kW / 2) EXPECT_EQ(to_eigen(cloud.points.point(idx)), before[i]) << i;
+        if (col < kW / 2) {
+            EXPECT_EQ(to_eigen(cloud.points.point(idx)), before[i]) << i;
+        }
         ++i;
     }
     EXPECT_GT(report["moved"].get<std::size_t>(), 0u);  // the right half moved

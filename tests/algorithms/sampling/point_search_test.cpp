@@ -69,7 +69,9 @@ void expect_same_as_kd_tree(const std::vector<Eigen::Vector3d>& pts, std::size_t
         for (std::size_t j = 0; j < fa; ++j) {
             ASSERT_EQ(da[j], db[j]) << "query " << i << " neighbour " << j;
             const bool tied = (j > 0 && db[j - 1] == db[j]) || (j + 1 < fb && db[j + 1] == db[j]);
-            if (!tied) EXPECT_EQ(a[j], b[j]) << "query " << i << " neighbour " << j;
+            if (!tied) {
+                EXPECT_EQ(a[j], b[j]) << "query " << i << " neighbour " << j;
+            }
         }
     }
 }
