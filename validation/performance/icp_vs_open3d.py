@@ -23,7 +23,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "quality",
                                 "common"))
-from rgbd_stream import o3d_view_cloud, pose_of, read_stream, run, work_folder  # noqa: E402
+from open3d_peer import o3d_view_cloud  # noqa: E402
+from rgbd_stream import pose_of, read_stream, run, work_folder  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MESH = os.path.join(HERE, "..", "..", "..", "shared", "data", "meshes", "max_planck",

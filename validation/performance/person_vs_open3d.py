@@ -16,7 +16,7 @@ class, per-frame camera.xml poses good to a few tenths of a degree between neigh
   `rgbd-cloud CAP --frames SEL` (sensor frames; rgbd-cloud not counted): per-frame statistical
   outlier removal (k 20, std 2), 2 mm voxels + normals (hybrid 8 mm / 30, towards the camera);
   consecutive point-to-plane ICP from the identity, multiscale 48/24/12/6 mm with 40/40/40/30
-  iterations, plus the loop-closing pair; pose graph (rgbd_stream.optimise: Levenberg-Marquardt,
+  iterations, plus the loop-closing pair; pose graph (open3d_peer.optimise: Levenberg-Marquardt,
   edge prune 0.25, closing edge uncertain); merge (normals 10 mm / 30 towards each camera),
   2 mm voxels, outlier removal; Screened Poisson depth 9, trimmed at the 2% density quantile.
 - Pose accuracy: rotation error of every consecutive pair's relative pose against camera.xml,
@@ -44,8 +44,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "quality", "common"))
-from open3d_peer import merge_views, pair_icp, prepare_views, screened_poisson  # noqa: E402
-from rgbd_stream import argument_parser, optimise, pose_of, read_stream, run_stamp, work_folder  # noqa: E402
+from open3d_peer import merge_views, optimise, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from rgbd_stream import argument_parser, pose_of, read_stream, run_stamp, work_folder  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "data", "multiview",
                                        "uva_cv2_person_kinect1"))

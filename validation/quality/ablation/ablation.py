@@ -73,8 +73,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "common"))
-from open3d_peer import merge_views, pair_icp, prepare_views, screened_poisson  # noqa: E402
-from rgbd_stream import BUSTS, DATA, optimise, pose_of, read_stream  # noqa: E402
+from open3d_peer import merge_views, optimise, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from rgbd_stream import BUSTS, DATA, pose_of, read_stream  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1"))
 CGAL_DATA = "/usr/share/doc/libcgal-dev/data.tar.gz"

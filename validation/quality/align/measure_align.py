@@ -35,8 +35,9 @@ import numpy as np
 import open3d as o3d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from rgbd_stream import (argument_parser, BUSTS, DATA, meta, o3d_view_cloud, optimise,  # noqa: E402
-                         pose_of, read_stream, run, work_folder, xyz_of)
+from open3d_peer import o3d_view_cloud, optimise  # noqa: E402
+from rgbd_stream import (argument_parser, BUSTS, DATA, meta, pose_of, read_stream, run,  # noqa: E402
+                         work_folder, xyz_of)
 
 
 

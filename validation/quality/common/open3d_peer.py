@@ -1,8 +1,9 @@
 """The Open3D pipeline of the peer comparisons (docs/method.md, the Open3D 0.16 chain),
-shared by validation/performance/person_vs_open3d.py and validation/quality/ablation/ablation.py:
-per view statistical outlier removal and a down-sampled copy with normals, pairwise multi-scale
-point-to-plane ICP, the merged world-frame cloud and Screened Poisson. Open3D is imported by
-each function, so the module loads without it."""
+shared by the validation scripts that compare with Open3D (person_vs_open3d.py, ablation.py,
+icp_vs_open3d.py, measure_align.py): per view statistical outlier removal and a down-sampled copy
+with normals, pairwise multi-scale point-to-plane ICP, the pose graph, the merged world-frame
+cloud and Screened Poisson. Open3D is imported by each function, so the module loads without
+it."""
 import numpy as np
 
 from rgbd_stream import rgb_of, xyz_of
@@ -29,6 +30,12 @@ def downsampled_with_normals(pc, voxel):
     s.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=4 * voxel, max_nn=30))
     s.orient_normals_towards_camera_location(np.zeros(3))
     return s
+
+
+def o3d_view_cloud(doc, voxel):
+    """Open3D cloud of one sensor-frame document: voxel-down-sampled, normals (hybrid radius 4
+    voxels, 30 neighbours) turned towards the camera at the origin, colours when present."""
+    return downsampled_with_normals(o3d_cloud(doc), voxel)
 
 
 def prepare_views(docs, voxel):
@@ -79,3 +86,16 @@ def screened_poisson(merged, depth):
         mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
             merged, depth=depth, width=0, scale=1.1, linear_fit=False)
     return mesh, np.asarray(dens)
+
+
+def optimise(graph):
+    """Open3D's pose graph (the peer pipeline of docs/method.md): Levenberg-Marquardt, edge
+    prune 0.25, node 0 fixed."""
+    import open3d as o3d
+    reg = o3d.pipelines.registration
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                reg.GlobalOptimizationConvergenceCriteria(),
+                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
+                                                             edge_prune_threshold=0.25,
+                                                             reference_node=0))

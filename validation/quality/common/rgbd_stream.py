@@ -135,25 +135,6 @@ def run(cmd, **kw):
     return r.stdout
 
 
-def o3d_view_cloud(doc, voxel):
-    """Open3D cloud of one sensor-frame document: voxel-down-sampled, normals (hybrid radius 4
-    voxels, 30 neighbours) turned towards the camera at the origin, colours when present."""
-    from open3d_peer import downsampled_with_normals, o3d_cloud
-    return downsampled_with_normals(o3d_cloud(doc), voxel)
-
-
-def optimise(graph):
-    """Open3D's pose graph (the peer pipeline of docs/method.md): Levenberg-Marquardt, edge prune 0.25, node 0 fixed."""
-    import open3d as o3d
-    reg = o3d.pipelines.registration
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
-                                reg.GlobalOptimizationConvergenceCriteria(),
-                                reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
-                                                             edge_prune_threshold=0.25,
-                                                             reference_node=0))
-
-
 # ../shared/data beside the repository, and the busts of the validation scripts with the
 # rgbd-synth arguments that size and orient them (mesh path relative to DATA).
 DATA = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
