@@ -44,7 +44,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "quality", "common"))
-from open3d_peer import merge_views, optimise, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from open3d_peer import (CRASH_RETRIES, merge_views, optimise, pair_icp, prepare_views,  # noqa: E402
+                         screened_poisson)
 from rgbd_stream import argument_parser, pose_of, read_stream, run_stamp, work_folder  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "data", "multiview",
@@ -58,9 +59,17 @@ def sh(cmd):
     return r
 
 
-def timed(cmd):
-    """Runs cmd under /usr/bin/time -v; returns (wall s, peak RSS MB, stdout)."""
-    r = subprocess.run(["/usr/bin/time", "-v", "sh", "-c", cmd], capture_output=True, text=True)
+def timed(cmd, crash_retries=0):
+    """Runs cmd under /usr/bin/time -v; returns (wall s, peak RSS MB, stdout). When a signal
+    kills it (exit code 128 + SIGSEGV or SIGABRT: Open3D's Poisson race, Open3D issue 6828),
+    runs it again up to crash_retries times, with a warning; the figures are the last run's."""
+    for attempt in range(crash_retries + 1):
+        r = subprocess.run(["/usr/bin/time", "-v", "sh", "-c", cmd], capture_output=True,
+                           text=True)
+        if r.returncode not in (139, 134) or attempt == crash_retries:
+            break
+        print(f"warning: killed by a signal (exit code {r.returncode}; Open3D's Poisson race, "
+              f"Open3D issue 6828), running it again: {cmd}", file=sys.stderr, flush=True)
     if r.returncode != 0:
         sys.exit(f"person_vs_open3d: failed: {cmd}\n{r.stderr[-2000:]}")
     wall = re.search(r"Elapsed \(wall clock\) time.*: (?:(\d+):)?(\d+):([\d.]+)", r.stderr)
@@ -175,7 +184,7 @@ def run_o3d(b, frames, d, tag):
     sh(f"{b}/rgbd-cloud {PERSON} --frames {frames} -q > {views}")
     out = f"{d}/{tag}_o3d.json"
     wall, rss, _ = timed(f"/usr/bin/python3 {os.path.abspath(__file__)} --o3d-child {views} "
-                         f"{d}/{tag}_o3d.ply {out}")
+                         f"{d}/{tag}_o3d.ply {out}", crash_retries=CRASH_RETRIES)
     r = json.load(open(out))
     truth = [pose_of(c) for c, _ in read_stream(views)]
     return {"wall_s": wall, "rss_mb": rss, "times": r["times"],

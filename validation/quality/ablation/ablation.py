@@ -25,7 +25,8 @@ Variants (--variants):
   the full clouds with normals (hybrid 10 mm / 30, towards each view's camera), 2 mm voxels,
   post outlier removal (k 20, std 2), Screened Poisson depth 9 (scale 1.1, width 0), untrimmed
   and trimmed at the 2% density quantile. Time: the whole Open3D pipeline from the loaded
-  views (rgbd-cloud not counted).
+  views (rgbd-cloud not counted). It runs in a child process, again when Open3D's Poisson race
+  kills it (open3d_peer.run_in_child).
 When the rgbd-reconstruct in --bin has no --skip (older builds), --chain pipe (the default
 --chain auto falls back to it) runs the equivalent pipe
     rgbd-cloud | rgbd-clean --distance | rgbd-upsample --neighbors 8 | rgbd-align |
@@ -73,7 +74,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "common"))
-from open3d_peer import merge_views, optimise, pair_icp, prepare_views, screened_poisson  # noqa: E402
+from open3d_peer import (merge_views, optimise, pair_icp, prepare_views, run_in_child,  # noqa: E402
+                         screened_poisson)
 from rgbd_stream import BUSTS, DATA, pose_of, read_stream  # noqa: E402
 
 PERSON = os.path.normpath(os.path.join(DATA, "..", "multiview", "uva_cv2_person_kinect1"))
@@ -309,7 +311,7 @@ def run_object(obj, a, b, eb, chain, rows, extra, seed):
         elif v.startswith("o3d"):
             if not o3d_done:
                 u, tr = os.path.join(d, "o3d-spr.ply"), os.path.join(d, "o3d-spr-trim.ply")
-                secs, poses = o3d_pipeline(views, u, tr)
+                secs, poses = run_in_child(o3d_pipeline, views, u, tr, what=f"{obj}: Open3D")
                 o3d_done = {"o3d-spr": u, "o3d-spr-trim": tr, "time": secs}
                 if person:
                     pose_err["o3d"] = relative_rotation_errors(poses, truth)

@@ -99,3 +99,44 @@ def optimise(graph):
                                 reg.GlobalOptimizationOption(max_correspondence_distance=0.012,
                                                              edge_prune_threshold=0.25,
                                                              reference_node=0))
+
+
+# Open3D 0.16's multi-threaded Screened Poisson crashes now and then (SIGSEGV, at times SIGABRT):
+# a race in its solver (Open3D issue 6828, PoissonRecon issue 298). Run the peer in a child
+# process and run it again when a signal kills the child, so that one crash does not end a
+# benchmark of many minutes. The same threads again: the race is rare, and fewer threads would
+# make the peer slower than it is.
+CRASH_RETRIES = 2
+
+
+def _child(conn, fn, args):
+    conn.send(fn(*args))
+    conn.close()
+
+
+def run_in_child(fn, *args, what="the Open3D peer"):
+    """fn(*args) in a fresh (spawned) Python process; returns its (picklable) result. Runs it
+    again, with a warning on stderr, when a signal kills the child (CRASH_RETRIES times at most);
+    exits the script when it still dies or when it fails otherwise."""
+    import multiprocessing
+    import sys
+    ctx = multiprocessing.get_context("spawn")
+    for attempt in range(CRASH_RETRIES + 1):
+        parent, child = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=_child, args=(child, fn, args))
+        proc.start()
+        child.close()
+        try:
+            result = parent.recv()
+        except EOFError:  # the child died before it sent anything
+            result = None
+        proc.join()
+        if proc.exitcode == 0:
+            return result
+        if proc.exitcode is not None and proc.exitcode < 0 and attempt < CRASH_RETRIES:
+            print(f"warning: {what} was killed by signal {-proc.exitcode} (Open3D's Poisson "
+                  "race, Open3D issue 6828); running it again", file=sys.stderr, flush=True)
+            continue
+        how = f"killed by signal {-proc.exitcode}" if proc.exitcode < 0 else \
+            f"exit code {proc.exitcode}"
+        sys.exit(f"{what} failed ({how})")
