@@ -60,6 +60,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from open3d_peer import run_in_child  # noqa: E402
 from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, run, work_folder,  # noqa: E402
                          write_points, xyz_of)
 
@@ -147,13 +148,16 @@ def stream_points(path):
 
 
 def spr(xyz, nrm, depth):
+    """Open3D Screened Poisson of the oriented points; returns (vertices, triangles, seconds).
+    Arrays, not the mesh: it runs in a child process (open3d_peer.run_in_child)."""
     pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz))
     pc.normals = o3d.utility.Vector3dVector(nrm)
     t0 = time.perf_counter()
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
             pc, depth=depth, width=0, scale=1.1, linear_fit=False)
-    return mesh, time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    return np.asarray(mesh.vertices), np.asarray(mesh.triangles), seconds
 
 
 def cgal_cap(b, aligned, work, tag):
@@ -275,7 +279,10 @@ def main():
               "from the cloud): area cm^2, invented share, invented cm^2 | SP s |")
         print("|---|---|---|---|---|---|---|---|---|")
         for depth in [int(x) for x in a.depths.split(",") if x]:
-            m, dt = spr(xyz0, nrm0, depth)
+            v, t, dt = run_in_child(spr, xyz0, nrm0, depth,
+                                    what=f"Open3D Screened Poisson, depth {depth}")
+            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v),
+                                          o3d.utility.Vector3iVector(t))
             m.remove_degenerate_triangles()
             v = np.asarray(m.vertices)
             smp = mesh_samples(m, a.seed)

@@ -42,6 +42,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from open3d_peer import run_in_child  # noqa: E402
 from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, rgb_of, run,  # noqa: E402
                          work_folder, xyz_of)
 
@@ -169,7 +170,8 @@ def main():
         sp = {}
         for depth in [int(x) for x in a.depths.split(",") if x]:
             path = f"{cap}_spr{depth}.ply"
-            t = spr(xyz, nrm, rgb, depth, path, f"{cap}_spr{depth}t.ply")
+            t = run_in_child(spr, xyz, nrm, rgb, depth, path, f"{cap}_spr{depth}t.ply",
+                             what=f"Open3D Screened Poisson, depth {depth}")
             r = evaluate(b, path, reference)
             row(f"o3d-spr d{depth}", r, t)
             sp[depth] = (r, t)
