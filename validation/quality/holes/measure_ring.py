@@ -60,7 +60,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from open3d_peer import run_in_child  # noqa: E402
+from open3d_peer import run_in_child, screened_poisson  # noqa: E402
 from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, run, work_folder,  # noqa: E402
                          write_points, xyz_of)
 
@@ -153,9 +153,7 @@ def spr(xyz, nrm, depth):
     pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz))
     pc.normals = o3d.utility.Vector3dVector(nrm)
     t0 = time.perf_counter()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-            pc, depth=depth, width=0, scale=1.1, linear_fit=False)
+    mesh, _ = screened_poisson(pc, depth)
     seconds = time.perf_counter() - t0
     return np.asarray(mesh.vertices), np.asarray(mesh.triangles), seconds
 

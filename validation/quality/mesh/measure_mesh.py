@@ -42,7 +42,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import open3d as o3d  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from open3d_peer import run_in_child  # noqa: E402
+from open3d_peer import run_in_child, screened_poisson  # noqa: E402
 from rgbd_stream import (argument_parser, BUSTS, DATA, read_stream, rgb_of, run,  # noqa: E402
                          work_folder, xyz_of)
 
@@ -110,12 +110,9 @@ def spr(xyz, nrm, rgb, depth, path, trimmed_path):
     pc.normals = o3d.utility.Vector3dVector(nrm)
     pc.colors = o3d.utility.Vector3dVector(rgb)
     t0, c0 = time.perf_counter(), time.process_time()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-            pc, depth=depth, width=0, scale=1.1, linear_fit=False)
+    mesh, dens = screened_poisson(pc, depth)
     dt = (time.perf_counter() - t0, time.process_time() - c0)
     o3d.io.write_triangle_mesh(path, mesh)
-    dens = np.asarray(dens)
     mesh.remove_vertices_by_mask(dens < np.quantile(dens, 0.02))
     o3d.io.write_triangle_mesh(trimmed_path, mesh)
     return dt
