@@ -140,20 +140,25 @@ const cli::ToolSpec kSpec{
                         "dropped when their colours agree (Delta E <= 15), else the better "
                         "observed of the two (nearer, more head-on) stays")(
             "keep-duplicates", "with --merge: plain concatenation of the views")(
-            "fixed-view", cli::value<int>(0, "I"),
+            "fixed-view",
+            cli::value(static_cast<int>(registration::MultiViewOptions{}.fixed_view), "I"),
             "position in the stream of the view that holds the gauge")(
-            "rounds", cli::value<int>(4, "N"), "rounds of joint refinement")(
-            "voxel-m", cli::value<double>(0.0, "M"),
+            "rounds", cli::value(registration::MultiViewOptions{}.rounds, "N"),
+            "rounds of joint refinement")(
+            "voxel-m", cli::value(registration::MultiViewOptions{}.voxel_m, "M"),
             "voxel size for the registration copies (0 = from the point spacing)")(
             "ignore-poses",
             "start every view from its own sensor frame (poses unknown); pairs follow the "
             "stream order and the result is in the first view's frame")(
             "no-pairwise", "skip the pairwise stage and the pose graph (joint rounds only)")(
             "no-global", "no FPFH + RANSAC hypotheses (trust the initial poses' basin)")(
-            "colour-weight", cli::value<double>(0.1, "W"),
+            "colour-weight", cli::value(registration::MultiViewOptions{}.colour_weight, "W"),
             "weight of the colour term (0 = geometry only)")(
-            "ransac-iterations", cli::value<int>(20000, "N"), "RANSAC hypotheses per pair")(
-            "max-prior-rotation-deg", cli::value<double>(20.0, "D"),
+            "ransac-iterations",
+            cli::value(registration::MultiViewOptions{}.ransac_iterations, "N"),
+            "RANSAC hypotheses per pair")(
+            "max-prior-rotation-deg",
+            cli::value(registration::MultiViewOptions{}.max_prior_rotation_deg, "D"),
             "pair results farther than this from the initial relative pose are discarded (>= "
             "180 disables)")(
             "stand", cli::value<std::string>("auto", "MODE"),

@@ -433,9 +433,15 @@ int main(int argc, char** argv) {
             "sets", cli::po::value<int>()->default_value(8)->value_name("N"),
             "--refine: frame sets (from --frameset on) whose depth is combined by a per-pixel "
             "median; the scene must stand still (pixels that change are left out)")(
-            "min-corners", cli::po::value<int>()->default_value(6)->value_name("N"),
+            "min-corners",
+            cli::po::value<int>()
+                ->default_value(calibration::DetectionOptions{}.min_corners)
+                ->value_name("N"),
             "board views with fewer corners are not used")(
-            "max-rms-px", cli::po::value<double>()->default_value(2.0, "2")->value_name("PX"),
+            "max-rms-px",
+            cli::po::value<double>()
+                ->default_value(calibration::DetectionOptions{}.max_rms_px)
+                ->value_name("PX"),
             "board views whose pose reprojects worse are not used")(
             "max-plane-mm", cli::po::value<double>()->default_value(20.0, "20")->value_name("MM"),
             "board views whose plane lies farther from the depth are left out");

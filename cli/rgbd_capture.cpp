@@ -531,17 +531,21 @@ int main(int argc, char** argv) {
             "largest spread of a frame set (hub time)")(
             "latency-ms", cli::po::value<double>()->default_value(1000.0),
             "wait this long for late frames before forming a set")(
-            "probes", cli::po::value<int>()->default_value(16), "clock probes per burst")(
-            "probe-interval-ms", cli::po::value<double>()->default_value(1000.0),
+            "probes", cli::po::value<int>()->default_value(HubOptions{}.probes),
+            "clock probes per burst")(
+            "probe-interval-ms",
+            cli::po::value<double>()->default_value(HubOptions{}.probe_interval_ns / 1e6),
             "time between probe bursts per node")(
-            "drift-window-s", cli::po::value<double>()->default_value(60.0),
+            "drift-window-s", cli::po::value<double>()->default_value(HubOptions{}.drift_window_s),
             "fit offset and drift over this many seconds of bursts")(
             "duration-s", cli::po::value<double>()->default_value(0.0),
             "stop after S seconds (0 = until a signal)")(
             "exit-after-bye", "stop when every node that joined has finished")(
-            "start-lead-ms", cli::po::value<double>()->default_value(300.0),
+            "start-lead-ms",
+            cli::po::value<double>()->default_value(HubOptions{}.start_lead_ns / 1e6),
             "the common start instant lies this far ahead of the moment it is fixed")(
-            "start-wait-s", cli::po::value<double>()->default_value(10.0),
+            "start-wait-s",
+            cli::po::value<double>()->default_value(HubOptions{}.start_wait_ns / 1e9),
             "every rig node starts on one common instant once all have joined; after this "
             "long the ones that joined start without the others (latecomers join the frame "
             "grid)")("png-compression", cli::po::value<int>()->default_value(1),
@@ -562,16 +566,22 @@ int main(int argc, char** argv) {
             "fuse-on", cli::po::value<std::string>()->default_value("nodes"),
             "where the per-view work runs: nodes (they send cleaned world-frame views, as "
             "LiveScan3D's clients do) or hub (they send frames)")(
-            "voxel-mm", cli::po::value<double>()->default_value(0.0),
+            "voxel-mm",
+            cli::po::value<double>()->default_value(cli::VideoOptions{}.fusion.voxel_m * 1000.0),
             "voxel edge of the fused cloud (0 = the sensors' pixel footprint at the object)")(
-            "crop-radius-m", cli::po::value<double>()->default_value(0.6),
+            "crop-radius-m",
+            cli::po::value<double>()->default_value(
+                cli::VideoOptions{}.fusion.extraction.crop_radius_m),
             "keep points within this distance of the rig's object centre (0 = no crop)")(
             "no-clean", "skip the per-view distance-based clean")(
-            "draco-quantum-mm", cli::po::value<double>()->default_value(2.0),
+            "draco-quantum-mm",
+            cli::po::value<double>()->default_value(cli::VideoOptions{}.draco.position_quantum_m *
+                                                    1000.0),
             "Draco position grid of the video frames")(
-            "draco-color-bits", cli::po::value<int>()->default_value(6),
+            "draco-color-bits",
+            cli::po::value<int>()->default_value(cli::VideoOptions{}.draco.color_bits),
             "colour bits per channel kept in the video frames (1-8)")(
-            "draco-speed", cli::po::value<int>()->default_value(10),
+            "draco-speed", cli::po::value<int>()->default_value(cli::VideoOptions{}.draco.speed),
             "Draco encoding speed (0 = smallest, 10 = fastest)")(
             "serve", cli::po::value<int>()->value_name("PORT"),
             "with --video: serve the live fused stream as a web page on PORT")(

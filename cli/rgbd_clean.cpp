@@ -41,7 +41,7 @@ void run_clean(cli::Context& ctx) {
     bool noise_given = false;  // else each view's (or the stream's) own, rgbd-cloud's tag
     try {
         const bool has_k = vm.count("k") > 0;
-        statistical.k = has_k ? ctx.get<int>("k") : 20;
+        if (has_k) statistical.k = distance.k = density.k = ctx.get<int>("k");
         statistical.std_ratio = ctx.get<double>("std-ratio");
         const std::string convention = ctx.get<std::string>("convention");
         if (convention == "open3d")
@@ -67,8 +67,6 @@ void run_clean(cli::Context& ctx) {
         }
         if (vm.count("theta-max-deg"))
             distance.theta_max_deg = density.theta_max_deg = ctx.get<double>("theta-max-deg");
-        distance.k = has_k ? ctx.get<int>("k") : 16;
-        density.k = has_k ? ctx.get<int>("k") : 20;
         // --high-recall sets its operating point; options given explicitly still win.
         if (vm.count("high-recall")) distance.use_high_recall();
         const auto given = [&](const char* name) {
@@ -219,14 +217,14 @@ const cli::ToolSpec kSpec{
             "k", cli::value<int>("N"),
             "neighbours per point (default 20 for --statistical and --density, 16 for "
             "--distance)")(
-            "std-ratio", cli::value<double>(2.0, "X"),
+            "std-ratio", cli::value(denoise::StatisticalOptions{}.std_ratio, "X"),
             "--statistical: standard deviations above the mean distance that are kept")(
             "convention", cli::value<std::string>("open3d", "NAME"),
             "--statistical/--radius: open3d (neighbours include the point itself) or pcl")(
-            "min-points", cli::value<int>(16, "N"),
+            "min-points", cli::value(denoise::RadiusOptions{}.min_points, "N"),
             "--radius: minimum neighbours within the radius")("radius-m", cli::value<double>("M"),
                                                               "--radius: radius in metres")(
-            "radius-spacing", cli::value<double>(4.0, "X"),
+            "radius-spacing", cli::value(denoise::RadiusOptions{}.radius_spacing_factor, "X"),
             "--radius: radius as a multiple of the robust point spacing (when --radius-m is "
             "not given)")(
             "noise-model", cli::value<std::string>("auto", "NAME"),
@@ -236,24 +234,25 @@ const cli::ToolSpec kSpec{
             "theta-max-deg", cli::value<double>("DEG"),
             "--distance/--density: steepest incidence angle of a real surface (default 70 for "
             "--distance, 75 for --density)")(
-            "c-min", cli::value<int>(2, "N"),
+            "c-min", cli::value(denoise::DistanceOptions{}.c_min, "N"),
             "--distance: supporting neighbours a pixel needs in its 5x5 window")(
-            "c-min-wide", cli::value<int>(3, "N"),
+            "c-min-wide", cli::value(denoise::DistanceOptions{}.c_min_wide, "N"),
             "--distance: a pixel short of --c-min keeps its support with N supporting "
             "neighbours in its 7x7 window (0 = the 5x5 window only)")(
-            "line-sigmas", cli::value<double>(3.0, "X"),
+            "line-sigmas", cli::value(denoise::DistanceOptions{}.line_sigmas, "X"),
             "--distance: line-support tolerance in sigma of the sensor noise (0 = no line "
             "test)")(
-            "dense-min", cli::value<int>(16, "N"),
+            "dense-min", cli::value(denoise::DistanceOptions{}.dense_min, "N"),
             "--distance: the line test applies where at least N of the 24 window pixels are "
-            "valid")("keep-knn", cli::value<double>(3.0, "X"),
+            "valid")("keep-knn", cli::value(denoise::DistanceOptions{}.keep_knn, "X"),
                      "--distance: keep a pixel the support or line test flags when its "
                      "--keep-k nearest points in its 7x7 window lie within X pixel footprints "
-                     "z/f on average (0 = off)")("keep-k", cli::value<int>(5, "N"),
+                     "z/f on average (0 = off)")("keep-k",
+                                                 cli::value(denoise::DistanceOptions{}.keep_k, "N"),
                                                  "--distance: neighbours of the --keep-knn test")(
-            "n-speckle", cli::value<int>(20, "N"),
+            "n-speckle", cli::value(denoise::DistanceOptions{}.n_speckle, "N"),
             "--distance: grid components with fewer pixels are speckles (0 = off)")(
-            "alpha", cli::value<double>(3.0, "X"),
+            "alpha", cli::value(denoise::DistanceOptions{}.alpha, "X"),
             "--distance: robust standard deviations of the normalised kNN distance that are "
             "kept")("no-pass-a", "--distance: skip the grid support and speckle tests")(
             "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
@@ -263,16 +262,16 @@ const cli::ToolSpec kSpec{
             "reference", cli::value<std::string>("auto", "NAME"),
             "--density: expected density from the sensors (views' cameras), local (median of "
             "the neighbours) or auto")(
-            "consensus-ratio", cli::value<double>(0.5, "X"),
+            "consensus-ratio", cli::value(denoise::DensityOptions{}.consensus_ratio, "X"),
             "--density: consensus test on points below X times their expected density that "
             "their own view sees steeper than --theta-max-deg (0 = no consensus test)")(
-            "consensus-sigmas", cli::value<double>(4.5, "X"),
+            "consensus-sigmas", cli::value(denoise::DensityOptions{}.consensus_sigmas, "X"),
             "--density: such a point is noise when farther than X sigma of the sensor noise "
             "from the plane of the other views' points around it")(
-            "cluster-spacing", cli::value<double>(3.0, "X"),
+            "cluster-spacing", cli::value(denoise::DensityOptions{}.cluster_spacing, "X"),
             "--density: cluster link distance as a multiple of the robust spacing (0 = no "
             "cluster pass)")(
-            "min-cluster-fraction", cli::value<double>(0.005, "X"),
+            "min-cluster-fraction", cli::value(denoise::DensityOptions{}.min_cluster_fraction, "X"),
             "--density: detached clusters smaller than this share of the points are removed")(
             "mark", "flag noise points (noise = 1) instead of deleting them")(
             "high-recall",

@@ -94,12 +94,12 @@ const cli::ToolSpec kSpec{
             "frames", cli::value<std::string>("A:B[:STEP]"),
             "frame positions to emit per sensor (default: all for single-sensor captures)")(
             "sensors", cli::value<std::string>("ID,..."), "only these sensor ids (default: all)")(
-            "z-min", cli::value<double>(0.0, "M"),
+            "z-min", cli::value(frames::CloudOptions{}.z_min_m, "M"),
             "depth window near limit in metres (0 = the sensor's range)")(
-            "z-max", cli::value<double>(0.0, "M"),
+            "z-max", cli::value(frames::CloudOptions{}.z_max_m, "M"),
             "depth window far limit in metres (0 = the sensor's range)")(
             "no-mask", "ignore the capture's object masks")(
-            "crop-radius-m", cli::value<double>(0.6, "M"),
+            "crop-radius-m", cli::value(cli::ExtractionOptions{}.crop_radius_m, "M"),
             "keep points within this distance of the object centre, where the sensors' optical "
             "axes converge (0 = no crop; skipped when the poses do not tell a centre)");
     }};

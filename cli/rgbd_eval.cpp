@@ -481,9 +481,11 @@ const cli::ToolSpec kSpec{
         o.add_options()("reference", cli::value<std::string>("MESH"),
                         "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(
             "tau-mm", cli::value<std::string>("2,5", "LIST"), "F-score thresholds in millimetres")(
-            "invented-tau-mm", cli::value<double>(5.0, "MM"),
+            "invented-tau-mm",
+            cli::value(evaluation::MetricOptions{}.invented_tau_m * 1000.0, "MM"),
             "distance beyond which result surface counts as invented")(
-            "samples", cli::value<std::size_t>(200000, "N"), "surface samples per mesh")(
+            "samples", cli::value(evaluation::MetricOptions{}.samples, "N"),
+            "surface samples per mesh")(
             "gt-poses", cli::value<std::string>("JSON"),
             "true poses (gt/world_from_depth.json) for pose errors of a view stream")(
             "keep-gauge", "do not remove the global gauge before pose errors")(

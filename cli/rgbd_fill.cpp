@@ -191,76 +191,81 @@ const cli::ToolSpec kSpec{
             "debug-colors",
             "colour added points by mechanism (M1 red, M2 green, M3 blue, M4 yellow, large "
             "holes magenta, head top cyan) instead of the interpolated colour")(
-            "max-points", cli::value<int>(300000, "N"),
+            "max-points", cli::value(static_cast<int>(cli::FillStageOptions{}.max_points), "N"),
             "more measured points than N (a merged sequence of many frames) are thinned to "
             "about N, one measured point per voxel, before detection and inpainting; 0 = "
             "never (--mark never thins)")("no-large", "do not fill large holes (§12)")(
             "no-head-top", "do not fill the head top (§13)")(
-            "inpaint-pixel", cli::value<double>(1.5, "X"),
+            "inpaint-pixel", cli::value(holes::InpaintOptions{}.pixel, "X"),
             "pixel size of the inpainting images, in spacings")(
-            "telea-radius", cli::value<double>(5.0, "PX"),
+            "telea-radius", cli::value(holes::InpaintOptions{}.telea_radius, "PX"),
             "neighbourhood radius of Telea's inpainting, pixels")(
             "colour-inpaint", cli::value<std::string>("criminisi", "NAME"),
             "colour of large holes and the head top: criminisi (exemplar-based) or telea")(
-            "patch", cli::value<int>(9, "PX"), "Criminisi's patch side, pixels (odd)")(
-            "search-window", cli::value<double>(4.0, "X"),
+            "patch", cli::value(holes::InpaintOptions{}.patch, "PX"),
+            "Criminisi's patch side, pixels (odd)")(
+            "search-window", cli::value(holes::InpaintOptions{}.search_window, "X"),
             "Criminisi's search window, X times the hole's bounding box")(
-            "top-fraction", cli::value<double>(0.12, "F"),
+            "top-fraction", cli::value(holes::InpaintOptions{}.top_fraction, "F"),
             "head top: the top F of the height along the vertical axis")(
             "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
-            "max-ellipsoid-rms", cli::value<double>(3.0, "X"),
+            "max-ellipsoid-rms", cli::value(holes::InpaintOptions{}.max_ellipsoid_rms, "X"),
             "head top: use the ellipsoid only when it fits the top points within X spacings "
             "RMS")("top-without-ellipsoid",
                    "head top: fill with the inpainted heights when the ellipsoid does not fit "
                    "(else the crown stays open)")(
             "no-biharmonic", "geometry by Telea only (no biharmonic solve in the holes)")(
-            "max-open-rim", cli::value<double>(1.0, "F"),
+            "max-open-rim", cli::value(holes::InpaintOptions{}.max_open_rim, "F"),
             "large holes: fill only holes whose edge borders the outside of the surface (below "
             "its lowest or above its highest point in a column) for at most the share F")(
-            "max-biharmonic-slope", cli::value<double>(1.0, "S"),
+            "max-biharmonic-slope", cli::value(holes::InpaintOptions{}.max_biharmonic_slope, "S"),
             "large holes: harmonic instead of biharmonic solve where the radius changes faster "
             "than S times the height (the underside of an overhang)")(
-            "min-rim-radial", cli::value<double>(0.45, "C"),
+            "min-rim-radial", cli::value(holes::InpaintOptions{}.min_rim_radial, "C"),
             "large holes: fill only when the rim normals' mean n.radial is at least C")(
-            "clearance", cli::value<double>(0.9, "X"),
+            "clearance", cli::value(holes::InpaintOptions{}.clearance, "X"),
             "large holes and head top: no new point within X spacings of another")(
             "no-carve",
             "large holes and head top: keep new points that a sensor saw as empty space")(
-            "carve-margin", cli::value<double>(2.0, "X"),
+            "carve-margin", cli::value(holes::InpaintOptions{}.free_space.margin, "X"),
             "large holes and head top: a new point is in empty space when a sensor facing it "
             "measured the surface more than X spacings behind it (or nothing)")(
-            "max-contradicted", cli::value<double>(0.2, "F"),
+            "max-contradicted", cli::value(holes::InpaintOptions{}.max_contradicted, "F"),
             "large holes and head top: a hole whose new points the sensors contradict in more "
             "than the share F stays open")("fill-openings",
                                            "also fill small holes that a sensor saw through")(
             "ignore-poses", "no visibility test: every small hole is filled")(
-            "k", cli::value<int>(10, "N"), "nearest neighbours of the boundary criteria")(
-            "radius-factor", cli::value<double>(2.5, "X"),
+            "k", cli::value(holes::BoundaryOptions{}.neighbourhood.k, "N"),
+            "nearest neighbours of the boundary criteria")(
+            "radius-factor", cli::value(holes::BoundaryOptions{}.neighbourhood.radius_factor, "X"),
             "radius neighbours within X spacings join the nearest ones")(
             "spacing-m", cli::value<double>("M"),
             "point spacing in metres (default: the robust spacing of the points)")(
-            "threshold", cli::value<double>(0.5, "P"),
+            "threshold", cli::value(holes::BoundaryOptions{}.threshold, "P"),
             "boundary when the combined probability is at least P")(
             "weights", cli::value<std::string>("0.4,0.4,0.2", "A,H,S"),
             "weights of the angle, half-disk and shape criteria")(
-            "coherence", cli::value<int>(1, "N"),
+            "coherence", cli::value(holes::BoundaryOptions{}.coherence_passes, "N"),
             "coherence passes (0 = off): a candidate needs a candidate among the two "
             "neighbours bounding its largest gap")(
             "coherence-both", "coherence needs both gap neighbours to be candidates")(
-            "hysteresis", cli::value<double>(0.3, "P"),
+            "hysteresis", cli::value(holes::BoundaryOptions{}.hysteresis_threshold, "P"),
             "rims grow into neighbours with a probability of at least P (0 = off)")(
-            "hysteresis-rings", cli::value<int>(1, "N"),
+            "hysteresis-rings", cli::value(holes::BoundaryOptions{}.hysteresis_rings, "N"),
             "rings of neighbours the rims grow at most")(
-            "min-loop", cli::value<int>(8, "N"), "rims with fewer boundary points are noise")(
-            "small-diameter", cli::value<double>(20.0, "X"),
+            "min-loop", cli::value(holes::BoundaryOptions{}.min_loop_points, "N"),
+            "rims with fewer boundary points are noise")(
+            "small-diameter", cli::value(holes::BoundaryOptions{}.small_max_diameter, "X"),
             "small hole: rim diameter at most X spacings")(
-            "small-points", cli::value<int>(200, "N"), "small hole: at most N rim points")(
-            "visible-angle-deg", cli::value<double>(60.0, "DEG"),
+            "small-points", cli::value(holes::BoundaryOptions{}.small_max_points, "N"),
+            "small hole: at most N rim points")(
+            "visible-angle-deg", cli::value(holes::BoundaryOptions{}.visible_max_angle_deg, "DEG"),
             "a sensor sees a hole region facing it within DEG")(
-            "step", cli::value<double>(1.0, "X"), "distance of new points, in spacings")(
-            "max-sweeps", cli::value<int>(20, "N"),
+            "step", cli::value(holes::FillOptions{}.step, "X"),
+            "distance of new points, in spacings")(
+            "max-sweeps", cli::value(holes::FillOptions{}.max_sweeps, "N"),
             "sweeps over the rim at most (one, four, three)")(
-            "max-fit-rms", cli::value<double>(2.0, "X"),
+            "max-fit-rms", cli::value(holes::FillOptions{}.max_fit_rms, "X"),
             "interpolation: fill a hole only when the quadric fits the points around it within "
             "X spacings RMS (else it is a crease, not a hole on a smooth sheet)");
     }};

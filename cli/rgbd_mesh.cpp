@@ -78,12 +78,17 @@ const cli::ToolSpec kSpec{
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json",
     .whole_stream = true,
     .add_options = [](cli::po::options_description& o) {
-        o.add_options()("method", cli::value<std::string>("front", "NAME"),
+        o.add_options()("method",
+                        cli::value(reconstruction::ReconstructionOptions{}.method, "NAME"),
                         "front, poisson or advancing-front")(
             "watertight", "close every hole: the result is a closed 2-manifold")(
-            "target-faces", cli::value<long long>(0, "N"),
+            "target-faces",
+            cli::value(static_cast<long long>(reconstruction::ReconstructionOptions{}.target_faces),
+                       "N"),
             "simplify to at most N faces (0 = no simplification)")(
-            "max-points", cli::value<long long>(60000, "N"),
+            "max-points",
+            cli::value(static_cast<long long>(reconstruction::ReconstructionOptions{}.max_points),
+                       "N"),
             "down-sample the input to at most N points first");
     }};
 

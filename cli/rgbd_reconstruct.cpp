@@ -286,16 +286,17 @@ const cli::ToolSpec kSpec{
             "sensor noise model of the distance and density cleaning: auto (the rig's sensors' "
             "model when they share one the denoisers know, else kinect_v2), kinect_v2, "
             "kinect_v1, sr300 or generic")(
-            "crop-radius-m", cli::value<double>(0.6, "M"),
+            "crop-radius-m",
+            cli::value(pipeline::ReconstructOptions{}.extraction.crop_radius_m, "M"),
             "object extraction radius around the sensors' common centre (0 = no crop)")(
-            "method", cli::value<std::string>("front", "NAME"),
+            "method", cli::value(pipeline::ReconstructOptions{}.mesh.method, "NAME"),
             "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
             "stand", cli::value<std::string>("auto", "MODE"),
             "the stand (turntable platter) below the object, after the alignment: auto (remove "
             "it on single-sensor captures of several views: turntable), remove or keep")(
             "open",
             "keep the holes no sensor saw open (default: closed, as rgbd-mesh --watertight)")(
-            "upsample", cli::value<int>(8, "4|8"),
+            "upsample", cli::value(pipeline::ReconstructOptions{}.upsample.neighbors, "4|8"),
             "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
             "--skip upsample)");
     }};

@@ -158,9 +158,9 @@ const cli::ToolSpec kSpec{
             "camera elevation (0 = level, 90 = from above)")(
             "up", cli::value<std::string>("AXIS|X,Y,Z"),
             "world up direction (default: from the sensors' poses, else +y)")(
-            "width", cli::value<int>(960, "PX"), "picture width")(
-            "height", cli::value<int>(720, "PX"), "picture height")(
-            "point-size", cli::value<double>(0.0, "PX"),
+            "width", cli::value(render::CameraOptions{}.width, "PX"), "picture width")(
+            "height", cli::value(render::CameraOptions{}.height, "PX"), "picture height")(
+            "point-size", cli::value(render::PictureOptions{}.point_radius_px, "PX"),
             "splat radius of points in pixels (0 = from the point spacing)")(
             "scalar", cli::value<std::string>("NAME"),
             "colour by a value: 'distance' (to --reference) or a float point property")(

@@ -136,19 +136,20 @@ const cli::ToolSpec kSpec{
         "rgbd-cloud cap/ | rgbd-clean | rgbd-upsample --neighbors 8 | rgbd-align | rgbd-mesh "
         "-o bust.ply",
     .add_options = [](cli::po::options_description& o) {
-        o.add_options()("neighbors", cli::value<int>(8, "4|8"),
+        o.add_options()("neighbors", cli::value(upsample::UpsampleOptions{}.neighbors, "4|8"),
                         "new points per depth point: 4 or 8 colour-pixel neighbours")(
             "midpoints", "Algorithm B: midpoints of grid neighbours instead of colour pixels")(
             "capture", cli::value<std::string>("DIR"),
             "capture folder holding the views' frames (default: derived from "
-            "rgbd:view.source)")("sigma-spatial", cli::value<double>(1.0, "X"),
+            "rgbd:view.source)")("sigma-spatial",
+                                 cli::value(upsample::UpsampleOptions{}.sigma_spatial, "X"),
                                  "spatial sigma of the bilateral weight, in depth pixels")(
-            "sigma-color", cli::value<double>(24.0, "X"),
+            "sigma-color", cli::value(upsample::UpsampleOptions{}.sigma_color, "X"),
             "colour sigma of the bilateral weight, mean absolute RGB difference in 8-bit "
             "levels")(
-            "grazing-deg", cli::value<double>(80.0, "DEG"),
+            "grazing-deg", cli::value(upsample::UpsampleOptions{}.grazing_max_deg, "DEG"),
             "no new point where the colour ray meets the surface more obliquely than this")(
-            "theta-max-deg", cli::value<double>(75.0, "DEG"),
+            "theta-max-deg", cli::value(upsample::UpsampleOptions{}.theta_max_deg, "DEG"),
             "discontinuity gate: largest surface slope a depth step may come from");
     }};
 

@@ -67,7 +67,10 @@ template <typename T>
 po::typed_value<T>* value(const char* placeholder) {
     return po::value<T>()->value_name(placeholder);
 }
-/// An option value with a default and a placeholder: `value<double>(2.0, "X")`.
+/// An option value with a default and a placeholder: `value<double>(2.0, "X")`. Where the option
+/// sets a field of a library options struct, take the default from the struct,
+/// `value(denoise::DistanceOptions{}.c_min, "N")`: --help then shows the library's default, and
+/// the pipe of single tools and rgbd-reconstruct (which calls the library) cannot drift apart.
 template <typename T>
 po::typed_value<T>* value(const T& fallback, const char* placeholder) {
     return po::value<T>()->default_value(fallback)->value_name(placeholder);
