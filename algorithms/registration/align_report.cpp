@@ -12,6 +12,20 @@ namespace rgbd::registration {
 namespace {
 constexpr EnumName<Verdict> kVerdictNames[] = {
     {Verdict::kPass, "PASS"}, {Verdict::kWarn, "WARN"}, {Verdict::kFail, "FAIL"}};
+
+/// The fields a view (ViewAlignment) and a pair (PairAlignment) report alike: verdict and
+/// reason, fit, and disagreement with the final poses.
+template <typename Alignment>
+Report fit_report(const Alignment& a) {
+    Report j;
+    j["verdict"] = to_string(a.verdict);
+    if (!a.reason.empty()) j["reason"] = a.reason;
+    j["fitness"] = a.fitness;
+    j["inlier_rmse_m"] = a.inlier_rmse;
+    j["ring_rotation_deg"] = a.ring_rotation_deg;
+    j["ring_translation_m"] = a.ring_translation_m;
+    return j;
+}
 }  // namespace
 
 const char* to_string(Verdict verdict) { return name_of(kVerdictNames, verdict); }
@@ -58,21 +72,15 @@ Report MultiViewResult::to_json() const {
     r["time_s"] = time_s;
     r["views"] = Report::array();
     for (const ViewAlignment& v : views) {
-        Report j;
+        Report j = fit_report(v);
         j["view"] = v.view_id;
-        j["verdict"] = to_string(v.verdict);
         j["world_from_sensor"] = pose_to_3x4(v.world_from_sensor);
         j["correction"] = pose_to_3x4(v.correction);
-        j["fitness"] = v.fitness;
-        j["inlier_rmse_m"] = v.inlier_rmse;
         j["iterations"] = v.iterations;
         j["converged"] = v.converged;
         j["rotation_change_deg"] = v.rotation_change_deg;
         j["translation_change_m"] = v.translation_change_m;
-        j["ring_rotation_deg"] = v.ring_rotation_deg;
-        j["ring_translation_m"] = v.ring_translation_m;
         j["pairs"] = v.pairs;
-        if (!v.reason.empty()) j["reason"] = v.reason;
         r["views"].push_back(j);
     }
     r["times_s"] = {{"working_copies", working_time_s},
@@ -84,21 +92,15 @@ Report MultiViewResult::to_json() const {
     r["joint_only_fitness"] = joint_only_fitness;
     r["pairs"] = Report::array();
     for (const PairAlignment& p : pairs) {
-        Report j;
+        Report j = fit_report(p);
         j["target"] = p.target;
         j["source"] = p.source;
-        j["verdict"] = to_string(p.verdict);
-        if (!p.reason.empty()) j["reason"] = p.reason;
         j["method"] = p.method;
         j["target_from_source"] = pose_to_3x4(p.target_from_source);
-        j["fitness"] = p.fitness;
-        j["inlier_rmse_m"] = p.inlier_rmse;
         j["colour_rmse"] = p.colour_rmse;
         j["ransac_inliers"] = p.ransac_inliers;
         j["candidates"] = p.candidates;
         j["in_graph"] = p.in_graph;
-        j["ring_rotation_deg"] = p.ring_rotation_deg;
-        j["ring_translation_m"] = p.ring_translation_m;
         r["pairs"].push_back(j);
     }
     if (loop.found) {
