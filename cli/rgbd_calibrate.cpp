@@ -428,22 +428,15 @@ int main(int argc, char** argv) {
             "anchor", cli::po::value<std::string>()->value_name("ID"),
             "sensor whose pose is fixed (default: the first in rig.json)")(
             "refine", "refine the capture's rig.json on the object instead of a board")(
-            "frameset", cli::po::value<long long>()->default_value(0)->value_name("N"),
-            "--refine: the first frame set to register")(
-            "sets", cli::po::value<int>()->default_value(8)->value_name("N"),
+            "frameset", cli::value<long long>(0, "N"), "--refine: the first frame set to register")(
+            "sets", cli::value<int>(8, "N"),
             "--refine: frame sets (from --frameset on) whose depth is combined by a per-pixel "
             "median; the scene must stand still (pixels that change are left out)")(
-            "min-corners",
-            cli::po::value<int>()
-                ->default_value(calibration::DetectionOptions{}.min_corners)
-                ->value_name("N"),
+            "min-corners", cli::value<int>(calibration::DetectionOptions{}.min_corners, "N"),
             "board views with fewer corners are not used")(
-            "max-rms-px",
-            cli::po::value<double>()
-                ->default_value(calibration::DetectionOptions{}.max_rms_px)
-                ->value_name("PX"),
+            "max-rms-px", cli::value<double>(calibration::DetectionOptions{}.max_rms_px, "PX"),
             "board views whose pose reprojects worse are not used")(
-            "max-plane-mm", cli::po::value<double>()->default_value(20.0, "20")->value_name("MM"),
+            "max-plane-mm", cli::value<double>(20.0, "MM"),
             "board views whose plane lies farther from the depth are left out");
     };
     return cli::run_tool(argc, argv, spec, [&](cli::Context& ctx) {

@@ -523,32 +523,28 @@ int main(int argc, char** argv) {
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("rig", cli::po::value<std::string>()->value_name("FILE"),
                         "rig.json of the sensors to record (required)")(
-            "listen", cli::po::value<std::string>()->default_value("tcp://*:5555"),
+            "listen", cli::value<std::string>("tcp://*:5555", "ENDPOINT"),
             "frame endpoint to listen on")("control",
                                            cli::po::value<std::string>()->value_name("ENDPOINT"),
                                            "control endpoint (default: --listen's port + 1)")(
-            "tolerance-ms", cli::po::value<double>()->default_value(16.7),
+            "tolerance-ms", cli::value<double>(16.7, "MS"),
             "largest spread of a frame set (hub time)")(
-            "latency-ms", cli::po::value<double>()->default_value(1000.0),
+            "latency-ms", cli::value<double>(1000.0, "MS"),
             "wait this long for late frames before forming a set")(
-            "probes", cli::po::value<int>()->default_value(HubOptions{}.probes),
-            "clock probes per burst")(
-            "probe-interval-ms",
-            cli::po::value<double>()->default_value(HubOptions{}.probe_interval_ns / 1e6),
+            "probes", cli::value<int>(HubOptions{}.probes, "N"), "clock probes per burst")(
+            "probe-interval-ms", cli::value<double>(HubOptions{}.probe_interval_ns / 1e6, "MS"),
             "time between probe bursts per node")(
-            "drift-window-s", cli::po::value<double>()->default_value(HubOptions{}.drift_window_s),
+            "drift-window-s", cli::value<double>(HubOptions{}.drift_window_s, "S"),
             "fit offset and drift over this many seconds of bursts")(
-            "duration-s", cli::po::value<double>()->default_value(0.0),
+            "duration-s", cli::value<double>(0.0, "S"),
             "stop after S seconds (0 = until a signal)")(
             "exit-after-bye", "stop when every node that joined has finished")(
-            "start-lead-ms",
-            cli::po::value<double>()->default_value(HubOptions{}.start_lead_ns / 1e6),
+            "start-lead-ms", cli::value<double>(HubOptions{}.start_lead_ns / 1e6, "MS"),
             "the common start instant lies this far ahead of the moment it is fixed")(
-            "start-wait-s",
-            cli::po::value<double>()->default_value(HubOptions{}.start_wait_ns / 1e9),
+            "start-wait-s", cli::value<double>(HubOptions{}.start_wait_ns / 1e9, "S"),
             "every rig node starts on one common instant once all have joined; after this "
             "long the ones that joined start without the others (latecomers join the frame "
-            "grid)")("png-compression", cli::po::value<int>()->default_value(1),
+            "grid)")("png-compression", cli::value<int>(1, "LEVEL"),
                      "zlib level of the recorded depth PNGs (0-9; lossless at every level)")(
             "key", cli::po::value<std::string>()->value_name("FILE"),
             "CURVE key file: encrypt, and refuse nodes without the key")(
@@ -558,34 +554,30 @@ int main(int argc, char** argv) {
             "also stream the newest complete frame sets as views (a view stream, as rgbd-cloud "
             "makes from the recording) to FILE, a FIFO or - (stdout); a slow reader gets the "
             "newest set each time, the sets in between are skipped. Without -o nothing is "
-            "recorded")("live-sets", cli::po::value<long long>()->default_value(0)->value_name("N"),
+            "recorded")("live-sets", cli::value<long long>(0, "N"),
                         "with --live: stop after streaming N frame sets (0 = no limit)")(
             "video", cli::po::value<std::string>()->value_name("DIR"),
             "fuse every frame set into one coloured point cloud while capturing and write a "
             "3D video folder (video.json + Draco frames); without -o nothing else is recorded")(
-            "fuse-on", cli::po::value<std::string>()->default_value("nodes"),
+            "fuse-on", cli::value<std::string>("nodes", "WHERE"),
             "where the per-view work runs: nodes (they send cleaned world-frame views, as "
             "LiveScan3D's clients do) or hub (they send frames)")(
-            "voxel-mm",
-            cli::po::value<double>()->default_value(cli::VideoOptions{}.fusion.voxel_m * 1000.0),
+            "voxel-mm", cli::value<double>(cli::VideoOptions{}.fusion.voxel_m * 1000.0, "MM"),
             "voxel edge of the fused cloud (0 = the sensors' pixel footprint at the object)")(
             "crop-radius-m",
-            cli::po::value<double>()->default_value(
-                cli::VideoOptions{}.fusion.extraction.crop_radius_m),
+            cli::value<double>(cli::VideoOptions{}.fusion.extraction.crop_radius_m, "M"),
             "keep points within this distance of the rig's object centre (0 = no crop)")(
             "no-clean", "skip the per-view distance-based clean")(
             "draco-quantum-mm",
-            cli::po::value<double>()->default_value(cli::VideoOptions{}.draco.position_quantum_m *
-                                                    1000.0),
+            cli::value<double>(cli::VideoOptions{}.draco.position_quantum_m * 1000.0, "MM"),
             "Draco position grid of the video frames")(
-            "draco-color-bits",
-            cli::po::value<int>()->default_value(cli::VideoOptions{}.draco.color_bits),
+            "draco-color-bits", cli::value<int>(cli::VideoOptions{}.draco.color_bits, "BITS"),
             "colour bits per channel kept in the video frames (1-8)")(
-            "draco-speed", cli::po::value<int>()->default_value(cli::VideoOptions{}.draco.speed),
+            "draco-speed", cli::value<int>(cli::VideoOptions{}.draco.speed, "N"),
             "Draco encoding speed (0 = smallest, 10 = fastest)")(
             "serve", cli::po::value<int>()->value_name("PORT"),
             "with --video: serve the live fused stream as a web page on PORT")(
-            "bind", cli::po::value<std::string>()->default_value("127.0.0.1"),
+            "bind", cli::value<std::string>("127.0.0.1", "ADDRESS"),
             "address the --serve page listens on (another address lets remote viewers in)");
     };
     return cli::run_tool(argc, argv, spec, cli::zmq_errors_as_io_errors(run_capture));

@@ -463,13 +463,13 @@ int main(int argc, char** argv) {
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("sensor", cli::po::value<std::string>()->value_name("KIND:ARG"),
                         "the sensor (required): playback:FOLDER[#ID], synthetic:[ID]")(
-            "hub", cli::po::value<std::string>()->default_value("tcp://127.0.0.1:5555"),
+            "hub", cli::value<std::string>("tcp://127.0.0.1:5555", "ENDPOINT"),
             "the hub's frame endpoint")(
             "control", cli::po::value<std::string>()->value_name("ENDPOINT"),
             "the hub's control endpoint (default: the hub endpoint's port + 1)")(
-            "frames", cli::po::value<std::int64_t>()->default_value(0),
+            "frames", cli::value<std::int64_t>(0, "N"),
             "stop after N frames (0 = until the sensor ends)")(
-            "duration-s", cli::po::value<double>()->default_value(0.0),
+            "duration-s", cli::value<double>(0.0, "S"),
             "stop after S seconds of streaming (0 = no limit)")(
             "loop", "playback: start the recording again at its end")(
             "views",
@@ -481,19 +481,19 @@ int main(int argc, char** argv) {
             "no-align",
             "playback: do not put frame instants on the shared monotonic-clock grid (see "
             "sensors/playback/playback_sensor.hpp)")("no-color", "send depth only")(
-            "jpeg-quality", cli::po::value<int>()->default_value(90),
+            "jpeg-quality", cli::value<int>(90, "Q"),
             "JPEG quality for sensors that deliver raw colour (JPEG recordings are sent as is)")(
-            "clock-offset-ms", cli::po::value<double>()->default_value(0.0),
+            "clock-offset-ms", cli::value<double>(0.0, "MS"),
             "testing: run the node's clock this far ahead of the machine's")(
-            "clock-drift-ppm", cli::po::value<double>()->default_value(0.0),
+            "clock-drift-ppm", cli::value<double>(0.0, "PPM"),
             "testing: run the node's clock fast by this many parts per million")(
             "truth", cli::po::value<std::string>()->value_name("FILE"),
             "testing: write session,index,source_position,true_ns,node_ns per frame sent")(
             "key", cli::po::value<std::string>()->value_name("FILE"),
             "CURVE key file (rgbd-capture --make-key): encrypt and authenticate")(
-            "start-timeout-s", cli::po::value<double>()->default_value(30.0),
+            "start-timeout-s", cli::value<double>(30.0, "S"),
             "give up when the hub does not answer within S seconds (0 = wait forever)")(
-            "send-timeout-s", cli::po::value<double>()->default_value(30.0),
+            "send-timeout-s", cli::value<double>(30.0, "S"),
             "give up when the hub accepts no frame for S seconds");
     };
     return cli::run_tool(argc, argv, spec, cli::zmq_errors_as_io_errors(run_node));

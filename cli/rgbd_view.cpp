@@ -71,11 +71,11 @@ int main(int argc, char** argv) {
     spec.reads_stream = false;
     spec.writes_stream = false;
     spec.add_options = [](cli::po::options_description& o) {
-        o.add_options()("port", cli::po::value<int>()->default_value(8080),
+        o.add_options()("port", cli::value<int>(8080, "PORT"),
                         "port to listen on (0 = any free port; the URL is printed)")(
-            "bind", cli::po::value<std::string>()->default_value("127.0.0.1"),
+            "bind", cli::value<std::string>("127.0.0.1", "ADDRESS"),
             "address to listen on (0.0.0.0 lets other machines in)")(
-            "duration-s", cli::po::value<double>()->default_value(0.0),
+            "duration-s", cli::value<double>(0.0, "S"),
             "stop after S seconds (0 = until a signal)");
     };
     return cli::run_tool(argc, argv, spec, [](cli::Context& ctx) { run_view(ctx); });

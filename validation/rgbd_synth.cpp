@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
          "turntable truth: tilt of the true rotation axis from the nominal one, degrees")
         ("axis-shift-mm", po::value(&options.axis_shift_mm)->default_value(15.0, "15")
              ->value_name("M"), "turntable truth: horizontal offset of the true axis, mm")
-        ("angle-noise-deg", po::value(&options.angle_noise_deg)->default_value(0.2)
+        ("angle-noise-deg", po::value(&options.angle_noise_deg)->default_value(0.2, "0.2")
              ->value_name("D"), "turntable truth: std of each stop's angle error, degrees")
         ("stand", po::bool_switch(&options.stand),
          "turntable: render the platter the object stands on (dark disc, not in gt/mesh.ply)")

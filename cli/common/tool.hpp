@@ -15,9 +15,11 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include "io/ply_stream.hpp"
+#include "toolkit/error.hpp"
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
 
@@ -71,9 +73,15 @@ po::typed_value<T>* value(const char* placeholder) {
 /// sets a field of a library options struct, take the default from the struct,
 /// `value(denoise::DistanceOptions{}.c_min, "N")`: --help then shows the library's default, and
 /// the pipe of single tools and rgbd-reconstruct (which calls the library) cannot drift apart.
+/// --help writes a floating-point default as its shortest text ("0.6", not boost's
+/// "0.59999999999999998").
 template <typename T>
 po::typed_value<T>* value(const T& fallback, const char* placeholder) {
-    return po::value<T>()->default_value(fallback)->value_name(placeholder);
+    po::typed_value<T>* v = po::value<T>()->value_name(placeholder);
+    if constexpr (std::is_floating_point_v<T>)
+        return v->default_value(fallback, format_number(static_cast<double>(fallback)));
+    else
+        return v->default_value(fallback);
 }
 
 class Context;

@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "tests/support/ellipsoid_off.hpp"
 #include "tests/support/tool_runner.hpp"
@@ -49,6 +51,22 @@ TEST(Contract, EveryToolHasHelpVersionAndUsageErrors) {
         EXPECT_EQ(bad.code, 2);
         EXPECT_EQ(bad.err.rfind(std::string(tool) + ": error: ", 0), 0u) << bad.err;
         EXPECT_TRUE(bad.out.empty());
+    }
+}
+
+TEST(Contract, HelpNamesEveryValueAndWritesDefaultsShort) {
+    // "--tolerance-ms MS (=16.7)", not boost's bare "--tolerance-ms arg (=16.699999999999999)".
+    const std::regex bare_arg(R"(--[a-z0-9-]+ arg\b)");
+    const std::regex long_default(R"(\(=-?[0-9]*\.[0-9]{7,})");
+    std::vector<std::string> tools(std::begin(kTools), std::end(kTools));
+    tools.insert(tools.end(), {"rgbd-capture", "rgbd-node"});
+    for (const std::string& tool : tools) {
+        SCOPED_TRACE(tool);
+        const Outcome help = run("$BIN/" + tool + " --help");
+        ASSERT_EQ(help.code, 0);
+        std::smatch m;
+        EXPECT_FALSE(std::regex_search(help.out, m, bare_arg)) << m.str();
+        EXPECT_FALSE(std::regex_search(help.out, m, long_default)) << m.str();
     }
 }
 
