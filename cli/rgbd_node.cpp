@@ -257,7 +257,7 @@ void run_node(cli::Context& ctx) {
         if (start_timeout_s > 0 &&
             sensors::monotonic_ns() - wait_start > static_cast<std::int64_t>(start_timeout_s * 1e9))
             throw IoError("no answer from the hub at " + control + " within " +
-                          std::to_string(start_timeout_s) +
+                          format_number(start_timeout_s) +
                           " s (wrong address, hub not running, "
                           "or a key mismatch)");
         std::this_thread::sleep_for(std::chrono::milliseconds(10));

@@ -23,7 +23,7 @@ std::string view_name(const PointCloud& cloud) { return "view " + std::to_string
 PointCloud voxel_downsample(const PointCloud& cloud, double voxel_m) {
     RGBD_CHECK(std::isfinite(voxel_m) && voxel_m > 0.0, "voxel_downsample: " + view_name(cloud) +
                                                             ": voxel size must be positive, got " +
-                                                            std::to_string(voxel_m));
+                                                            format_number(voxel_m));
     PointCloud out;
     out.view = cloud.view;
     out.view.grid_width = 0;
@@ -49,7 +49,7 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_m) {
     }
     const Eigen::Vector3d extent = (hi - lo) / voxel_m;
     RGBD_CHECK(extent.maxCoeff() < static_cast<double>(kMaxCells - 1),
-               "voxel_downsample: " + view_name(cloud) + ": voxel " + std::to_string(voxel_m) +
+               "voxel_downsample: " + view_name(cloud) + ": voxel " + format_number(voxel_m) +
                    " m is too small for the extent of the cloud");
 
     // (voxel key, point position in xyz) pairs, a voxel's points consecutive.

@@ -115,11 +115,9 @@ Progress ProgressBar::callback() {
 // ---------------------------------------------------------------- Context
 
 Context::Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::string> inputs,
-                 std::vector<std::string> args)
+                 std::vector<std::string> args, int verbosity)
     : spec_(spec), vm_(std::move(vm)), inputs_(std::move(inputs)), args_(std::move(args)) {
-    verbosity_ =
-        vm_.count("verbose") ? static_cast<int>(vm_["verbose"].as<std::vector<bool>>().size()) : 0;
-    if (vm_.count("quiet")) verbosity_ = -1;
+    verbosity_ = vm_.count("quiet") ? -1 : verbosity;
     seed_ = vm_["seed"].as<std::uint64_t>();
     if (vm_.count("output")) {
         const std::string out = vm_["output"].as<std::string>();
@@ -466,9 +464,14 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
     };
 
     po::variables_map vm;
+    int verbosity = 0;
     try {
-        po::store(po::command_line_parser(argc, argv).options(all).positional(positional).run(),
-                  vm);
+        const po::parsed_options parsed =
+            po::command_line_parser(argc, argv).options(all).positional(positional).run();
+        po::store(parsed, vm);
+        // Each -v is one occurrence; the stored vector of a zero-token option stays empty.
+        for (const po::option& o : parsed.options)
+            if (o.string_key == "verbose") ++verbosity;
         if (vm.count("help")) {
             std::cout << help_text(spec, visible);
             return 0;
@@ -498,7 +501,7 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
             static_cast<std::size_t>(vm["threads"].as<int>()));
 
     try {
-        Context context(spec, vm, inputs, args);
+        Context context(spec, vm, inputs, args, verbosity);
         body(context);
         context.commit();
         return 0;

@@ -130,8 +130,9 @@ private:
 /// State of one tool run, handed to the tool's body.
 class Context {
 public:
+    /// `verbosity`: how often -v was given (--quiet overrides it with -1).
     Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::string> inputs,
-            std::vector<std::string> args);
+            std::vector<std::string> args, int verbosity);
     ~Context();
 
     const ToolSpec& spec() const { return spec_; }

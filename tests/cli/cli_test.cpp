@@ -113,6 +113,24 @@ TEST_F(Pipeline, PipesChainCarriesMetadataAndHistory) {
     }
 }
 
+TEST_F(Pipeline, VerboseShowsPerViewLinesQuietShowsNone) {
+    ASSERT_EQ(run("$BIN/rgbd-cloud cap -q > views.ply").code, 0);
+    const std::string line = "rgbd-clean: view 0: ";
+    const Outcome plain = run("$BIN/rgbd-clean --distance views.ply > /dev/null");
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    EXPECT_EQ(plain.err.find(line), std::string::npos) << plain.err;
+    for (const char* flag : {"-v", "--verbose", "-v -v", "-vv"}) {
+        SCOPED_TRACE(flag);
+        const Outcome verbose =
+            run(std::string("$BIN/rgbd-clean --distance views.ply ") + flag + " > /dev/null");
+        ASSERT_EQ(verbose.code, 0) << verbose.err;
+        EXPECT_NE(verbose.err.find(line), std::string::npos) << verbose.err;
+    }
+    const Outcome quiet = run("$BIN/rgbd-clean --distance views.ply -v -q > /dev/null");
+    ASSERT_EQ(quiet.code, 0);
+    EXPECT_TRUE(quiet.err.empty()) << quiet.err;
+}
+
 TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
     Outcome r =
         run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "
