@@ -230,13 +230,29 @@ std::vector<io::Document> Context::read_all_documents() {
     return documents;
 }
 
+namespace {
+fs::path output_folder(const std::string& output_path) {
+    const fs::path target(output_path);
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    RGBD_CHECK_AS(IoError, fs::is_directory(dir),
+                  output_path + ": folder " + dir.string() + " does not exist");
+    return dir;
+}
+}  // namespace
+
+void Context::check_output() const {
+    if (!spec_.writes_stream) return;
+    if (!output_path_.empty())
+        output_folder(output_path_);
+    else if (isatty(STDOUT_FILENO))
+        throw UsageError("refusing to write binary data to a terminal: use -o FILE or a pipe");
+}
+
 std::ostream& Context::out() {
     if (!output_path_.empty()) {
         if (!file_out_) {
             const fs::path target(output_path_);
-            const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-            RGBD_CHECK_AS(IoError, fs::is_directory(dir),
-                          output_path_ + ": folder " + dir.string() + " does not exist");
+            const fs::path dir = output_folder(output_path_);
             temp_path_ =
                 (dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid())))
                     .string();
@@ -244,11 +260,6 @@ std::ostream& Context::out() {
             RGBD_CHECK_AS(IoError, file_out_->good(), output_path_ + ": cannot open for writing");
         }
         return *file_out_;
-    }
-    if (!stdout_checked_) {
-        stdout_checked_ = true;
-        if (spec_.writes_stream && isatty(STDOUT_FILENO))
-            throw UsageError("refusing to write binary data to a terminal: use -o FILE or a pipe");
     }
     return std::cout;
 }
@@ -502,6 +513,7 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
 
     try {
         Context context(spec, vm, inputs, args, verbosity);
+        context.check_output();
         body(context);
         context.commit();
         return 0;

@@ -182,6 +182,10 @@ public:
     /// Appends one per-document result to metrics["documents"].
     void add_document_metrics(Report result);
 
+    /// Called by run_tool before the body, for tools that write a stream: fails at once, not
+    /// after the work, when the output would go to a terminal (UsageError) or into a folder that
+    /// does not exist (IoError).
+    void check_output() const;
     /// Called by run_tool after the body returned: renames the output and metrics files.
     void commit();
 
@@ -196,7 +200,6 @@ private:
     std::unique_ptr<std::ofstream> file_out_;
     std::string output_path_;
     std::string temp_path_;
-    bool stdout_checked_ = false;
     std::size_t documents_written_ = 0;
 };
 

@@ -107,6 +107,28 @@ TEST(FailureContract, EveryToolFailsWithOneLineNamingTheFileAndNoOutput) {
     }
 }
 
+// A stream tool checks where its output goes before it reads anything: the error names the
+// missing output folder or the terminal, not the garbage input it never read.
+TEST(FailureContract, OutputIsCheckedBeforeTheWork) {
+    make_inputs();
+    for (const char* tool : {"rgbd-clean", "rgbd-align", "rgbd-mesh", "rgbd-fill"}) {
+        SCOPED_TRACE(tool);
+        const Outcome folder =
+            run(std::string("$BIN/") + tool + " garbage.ply -o no-such-folder/out.ply");
+        EXPECT_EQ(folder.code, 1) << folder.err;
+        EXPECT_NE(folder.err.find("no-such-folder"), std::string::npos) << folder.err;
+        EXPECT_EQ(folder.err.find("garbage.ply"), std::string::npos) << folder.err;
+        // script(1) gives the tool a terminal as stdout (and stderr: its messages come out on
+        // script's stdout).
+        const Outcome tty =
+            run(std::string("script -qec \"$BIN/") + tool + " garbage.ply\" /dev/null");
+        EXPECT_EQ(tty.code, 2) << tty.out;
+        EXPECT_NE(tty.out.find("refusing to write binary data to a terminal"), std::string::npos)
+            << tty.out;
+        EXPECT_EQ(tty.out.find("garbage.ply"), std::string::npos) << tty.out;
+    }
+}
+
 namespace {
 
 struct BadValue {
