@@ -420,6 +420,7 @@ int main(int argc, char** argv) {
         "  rgbd-calibrate board -o rig.json && cp rig.json capture/rig.json\n"
         "  rgbd-calibrate capture --refine -o rig_refined.json";
     spec.writes_stream = false;
+    spec.writes_file = true;
     spec.reads_stream = false;
     spec.add_options = [](cli::po::options_description& o) {
         o.add_options()("board", cli::po::value<std::string>()->value_name("FILE.json"),

@@ -109,9 +109,9 @@ void run_clean(cli::Context& ctx) {
         throw cli::UsageError(e.what());
     }
 
-    auto bar = ctx.progress("clean");
     if (method == Method::kDensity) {
         std::vector<io::Document> documents = ctx.read_all_documents();
+        auto bar = ctx.progress("clean");
         std::vector<PointCloud> views;
         std::vector<std::size_t> slots;
         for (std::size_t d = 0; d < documents.size(); ++d)
@@ -135,7 +135,9 @@ void run_clean(cli::Context& ctx) {
     }
 
     bool fallback_noted = false;
+    std::unique_ptr<cli::ProgressBar> bar;  // from the first view on: bad input fails without it
     ctx.for_each_view([&](PointCloud& cloud) {
+        if (!bar) bar.reset(new cli::ProgressBar(ctx.progress("clean")));
         if (cloud.empty()) ctx.warn("view " + std::to_string(cloud.view.id) + " has no points");
         Method use = method;
         if (use == Method::kAuto) {
@@ -154,13 +156,13 @@ void run_clean(cli::Context& ctx) {
         Report report;
         switch (use) {
             case Method::kDistance:
-                report = denoise::remove_distance_outliers(cloud, distance, bar.callback());
+                report = denoise::remove_distance_outliers(cloud, distance, bar->callback());
                 break;
             case Method::kRadius:
-                report = denoise::remove_radius_outliers(cloud, radius_options, bar.callback());
+                report = denoise::remove_radius_outliers(cloud, radius_options, bar->callback());
                 break;
             default:
-                report = denoise::remove_statistical_outliers(cloud, statistical, bar.callback());
+                report = denoise::remove_statistical_outliers(cloud, statistical, bar->callback());
                 break;
         }
         // Throws naming the view when it has no grid (--statistical fallback).

@@ -477,6 +477,7 @@ const cli::ToolSpec kSpec{
         "screened-poisson --report bust_report/",
     .writes_stream = false,
     .reads_stream = false,
+    .writes_file = true,
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("reference", cli::value<std::string>("MESH"),
                         "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(

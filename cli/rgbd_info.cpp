@@ -272,6 +272,7 @@ const cli::ToolSpec kSpec{
         "a view for the rest of the pipeline.",
     .example = "rgbd-cloud cap/ | rgbd-info --json",
     .writes_stream = false,
+    .writes_file = true,
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("json", "print JSON instead of text")(
             "frame", cli::po::value<long long>()->value_name("N"),

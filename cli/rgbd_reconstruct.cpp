@@ -268,6 +268,7 @@ const cli::ToolSpec kSpec{
     .example = "rgbd-reconstruct cap/ -o bust.ply --report report/",
     .writes_stream = false,
     .reads_stream = false,
+    .writes_file = true,
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("report", cli::value<std::string>("DIR"),
                         "report folder (default: MESH without extension + _report)")(

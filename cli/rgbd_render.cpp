@@ -149,6 +149,7 @@ const cli::ToolSpec kSpec{
     .example = "rgbd-render bust.ply -o bust.png --view front --width 800 --height 800",
     .writes_stream = false,
     .reads_stream = false,
+    .writes_file = true,
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("view", cli::value<std::string>("auto", "NAME"),
                         "auto, front, back, left, right or top")(

@@ -2,6 +2,7 @@
 // §5).
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "algorithms/upsample/upsample_view.hpp"
@@ -75,8 +76,9 @@ void run_upsample(cli::Context& ctx) {
         throw cli::UsageError(e.what());
     }
     Captures captures(ctx.options().count("capture") ? ctx.get<std::string>("capture") : "");
-    auto bar = ctx.progress("upsample");
+    std::unique_ptr<cli::ProgressBar> bar;  // from the first view on: bad input fails without it
     ctx.for_each_view([&](PointCloud& cloud) {
+        if (!bar) bar.reset(new cli::ProgressBar(ctx.progress("upsample")));
         if (!cloud.view.has_grid())
             throw InputError(view_label(cloud) +
                              ": the view has no pixel grid (rgbd:grid); rgbd-upsample needs "
@@ -101,7 +103,7 @@ void run_upsample(cli::Context& ctx) {
                              " of sensor '" + sensor + "' has no colour image in capture " +
                              capture.root.string());
         const RgbdFrame frame = io::load_frame(capture, sensor, *position);
-        Report report = upsample::upsample_view(cloud, frame, options, bar.callback());
+        Report report = upsample::upsample_view(cloud, frame, options, bar->callback());
         report["view"] = cloud.view.id;
         ctx.add_document_metrics(report);
         ctx.info(view_label(cloud) + ": " + report.dump());

@@ -241,11 +241,11 @@ fs::path output_folder(const std::string& output_path) {
 }  // namespace
 
 void Context::check_output() const {
-    if (!spec_.writes_stream) return;
-    if (!output_path_.empty())
-        output_folder(output_path_);
-    else if (isatty(STDOUT_FILENO))
+    if (!output_path_.empty()) {
+        if (spec_.writes_stream || spec_.writes_file) output_folder(output_path_);
+    } else if (spec_.writes_stream && isatty(STDOUT_FILENO)) {
         throw UsageError("refusing to write binary data to a terminal: use -o FILE or a pipe");
+    }
 }
 
 std::ostream& Context::out() {

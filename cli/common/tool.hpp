@@ -61,6 +61,9 @@ struct ToolSpec {
     bool reads_cloud_files = false;
     bool whole_stream =
         false;  ///< reads the whole stream before writing ("reads the whole stream")
+    /// -o names a file the tool writes itself (a mesh, a picture, JSON): like a stream tool's,
+    /// its folder must exist before the work starts. (Not for a folder the tool creates.)
+    bool writes_file = false;
     std::function<void(po::options_description&)> add_options;  ///< tool-specific options
 };
 
@@ -182,9 +185,9 @@ public:
     /// Appends one per-document result to metrics["documents"].
     void add_document_metrics(Report result);
 
-    /// Called by run_tool before the body, for tools that write a stream: fails at once, not
-    /// after the work, when the output would go to a terminal (UsageError) or into a folder that
-    /// does not exist (IoError).
+    /// Called by run_tool before the body: fails at once, not after the work, when a stream
+    /// tool's output would go to a terminal (UsageError) or when -o of a stream tool or of a
+    /// `writes_file` tool names a folder that does not exist (IoError).
     void check_output() const;
     /// Called by run_tool after the body returned: renames the output and metrics files.
     void commit();

@@ -127,6 +127,20 @@ TEST(FailureContract, OutputIsCheckedBeforeTheWork) {
             << tty.out;
         EXPECT_EQ(tty.out.find("garbage.ply"), std::string::npos) << tty.out;
     }
+    // Tools that write a file of their own (a mesh after the whole method, a picture, JSON).
+    for (const char* command :
+         {"rgbd-reconstruct badcap -q -o no-such-folder/out.ply",
+          "rgbd-render garbage.ply -o "
+          "no-such-folder/out.png",
+          "rgbd-eval garbage.ply --reference garbage.off -o no-such-folder/out.json",
+          "rgbd-calibrate badcap -o no-such-folder/out.json"}) {
+        SCOPED_TRACE(command);
+        const Outcome r = run(std::string("$BIN/") + command);
+        EXPECT_EQ(r.code, 1) << r.err;
+        EXPECT_EQ(line_count(r.err), 1) << r.err;
+        EXPECT_NE(r.err.find("no-such-folder"), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(temp_root() / "no-such-folder"));
+    }
 }
 
 namespace {
