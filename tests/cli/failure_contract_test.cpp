@@ -143,6 +143,19 @@ TEST(FailureContract, OutputIsCheckedBeforeTheWork) {
     }
 }
 
+// Input that arrives late and is bad: still exactly the one error line (no progress heartbeat
+// before it, which a stage started before its input would print after a second).
+TEST(FailureContract, SlowBadInputGivesOneLine) {
+    for (const char* tool : {"rgbd-clean", "rgbd-upsample"}) {
+        SCOPED_TRACE(tool);
+        const Outcome r =
+            run(std::string("(sleep 1.3; echo garbage) | $BIN/") + tool + " -o out.ply");
+        EXPECT_EQ(r.code, 1) << r.err;
+        EXPECT_EQ(line_count(r.err), 1) << r.err;
+        EXPECT_FALSE(fs::exists(temp_root() / "out.ply"));
+    }
+}
+
 namespace {
 
 struct BadValue {
