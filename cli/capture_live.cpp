@@ -1,6 +1,5 @@
 #include "cli/capture_live.hpp"
 
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -9,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli/common/tool.hpp"
+#include "io/output_path.hpp"
 #include "io/ply_stream.hpp"
 #include "toolkit/error.hpp"
 
@@ -92,16 +92,6 @@ RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv:
     return rgbd;
 }
 
-namespace {
-
-/// A FIFO, a character device (/dev/null) or a socket: written directly, never renamed over.
-bool is_special(const std::string& path) {
-    struct stat st {};
-    return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
-}
-
-}  // namespace
-
 LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& context,
                        std::function<int(std::int64_t)> on_disk,
                        std::function<std::string(const std::string&, std::int64_t)> depth_file)
@@ -115,7 +105,7 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
     if (options_.path == "-") {
         out_ = &std::cout;
     } else {
-        const bool special = is_special(options_.path);
+        const bool special = io::writes_in_place(options_.path);
         if (!special) {
             const fs::path target(options_.path);
             const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "io/mesh_io.hpp"
+#include "io/output_path.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::cli {
@@ -236,11 +237,14 @@ fs::path output_folder(const std::string& output_path) {
     const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
     RGBD_CHECK_AS(IoError, fs::is_directory(dir),
                   output_path + ": folder " + dir.string() + " does not exist");
+    RGBD_CHECK_AS(IoError, !fs::is_directory(target), output_path + ": is a folder, not a file");
     return dir;
 }
 }  // namespace
 
 void Context::check_output() const {
+    if (vm_.count("metrics") && vm_["metrics"].as<std::string>() != "-")
+        output_folder(vm_["metrics"].as<std::string>());
     if (!output_path_.empty()) {
         if (spec_.writes_stream || spec_.writes_file) output_folder(output_path_);
     } else if (spec_.writes_stream && isatty(STDOUT_FILENO)) {
@@ -253,10 +257,14 @@ std::ostream& Context::out() {
         if (!file_out_) {
             const fs::path target(output_path_);
             const fs::path dir = output_folder(output_path_);
-            temp_path_ =
-                (dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid())))
-                    .string();
-            file_out_ = std::make_unique<std::ofstream>(temp_path_, std::ios::binary);
+            // A regular file is written atomically (a temporary renamed at commit); /dev/null
+            // or a FIFO in place (io/output_path.hpp).
+            if (!io::writes_in_place(target))
+                temp_path_ =
+                    (dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid())))
+                        .string();
+            file_out_ = std::make_unique<std::ofstream>(
+                temp_path_.empty() ? output_path_ : temp_path_, std::ios::binary);
             RGBD_CHECK_AS(IoError, file_out_->good(), output_path_ + ": cannot open for writing");
         }
         return *file_out_;
@@ -283,39 +291,51 @@ void Context::add_document_metrics(Report result) {
 }
 
 void Context::commit() {
+    // Both files are complete as temporaries before either is renamed into place: a run that
+    // fails here leaves neither (the destructor removes the output's temporary).
     if (file_out_) {
         file_out_->flush();
         const bool ok = file_out_->good();
         file_out_->close();
         RGBD_CHECK_AS(IoError, ok, output_path_ + ": write failed (disk full?)");
+    } else if (output_path_.empty()) {
+        std::cout.flush();
+        RGBD_CHECK_AS(IoError, std::cout.good(), "<stdout>: write failed");
+    }
+    std::string metrics_path, metrics_temp;
+    if (vm_.count("metrics")) {
+        metrics_path = vm_["metrics"].as<std::string>();
+        metrics_["status"] = "ok";
+        const std::string text = metrics_.dump(2) + "\n";
+        if (metrics_path == "-") {
+            std::cout << text << std::flush;
+            metrics_path.clear();
+        } else {
+            metrics_temp = io::writes_in_place(metrics_path)
+                               ? std::string()
+                               : metrics_path + ".tmp" + std::to_string(::getpid());
+            std::ofstream m(metrics_temp.empty() ? metrics_path : metrics_temp, std::ios::binary);
+            RGBD_CHECK_AS(IoError, m.good(), metrics_path + ": cannot open for writing");
+            m << text;
+            m.flush();
+            if (!m.good()) {
+                std::error_code ec;
+                if (!metrics_temp.empty()) fs::remove(metrics_temp, ec);
+                throw IoError(metrics_path + ": write failed");
+            }
+        }
+    }
+    if (file_out_ && !temp_path_.empty()) {
         std::error_code ec;
         fs::rename(temp_path_, output_path_, ec);
         RGBD_CHECK_AS(IoError, !ec, output_path_ + ": cannot rename into place: " + ec.message());
         temp_path_.clear();
         file_out_.reset();
-    } else if (output_path_.empty()) {
-        std::cout.flush();
-        RGBD_CHECK_AS(IoError, std::cout.good(), "<stdout>: write failed");
     }
-    if (vm_.count("metrics")) {
-        const std::string path = vm_["metrics"].as<std::string>();
-        metrics_["status"] = "ok";
-        const std::string text = metrics_.dump(2) + "\n";
-        if (path == "-") {
-            std::cout << text << std::flush;
-        } else {
-            const std::string temp = path + ".tmp" + std::to_string(::getpid());
-            {
-                std::ofstream m(temp, std::ios::binary);
-                RGBD_CHECK_AS(IoError, m.good(), path + ": cannot open for writing");
-                m << text;
-                m.flush();
-                RGBD_CHECK_AS(IoError, m.good(), path + ": write failed");
-            }
-            std::error_code ec;
-            fs::rename(temp, path, ec);
-            RGBD_CHECK_AS(IoError, !ec, path + ": cannot rename into place: " + ec.message());
-        }
+    if (!metrics_temp.empty()) {
+        std::error_code ec;
+        fs::rename(metrics_temp, metrics_path, ec);
+        RGBD_CHECK_AS(IoError, !ec, metrics_path + ": cannot rename into place: " + ec.message());
     }
 }
 

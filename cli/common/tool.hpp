@@ -187,7 +187,7 @@ public:
 
     /// Called by run_tool before the body: fails at once, not after the work, when a stream
     /// tool's output would go to a terminal (UsageError) or when -o of a stream tool or of a
-    /// `writes_file` tool names a folder that does not exist (IoError).
+    /// `writes_file` tool, or --metrics FILE, names a folder that does not exist (IoError).
     void check_output() const;
     /// Called by run_tool after the body returned: renames the output and metrics files.
     void commit();

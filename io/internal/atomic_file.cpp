@@ -7,6 +7,7 @@
 #include <string>
 #include <system_error>
 
+#include "io/output_path.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io::internal {
@@ -27,6 +28,14 @@ std::filesystem::path temporary_path(const std::filesystem::path& path) {
 void write_file_atomic(const std::filesystem::path& path,
                        const std::function<void(std::ostream&)>& fill) {
     if (path.filename().empty()) throw IoError(path.string() + ": not a file name");
+    if (writes_in_place(path)) {  // /dev/null, /dev/stdout, a FIFO: no temporary, no rename
+        std::ofstream out(path, std::ios::binary);
+        if (!out) throw IoError(path.string() + ": cannot open for writing");
+        fill(out);
+        out.flush();
+        if (!out) throw IoError(path.string() + ": write failed");
+        return;
+    }
     const std::filesystem::path tmp = temporary_path(path);
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out)

@@ -131,6 +131,27 @@ TEST_F(Pipeline, VerboseShowsPerViewLinesQuietShowsNone) {
     EXPECT_TRUE(quiet.err.empty()) << quiet.err;
 }
 
+TEST_F(Pipeline, OutputsIntoFifosStayFifos) {
+    // -o and --metrics naming a FIFO (or /dev/null) are written in place: the atomic writers'
+    // rename would replace it with a regular file (as it once replaced /dev/null).
+    ASSERT_EQ(run("$BIN/rgbd-cloud cap -q > fifo_views.ply").code, 0);
+    const Outcome r =
+        run("rm -f s.fifo m_fifo.ply j.fifo && mkfifo s.fifo m_fifo.ply j.fifo && "
+            "{ timeout 60 cat s.fifo > s_got.ply & timeout 60 cat m_fifo.ply > m.got & "
+            "timeout 60 cat j.fifo > j.got & } && "
+            "$BIN/rgbd-clean --statistical fifo_views.ply -q -o s.fifo --metrics j.fifo && "
+            "$BIN/rgbd-mesh fifo_views.ply -q -o m_fifo.ply && wait && "
+            "test -p s.fifo && test -p m_fifo.ply && test -p j.fifo");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Outcome info = run("$BIN/rgbd-info --json s_got.ply");
+    ASSERT_EQ(info.code, 0) << info.err;
+    EXPECT_EQ(nlohmann::json::parse(info.out)[0]["documents"].size(), 6u);
+    EXPECT_EQ(slurp(temp_root() / "m.got").rfind("ply\n", 0), 0u);
+    EXPECT_EQ(nlohmann::json::parse(slurp(temp_root() / "j.got"))["status"], "ok");
+    for (const auto& e : fs::directory_iterator(temp_root()))
+        EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+}
+
 TEST_F(Pipeline, PipesEndToEndMeshHasHighFScore) {
     Outcome r =
         run("$BIN/rgbd-cloud cap | $BIN/rgbd-clean --statistical | $BIN/rgbd-align | "

@@ -3,13 +3,18 @@
 #include "io/mesh_io.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
+#include <string>
+#include <thread>
 
+#include "io/output_path.hpp"
 #include "io/ply_stream.hpp"
 #include "tests/support/input_error.hpp"
 #include "tests/support/shared_data.hpp"
@@ -110,6 +115,29 @@ TEST(MeshIo, AtomicWriteLeavesNothingOnError) {
     } catch (const IoError& e) {
         EXPECT_NE(std::string(e.what()).find("such.ply"), std::string::npos);
     }
+    fs::remove_all(dir);
+}
+
+TEST(MeshIo, SpecialFilesAreWrittenInPlace) {
+    const fs::path dir = temp_dir("special");
+    { std::ofstream(dir / "regular.xyz") << "1 2 3\n"; }
+    EXPECT_FALSE(writes_in_place(dir / "regular.xyz"));
+    EXPECT_FALSE(writes_in_place(dir));
+    EXPECT_FALSE(writes_in_place(dir / "missing.ply"));
+    EXPECT_TRUE(writes_in_place("/dev/null"));
+    const fs::path fifo = dir / "mesh.ply";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    EXPECT_TRUE(writes_in_place(fifo));
+    // A reader drains the FIFO while the mesh is written into it; the FIFO stays a FIFO.
+    std::string got;
+    std::thread reader([&] {
+        std::ifstream in(fifo, std::ios::binary);
+        got.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    });
+    write_mesh(fifo, colored_cube_mesh());
+    reader.join();
+    EXPECT_EQ(fs::status(fifo).type(), fs::file_type::fifo);
+    EXPECT_EQ(got.rfind("ply\n", 0), 0u);
     fs::remove_all(dir);
 }
 
