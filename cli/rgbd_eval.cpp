@@ -242,10 +242,15 @@ void run_eval(cli::Context& ctx) {
     double trim = 0;
     std::pair<int, int> picture_size{640, 480};
     try {
+        // In the options' millimetres (the library's checks would quote metres).
         options.taus_m.clear();
-        for (double t : cli::parse_doubles(ctx.get<std::string>("tau-mm"), "tau-mm"))
+        for (double t : cli::parse_doubles(ctx.get<std::string>("tau-mm"), "tau-mm")) {
+            check_range("--tau-mm", t, Range::open_closed(0, 1e6), "mm");
             options.taus_m.push_back(t / 1000.0);
-        options.invented_tau_m = ctx.get<double>("invented-tau-mm") / 1000.0;
+        }
+        const double invented_tau_mm = ctx.get<double>("invented-tau-mm");
+        check_range("--invented-tau-mm", invented_tau_mm, Range::open_closed(0, 1e6), "mm");
+        options.invented_tau_m = invented_tau_mm / 1000.0;
         options.samples = ctx.get<std::size_t>("samples");
         options.seed = ctx.seed();
         options.check();

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/report.hpp"
@@ -199,7 +200,7 @@ int main(int argc, char** argv) {
             }
             options.check();
         } catch (const rgbd::InputError& e) {
-            throw UsageError(e.what());
+            throw UsageError(e.what() + rgbd::cli::option_named_by(e.what(), vm));
         }
         if (charuco && !board_path.empty()) {
             std::ifstream in(board_path);

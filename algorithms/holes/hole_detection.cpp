@@ -75,7 +75,8 @@ void BoundaryOptions::check() const {
     check_range("holes: min loop points", min_loop_points, Range::closed(1, 100000));
     check_range("holes: small-hole diameter", small_max_diameter, Range::open_closed(0, 1e4),
                 "spacings");
-    RGBD_CHECK(small_max_points >= 1, "holes: small-hole point limit must be >= 1");
+    RGBD_CHECK(small_max_points >= 1, "holes: small-hole point limit must be >= 1, got " +
+                                          std::to_string(small_max_points));
     RGBD_CHECK(std::isfinite(hysteresis_threshold) && hysteresis_threshold >= 0 &&
                    hysteresis_threshold <= threshold,
                "holes: hysteresis threshold must be in [0, threshold]");

@@ -47,8 +47,9 @@ void FillOptions::check() const {
     RGBD_CHECK(std::isfinite(duplicate_distance) && duplicate_distance > 0 &&
                    duplicate_distance < step * 1.5,
                "fill: duplicate distance must be in (0, 1.5 x step)");
-    RGBD_CHECK(std::isfinite(max_fit_rms) && max_fit_rms > 0,
-               "fill: the quadric's residual limit must be positive");
+    RGBD_CHECK(
+        std::isfinite(max_fit_rms) && max_fit_rms > 0,
+        "fill: the quadric's residual limit must be positive, got " + format_number(max_fit_rms));
     check_range("fill: max_sweeps", max_sweeps, Range::closed(1, 1000));
     check_range("fill: grid clearance", grid_clearance, Range::open_closed(0, 5), "spacings");
     check_range("fill: inside gap", inside_max_gap_deg, Range::open(30, 360), "degrees");

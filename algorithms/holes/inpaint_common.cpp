@@ -33,9 +33,11 @@ void InpaintOptions::check() const {
     check_range("inpaint: top component share", top_component, Range::closed(0, 1));
     check_visibility("inpaint", visible_max_angle_deg, ray_clearance);
     RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,
-               "inpaint: the ellipsoid's residual limit must be positive");
+               "inpaint: the ellipsoid's residual limit must be positive, got " +
+                   format_number(max_ellipsoid_rms));
     RGBD_CHECK(std::isfinite(max_biharmonic_slope) && max_biharmonic_slope >= 0,
-               "inpaint: the biharmonic slope limit must not be negative");
+               "inpaint: the biharmonic slope limit must not be negative, got " +
+                   format_number(max_biharmonic_slope));
     check_range("inpaint: the open rim share", max_open_rim, Range::closed(0, 1));
     RGBD_CHECK(max_step_rms > 0, "inpaint: the step test's RMS limit must be positive");
     check_range("inpaint: the contradicted share", max_contradicted, Range::closed(0, 1));

@@ -423,8 +423,8 @@ Orientation guess_orientation(const std::vector<Pose>& sensors, const Eigen::Vec
 }
 
 void CameraOptions::check() const {
-    RGBD_CHECK(width >= 16 && width <= 16384 && height >= 16 && height <= 16384,
-               "picture size must be 16..16384 pixels per side");
+    check_range("picture width", width, Range::closed(16, 16384), "pixels");
+    check_range("picture height", height, Range::closed(16, 16384), "pixels");
     RGBD_CHECK(!azimuth_deg || std::isfinite(*azimuth_deg), "azimuth must be finite");
     RGBD_CHECK(!elevation_deg || (std::isfinite(*elevation_deg) && std::abs(*elevation_deg) <= 90),
                "elevation must be within -90..90 degrees");
@@ -497,10 +497,11 @@ Camera fit_camera(const std::vector<Eigen::Vector3d>& points, const Orientation&
 }
 
 void PictureOptions::check() const {
-    RGBD_CHECK(std::isfinite(point_radius_px) && point_radius_px >= 0 && point_radius_px <= 100,
-               "point radius must be 0..100 pixels");
-    RGBD_CHECK(!scalar_min || std::isfinite(*scalar_min), "value range must be finite");
-    RGBD_CHECK(!scalar_max || std::isfinite(*scalar_max), "value range must be finite");
+    check_range("point radius", point_radius_px, Range::closed(0, 100), "pixels");
+    RGBD_CHECK(!scalar_min || std::isfinite(*scalar_min),
+               "value range minimum must be finite, got " + format_number(*scalar_min));
+    RGBD_CHECK(!scalar_max || std::isfinite(*scalar_max),
+               "value range maximum must be finite, got " + format_number(*scalar_max));
     RGBD_CHECK(!(scalar_min && scalar_max) || *scalar_min < *scalar_max,
                "value range minimum must be below its maximum");
     RGBD_CHECK(std::isfinite(scalar_display_scale) && scalar_display_scale != 0,

@@ -397,6 +397,30 @@ std::vector<double> parse_doubles(const std::string& text, const std::string& op
 
 // ---------------------------------------------------------------- run_tool
 
+namespace {
+/// A numeric option value as check_range's messages write it ("got 1e300", "got -1").
+std::optional<std::string> number_text(const boost::any& value) {
+    if (const auto* d = boost::any_cast<double>(&value)) return format_number(*d);
+    if (const auto* i = boost::any_cast<int>(&value)) return std::to_string(*i);
+    if (const auto* l = boost::any_cast<long long>(&value)) return std::to_string(*l);
+    if (const auto* l = boost::any_cast<long>(&value)) return std::to_string(*l);
+    if (const auto* u = boost::any_cast<unsigned long>(&value)) return std::to_string(*u);
+    return std::nullopt;
+}
+/// Whether `message` says "got <number>" with nothing numeric right after it.
+bool quotes_number(const std::string& message, const std::string& number) {
+    const std::string quoted = "got " + number;
+    for (std::size_t at = message.find(quoted); at != std::string::npos;
+         at = message.find(quoted, at + 1)) {
+        const std::size_t end = at + quoted.size();
+        if (end == message.size() ||
+            !(std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '.'))
+            return true;
+    }
+    return false;
+}
+}  // namespace
+
 std::string option_named_by(const std::string& message, const po::variables_map& vm) {
     if (message.find("--") != std::string::npos) return "";
     std::vector<std::string> identifiers;  // the message's words (field names have '_')
@@ -419,9 +443,12 @@ std::string option_named_by(const std::string& message, const po::variables_map&
             value.value().type() == typeid(bool) ||
             value.value().type() == typeid(std::vector<bool>))
             continue;
-        if (const auto* text = boost::any_cast<std::string>(&value.value()))
+        if (const auto* text = boost::any_cast<std::string>(&value.value())) {
             if (!text->empty() && message.find("'" + *text + "'") != std::string::npos)
                 by_value.push_back(name);
+        } else if (const auto number = number_text(value.value())) {
+            if (quotes_number(message, *number)) by_value.push_back(name);
+        }
         std::string snake = name;
         std::replace(snake.begin(), snake.end(), '-', '_');
         if (std::find(identifiers.begin(), identifiers.end(), snake) != identifiers.end())

@@ -38,8 +38,9 @@ public:
 /// The command-line option a usage error is about, as " (--name)", when the message does not
 /// name one itself: many come from an options struct's check() and name its field
 /// ("depth window z_min_m must be >= 0") or quote the bad value ("unknown noise model
-/// 'bogus'"). Of the options given with a value on the command line, the first of these
-/// that fits exactly one: the option whose value the message quotes; whose name written with
+/// 'bogus'", "... got 1e300"). Of the options given with a value on the command line, the
+/// first of these that fits exactly one: the option whose value the message quotes (a text in
+/// quotes, a number after "got"); whose name written with
 /// underscores is a field name of the message (std-ratio: std_ratio); is a word of it
 /// (alpha); matches a field name up to a '_' (z-min: z_min_m; theta-max-deg: theta_max).
 /// "" when none fits or several do.

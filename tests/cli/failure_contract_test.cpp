@@ -179,6 +179,14 @@ const BadValue kBadValues[] = {
     {"rgbd-mesh small.ply --method marching -o out.ply", "--method"},
     {"rgbd-fill small.ply --colour-inpaint blur -o out.ply", "--colour-inpaint"},
     {"rgbd-upsample small.ply --theta-max-deg 120 -o out.ply", "--theta-max-deg"},
+    // Prose messages that quote the value ("got -1"): the driver names the option.
+    {"rgbd-fill small.ply --inpaint-pixel -1 -o out.ply", "--inpaint-pixel"},
+    {"rgbd-fill small.ply --max-fit-rms nan -o out.ply", "--max-fit-rms"},
+    {"rgbd-render small.ply --width 5 -o out.png", "--width"},
+    {"rgbd-render small.ply --point-size 1e300 -o out.png", "--point-size"},
+    {"rgbd-eval small.ply --reference small.ply --invented-tau-mm -1 -o out.json",
+     "--invented-tau-mm"},
+    {"rgbd-synth garbage.off --resolution-scale 9 -o out_capture", "--resolution-scale"},
     {"rgbd-eval small.ply --reference small.ply --report-size 3x3 --report out_report -o "
      "out.json",
      "--report-size"},

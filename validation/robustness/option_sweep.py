@@ -31,7 +31,7 @@ BAD_VALUES = ["-1", "nan", "1e300", "bogus"]
 SKIP = {"help", "version", "output", "metrics", "input", "debug", "report", "listen", "hub",
         "control", "key", "server-key", "truth", "live", "rig", "reference", "points",
         "board", "mask", "baseline-points", "save-stages", "sensor", "o", "stages-dir",
-        "make-key", "gt-poses", "capture"}
+        "make-key", "gt-poses", "capture", "video"}
 
 
 def ellipsoid_off(path, nu=32, nv=16, rx=0.3, ry=0.5, rz=0.25):

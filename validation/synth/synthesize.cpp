@@ -110,8 +110,8 @@ void SynthOptions::check() const {
     texture.check();
     RGBD_CHECK(motion == MotionKind::kNone || rig == RigKind::kRing,
                "a moving object needs the ring rig");
-    RGBD_CHECK(std::isfinite(motion_deg) && std::abs(motion_deg) <= 3600,
-               "motion must be within +-3600 deg (per second for a turn)");
+    check_range("motion_deg (degrees per second for a turn, amplitude for a nod)", motion_deg,
+                Range::closed(-3600, 3600));
     check_range("motion period", motion_period_s, Range::open(0, 3600), "s");
 }
 
