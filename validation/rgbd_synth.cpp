@@ -15,7 +15,6 @@
 #include <string>
 #include <vector>
 
-#include "cli/common/tool.hpp"
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/report.hpp"
@@ -200,7 +199,7 @@ int main(int argc, char** argv) {
             }
             options.check();
         } catch (const rgbd::InputError& e) {
-            throw UsageError(e.what() + rgbd::cli::option_named_by(e.what(), vm));
+            throw UsageError(e.what());
         }
         if (charuco && !board_path.empty()) {
             std::ifstream in(board_path);

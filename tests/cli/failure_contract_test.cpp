@@ -186,7 +186,6 @@ const BadValue kBadValues[] = {
     {"rgbd-render small.ply --point-size 1e300 -o out.png", "--point-size"},
     {"rgbd-eval small.ply --reference small.ply --invented-tau-mm -1 -o out.json",
      "--invented-tau-mm"},
-    {"rgbd-synth garbage.off --resolution-scale 9 -o out_capture", "--resolution-scale"},
     {"rgbd-eval small.ply --reference small.ply --report-size 3x3 --report out_report -o "
      "out.json",
      "--report-size"},
