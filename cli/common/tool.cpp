@@ -13,6 +13,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
 #include "io/output_path.hpp"
 #include "toolkit/error.hpp"
@@ -291,8 +292,8 @@ void Context::add_document_metrics(Report result) {
 }
 
 void Context::commit() {
-    // Both files are complete as temporaries before either is renamed into place: a run that
-    // fails here leaves neither (the destructor removes the output's temporary).
+    // The metrics file is in place before the output is renamed into place: when it cannot be
+    // written, the run fails with neither (the destructor removes the output's temporary).
     if (file_out_) {
         file_out_->flush();
         const bool ok = file_out_->good();
@@ -302,28 +303,14 @@ void Context::commit() {
         std::cout.flush();
         RGBD_CHECK_AS(IoError, std::cout.good(), "<stdout>: write failed");
     }
-    std::string metrics_path, metrics_temp;
     if (vm_.count("metrics")) {
-        metrics_path = vm_["metrics"].as<std::string>();
+        const std::string path = vm_["metrics"].as<std::string>();
         metrics_["status"] = "ok";
         const std::string text = metrics_.dump(2) + "\n";
-        if (metrics_path == "-") {
+        if (path == "-")
             std::cout << text << std::flush;
-            metrics_path.clear();
-        } else {
-            metrics_temp = io::writes_in_place(metrics_path)
-                               ? std::string()
-                               : metrics_path + ".tmp" + std::to_string(::getpid());
-            std::ofstream m(metrics_temp.empty() ? metrics_path : metrics_temp, std::ios::binary);
-            RGBD_CHECK_AS(IoError, m.good(), metrics_path + ": cannot open for writing");
-            m << text;
-            m.flush();
-            if (!m.good()) {
-                std::error_code ec;
-                if (!metrics_temp.empty()) fs::remove(metrics_temp, ec);
-                throw IoError(metrics_path + ": write failed");
-            }
-        }
+        else
+            io::write_text_atomic(path, text);  // in place for /dev/null or a FIFO
     }
     if (file_out_ && !temp_path_.empty()) {
         std::error_code ec;
@@ -331,11 +318,6 @@ void Context::commit() {
         RGBD_CHECK_AS(IoError, !ec, output_path_ + ": cannot rename into place: " + ec.message());
         temp_path_.clear();
         file_out_.reset();
-    }
-    if (!metrics_temp.empty()) {
-        std::error_code ec;
-        fs::rename(metrics_temp, metrics_path, ec);
-        RGBD_CHECK_AS(IoError, !ec, metrics_path + ": cannot rename into place: " + ec.message());
     }
 }
 
