@@ -8,7 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli/common/tool.hpp"
-#include "io/output_path.hpp"
+#include "io/output_file.hpp"
 #include "io/ply_stream.hpp"
 #include "toolkit/error.hpp"
 
@@ -105,28 +105,13 @@ LiveStream::LiveStream(const io::Rig& rig, const LiveOptions& options, Context& 
     if (options_.path == "-") {
         out_ = &std::cout;
     } else {
-        const bool special = io::writes_in_place(options_.path);
-        if (!special) {
-            const fs::path target(options_.path);
-            const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-            if (!fs::is_directory(dir))
-                throw IoError("--live " + options_.path + ": folder " + dir.string() +
-                              " does not exist");
-            temp_path_ = options_.path + ".tmp" + std::to_string(::getpid());
-        }
-        file_ = std::make_unique<std::ofstream>(special ? options_.path : temp_path_,
-                                                std::ios::binary | std::ios::trunc);
-        if (!file_->good()) throw IoError("--live " + options_.path + ": cannot open for writing");
-        out_ = file_.get();
+        file_ = std::make_unique<io::OutputFile>(options_.path, "--live " + options_.path);
+        out_ = &file_->stream();
     }
 }
 
 LiveStream::~LiveStream() {
-    worker_.stop(false);
-    if (!temp_path_.empty()) {
-        std::error_code ec;
-        fs::remove(temp_path_, ec);  // finish() did not put it in place: no half-written file
-    }
+    worker_.stop(false);  // an output file not put in place by finish() removes its temporary
 }
 
 void LiveStream::offer(const io::FrameSet& set, std::int64_t ordinal, const FrameHistory& history) {
@@ -207,19 +192,14 @@ void LiveStream::emit(const LiveSet& live) {
 
 void LiveStream::finish() {
     worker_.stop(true);
-    if (file_) {
+    if (!file_) return;
+    // A FIFO whose reader went away was warned about; a regular file must be whole.
+    if (file_->in_place()) {
         file_->close();
-        if (!temp_path_.empty()) {
-            if (!*file_ || closed_)
-                throw IoError("--live " + options_.path + ": write failed (disk full?)");
-            std::error_code ec;
-            fs::rename(temp_path_, options_.path, ec);
-            if (ec)
-                throw IoError("--live " + options_.path +
-                              ": cannot rename into place: " + ec.message());
-            temp_path_.clear();
-        }
+        return;
     }
+    if (closed_) throw IoError("--live " + options_.path + ": write failed (disk full?)");
+    file_->commit();
 }
 
 Report LiveStream::metrics() const {

@@ -11,7 +11,6 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
-#include <fstream>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -23,6 +22,7 @@
 #include "cli/common/stages.hpp"
 #include "cli/newest_worker.hpp"
 #include "io/capture_folder.hpp"
+#include "io/output_file.hpp"
 #include "io/video.hpp"
 #include "toolkit/report.hpp"
 
@@ -120,8 +120,7 @@ private:
     std::function<std::string(const std::string&, std::int64_t)> depth_file_;
     std::optional<Eigen::Vector3d> centre_;
     std::ostream* out_ = nullptr;
-    std::unique_ptr<std::ofstream> file_;
-    std::string temp_path_;  ///< non-empty when writing a regular file atomically
+    std::unique_ptr<io::OutputFile> file_;  ///< unless the output is stdout
 
     std::atomic<bool> finished_{false}, closed_{false};
     std::atomic<std::int64_t> emitted_{0}, incomplete_{0}, views_{0};

@@ -15,7 +15,7 @@
 
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
-#include "io/output_path.hpp"
+#include "io/output_file.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::cli {
@@ -135,13 +135,7 @@ Context::Context(const ToolSpec& spec, po::variables_map vm, std::vector<std::st
     metrics_["documents"] = Report::array();
 }
 
-Context::~Context() {
-    if (file_out_) {
-        file_out_.reset();
-        std::error_code ec;
-        if (!temp_path_.empty()) fs::remove(temp_path_, ec);  // not committed: leave nothing
-    }
-}
+Context::~Context() = default;  // an uncommitted output file removes its temporary
 
 void Context::warn(const std::string& message) const {
     if (verbosity_ >= -1) write_stderr(spec_.name + ": warning: " + message + "\n");
@@ -232,22 +226,11 @@ std::vector<io::Document> Context::read_all_documents() {
     return documents;
 }
 
-namespace {
-fs::path output_folder(const std::string& output_path) {
-    const fs::path target(output_path);
-    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-    RGBD_CHECK_AS(IoError, fs::is_directory(dir),
-                  output_path + ": folder " + dir.string() + " does not exist");
-    RGBD_CHECK_AS(IoError, !fs::is_directory(target), output_path + ": is a folder, not a file");
-    return dir;
-}
-}  // namespace
-
 void Context::check_output() const {
     if (vm_.count("metrics") && vm_["metrics"].as<std::string>() != "-")
-        output_folder(vm_["metrics"].as<std::string>());
+        io::check_output_path(vm_["metrics"].as<std::string>());
     if (!output_path_.empty()) {
-        if (spec_.writes_stream || spec_.writes_file) output_folder(output_path_);
+        if (spec_.writes_stream || spec_.writes_file) io::check_output_path(output_path_);
     } else if (spec_.writes_stream && isatty(STDOUT_FILENO)) {
         throw UsageError("refusing to write binary data to a terminal: use -o FILE or a pipe");
     }
@@ -255,20 +238,10 @@ void Context::check_output() const {
 
 std::ostream& Context::out() {
     if (!output_path_.empty()) {
-        if (!file_out_) {
-            const fs::path target(output_path_);
-            const fs::path dir = output_folder(output_path_);
-            // A regular file is written atomically (a temporary renamed at commit); /dev/null
-            // or a FIFO in place (io/output_path.hpp).
-            if (!io::writes_in_place(target))
-                temp_path_ =
-                    (dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid())))
-                        .string();
-            file_out_ = std::make_unique<std::ofstream>(
-                temp_path_.empty() ? output_path_ : temp_path_, std::ios::binary);
-            RGBD_CHECK_AS(IoError, file_out_->good(), output_path_ + ": cannot open for writing");
-        }
-        return *file_out_;
+        // A regular file is written to a temporary renamed at commit(); /dev/null or a FIFO in
+        // place (io/output_file.hpp).
+        if (!file_out_) file_out_ = std::make_unique<io::OutputFile>(output_path_);
+        return file_out_->stream();
     }
     return std::cout;
 }
@@ -295,10 +268,7 @@ void Context::commit() {
     // The metrics file is in place before the output is renamed into place: when it cannot be
     // written, the run fails with neither (the destructor removes the output's temporary).
     if (file_out_) {
-        file_out_->flush();
-        const bool ok = file_out_->good();
-        file_out_->close();
-        RGBD_CHECK_AS(IoError, ok, output_path_ + ": write failed (disk full?)");
+        RGBD_CHECK_AS(IoError, file_out_->close(), output_path_ + ": write failed (disk full?)");
     } else if (output_path_.empty()) {
         std::cout.flush();
         RGBD_CHECK_AS(IoError, std::cout.good(), "<stdout>: write failed");
@@ -312,13 +282,7 @@ void Context::commit() {
         else
             io::write_text_atomic(path, text);  // in place for /dev/null or a FIFO
     }
-    if (file_out_ && !temp_path_.empty()) {
-        std::error_code ec;
-        fs::rename(temp_path_, output_path_, ec);
-        RGBD_CHECK_AS(IoError, !ec, output_path_ + ": cannot rename into place: " + ec.message());
-        temp_path_.clear();
-        file_out_.reset();
-    }
+    if (file_out_) file_out_->commit();
 }
 
 // ---------------------------------------------------------------- helpers

@@ -23,6 +23,10 @@
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
 
+namespace rgbd::io {
+class OutputFile;
+}
+
 namespace rgbd::cli {
 
 namespace po = boost::program_options;
@@ -201,9 +205,8 @@ private:
     int verbosity_ = 0;
     std::uint64_t seed_ = 0;
     Report metrics_;
-    std::unique_ptr<std::ofstream> file_out_;
+    std::unique_ptr<io::OutputFile> file_out_;
     std::string output_path_;
-    std::string temp_path_;
     std::size_t documents_written_ = 0;
 };
 

@@ -1,8 +1,9 @@
 // Atomic file writing for io/: the content goes to a temporary file in the destination's
 // folder, which is renamed over the destination only when everything was written. On any
 // error the temporary file is removed and the destination is left untouched. A destination
-// that is not a regular file (/dev/null, a FIFO: io/output_path.hpp) is written in place.
-// See also: io/mesh_io.hpp, io/capture_folder.hpp (write_text_atomic, write_image_atomic).
+// that is not a regular file (/dev/null, a FIFO) is written in place; both by io::OutputFile
+// (io/output_file.hpp). See also: io/mesh_io.hpp, io/capture_folder.hpp (write_text_atomic,
+// write_image_atomic).
 #pragma once
 
 #include <filesystem>

@@ -13,6 +13,7 @@
 
 #include "tests/support/input_error.hpp"
 #include "tests/support/shared_data.hpp"
+#include "tests/support/temp_dir.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 
@@ -22,10 +23,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path temp_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() /
-                         ("rgbd_capture_test_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    return dir;
+    return rgbd::test::fresh_temp_dir("capture_test", name, false);
 }
 
 using rgbd::test::expect_input_error;

@@ -14,10 +14,11 @@
 #include <string>
 #include <thread>
 
-#include "io/output_path.hpp"
+#include "io/output_file.hpp"
 #include "io/ply_stream.hpp"
 #include "tests/support/input_error.hpp"
 #include "tests/support/shared_data.hpp"
+#include "tests/support/temp_dir.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -27,13 +28,7 @@ using rgbd::test::expect_input_error;
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("rgbd_io_test_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
+fs::path temp_dir(const std::string& name) { return rgbd::test::fresh_temp_dir("io_test", name); }
 
 using rgbd::test::shared_data;
 

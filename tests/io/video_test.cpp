@@ -10,6 +10,7 @@
 #include <fstream>
 #include <random>
 
+#include "tests/support/temp_dir.hpp"
 #include "toolkit/error.hpp"
 
 namespace {
@@ -52,10 +53,7 @@ double worst_match(const ColoredPoints& in, const ColoredPoints& out, int color_
 }
 
 fs::path scratch(const std::string& name) {
-    const fs::path p =
-        fs::temp_directory_path() / ("rgbd_video_test_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(p);
-    return p;
+    return rgbd::test::fresh_temp_dir("video_test", name, false);
 }
 
 TEST(Video, DracoKeepsPointsOnTheGridAndColourBits) {

@@ -1,4 +1,5 @@
-// Tests of error messages: a call that must throw InputError, and what its message must name.
+// Tests of error messages: a call that must throw InputError (or another Error), and what its
+// message must name.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -10,17 +11,23 @@
 
 namespace rgbd::test {
 
-/// The message of the InputError that `call()` throws; a test failure (and "") when it throws
-/// none.
-template <typename Call>
-std::string input_error_message(Call&& call) {
+/// The message of the `Error` (InputError, IoError, ...) that `call()` throws; a test failure
+/// (and "") when it throws none.
+template <typename Error, typename Call>
+std::string error_message(Call&& call) {
     try {
         call();
-    } catch (const InputError& e) {
+    } catch (const Error& e) {
         return e.what();
     }
-    ADD_FAILURE() << "no InputError";
+    ADD_FAILURE() << "no " << ::testing::internal::GetTypeName<Error>();
     return "";
+}
+
+/// error_message<InputError>(call).
+template <typename Call>
+std::string input_error_message(Call&& call) {
+    return error_message<InputError>(call);
 }
 
 /// Expects `call()` to throw an InputError whose message contains every one of `parts`, for
