@@ -50,13 +50,11 @@ void DuplicateOptions::check() const {
 }
 
 Report DuplicateReport::to_json() const {
-    Report r;
-    r["input"] = input;
-    r["duplicates"] = duplicates;
-    r["replaced"] = replaced;
-    r["output"] = output;
-    r["radius_m"] = radius_m;
-    return r;
+    return Report{{"input", input},
+                  {"duplicates", duplicates},
+                  {"replaced", replaced},
+                  {"output", output},
+                  {"radius_m", radius_m}};
 }
 
 double delta_e76(Rgb a, Rgb b) {

@@ -67,15 +67,13 @@ void IcpOptions::check() const {
 }
 
 Report AlignResult::to_json() const {
-    Report r;
-    r["target_from_source"] = pose_to_3x4(target_from_source);
-    r["fitness"] = fitness;
-    r["inlier_rmse_m"] = inlier_rmse;
-    r["plane_rmse_m"] = plane_rmse;
-    r["correspondences"] = correspondences;
-    r["iterations"] = iterations;
-    r["converged"] = converged;
-    return r;
+    return Report{{"target_from_source", pose_to_3x4(target_from_source)},
+                  {"fitness", fitness},
+                  {"inlier_rmse_m", inlier_rmse},
+                  {"plane_rmse_m", plane_rmse},
+                  {"correspondences", correspondences},
+                  {"iterations", iterations},
+                  {"converged", converged}};
 }
 
 AlignResult align_pair(const PointCloud& source, const PointCloud& target,
