@@ -46,8 +46,9 @@ void run_align(cli::Context& ctx) {
         const std::string line =
             who + ": " + r["verdict"].get<std::string>() +
             (r.contains("reason") ? " (" + r["reason"].get<std::string>() + ")" : "") +
-            ", fitness " + std::to_string(r["fitness"].get<double>()) + ", rmse " +
-            std::to_string(r["inlier_rmse_m"].get<double>() * 1000) + " mm, " + more;
+            cli::formatted(", fitness %.3f, rmse %.2f mm, ", r["fitness"].get<double>(),
+                           r["inlier_rmse_m"].get<double>() * 1000) +
+            more;
         if (r["verdict"] == "PASS")
             ctx.info(line);
         else
@@ -57,23 +58,24 @@ void run_align(cli::Context& ctx) {
         say(p,
             "pair " + std::to_string(p["target"].get<int>()) + "-" +
                 std::to_string(p["source"].get<int>()),
-            "start " + p["method"].get<std::string>() + ", off the ring " +
-                std::to_string(p["ring_rotation_deg"].get<double>()) + " deg / " +
-                std::to_string(p["ring_translation_m"].get<double>() * 1000) + " mm");
+            "start " + p["method"].get<std::string>() +
+                cli::formatted(", off the ring %.2f deg / %.1f mm",
+                               p["ring_rotation_deg"].get<double>(),
+                               p["ring_translation_m"].get<double>() * 1000));
     if (report.contains("loop_closure")) {
         const auto& l = report["loop_closure"];
-        ctx.info("loop closure: " + std::to_string(l["before_rotation_deg"].get<double>()) +
-                 " deg / " + std::to_string(l["before_translation_m"].get<double>() * 1000) +
-                 " mm chained, " + std::to_string(l["after_rotation_deg"].get<double>()) +
-                 " deg / " + std::to_string(l["after_translation_m"].get<double>() * 1000) +
-                 " mm after the pose graph and joint rounds");
+        ctx.info(cli::formatted(
+            "loop closure: %.2f deg / %.1f mm chained, %.2f deg / %.1f mm after "
+            "the pose graph and joint rounds",
+            l["before_rotation_deg"].get<double>(), l["before_translation_m"].get<double>() * 1000,
+            l["after_rotation_deg"].get<double>(), l["after_translation_m"].get<double>() * 1000));
     }
     for (const auto& v : report["views"])
         say(v,
             "view " + std::to_string(v["view"].get<int>()) + " (" + v["sensor"].get<std::string>() +
                 ")",
-            "moved " + std::to_string(v["rotation_change_deg"].get<double>()) + " deg / " +
-                std::to_string(v["translation_change_m"].get<double>() * 1000) + " mm");
+            cli::formatted("moved %.2f deg / %.1f mm", v["rotation_change_deg"].get<double>(),
+                           v["translation_change_m"].get<double>() * 1000));
     ctx.metrics()["align"] = report;
     if (pipeline::stand_applies(views, stand)) {
         auto stand_bar = ctx.progress("stand");

@@ -30,12 +30,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string fmt(const char* format, double a, double b = 0, double c = 0) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, format, a, b, c);
-    return buf;
-}
-
 calibration::BoardSpec read_board(const std::string& path) {
     std::ifstream in(path);
     RGBD_CHECK_AS(IoError, in.good(), path + ": cannot read the board file");
@@ -180,7 +174,7 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
             if (std::abs(f.plane.median_mm) > max_plane_mm) {
                 ++off_plane;
                 ctx.info(rig.sensors[f.job.sensor].id + " frame set " + std::to_string(f.job.set) +
-                         ": board plane " + fmt("%.1f", f.plane.median_mm) +
+                         ": board plane " + cli::formatted("%.1f", f.plane.median_mm) +
                          " mm off the depth: left out");
                 continue;
             }
@@ -204,7 +198,7 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
         throw InputError(where + ": the board does not match the printed one: in " +
                          std::to_string(off_plane) + " of " + std::to_string(checked) +
                          " views the board plane from the colour image lies " +
-                         fmt("%.0f", all_plane[all_plane.size() / 2]) +
+                         cli::formatted("%.0f", all_plane[all_plane.size() / 2]) +
                          " mm (median) from the depth; check square_m and marker_m of --board");
     }
 
@@ -268,8 +262,8 @@ void calibrate_from_board(cli::Context& ctx, const io::Capture& capture, int anc
     ctx.note(std::to_string(observations.size()) + " board views, " +
              std::to_string(solution.boards) + " board poses, " +
              std::to_string(solution.residuals) + " corners: reprojection RMS " +
-             fmt("%.3f px (start %.3f px) after %.0f iterations", solution.final_rms_px,
-                 solution.initial_rms_px, solution.iterations));
+             cli::formatted("%.3f px (start %.3f px) after %d iterations", solution.final_rms_px,
+                            solution.initial_rms_px, solution.iterations));
     io::write_rig(ctx.output_path(), out);
     ctx.metrics()["mode"] = "board";
     ctx.metrics()["board"] = board.to_json();

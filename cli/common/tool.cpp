@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -339,6 +340,19 @@ std::vector<double> parse_doubles(const std::string& text, const std::string& op
     }
     if (values.empty()) throw UsageError("--" + option + ": expected a comma-separated list");
     return values;
+}
+
+std::string formatted(const char* format, ...) {
+    std::va_list args;
+    va_start(args, format);
+    std::va_list again;
+    va_copy(again, args);
+    const int size = std::vsnprintf(nullptr, 0, format, args);
+    va_end(args);
+    std::string text(size > 0 ? std::size_t(size) : 0, '\0');
+    if (size > 0) std::vsnprintf(text.data(), text.size() + 1, format, again);
+    va_end(again);
+    return text;
 }
 
 // ---------------------------------------------------------------- run_tool

@@ -215,5 +215,7 @@ private:
 std::vector<long long> parse_range(const std::string& text, long long count);
 /// Parses a comma-separated list of doubles. Throws UsageError naming the option.
 std::vector<double> parse_doubles(const std::string& text, const std::string& option);
+/// printf's formatting into a string, for the numbers of message lines ("%.3f", "%.1f mm").
+[[gnu::format(printf, 1, 2)]] std::string formatted(const char* format, ...);
 
 }  // namespace rgbd::cli
