@@ -217,8 +217,12 @@ const cli::ToolSpec kSpec{
             "statistical", "statistical outlier removal (default for views without a grid)")(
             "radius", "radius outlier removal")(
             "k", cli::value<int>("N"),
-            "neighbours per point (default 20 for --statistical and --density, 16 for "
-            "--distance)")(
+            cli::with_numbers(
+                "neighbours per point (default {} for --statistical, {} for "
+                "--density, {} for --distance)",
+                {double(denoise::StatisticalOptions{}.k), double(denoise::DensityOptions{}.k),
+                 double(denoise::DistanceOptions{}.k)})
+                .c_str())(
             "std-ratio", cli::value(denoise::StatisticalOptions{}.std_ratio, "X"),
             "--statistical: standard deviations above the mean distance that are kept")(
             "convention", cli::value<std::string>("open3d", "NAME"),
@@ -234,10 +238,12 @@ const cli::ToolSpec kSpec{
             "generic; auto: the one the views' metadata names (rgbd-cloud writes the rig "
             "sensor's; --density: when all views agree), else kinect_v2")(
             "theta-max-deg", cli::value<double>("DEG"),
-            "--distance/--density: steepest incidence angle of a real surface (default 70 for "
-            "--distance, 75 for --density)")(
-            "c-min", cli::value(denoise::DistanceOptions{}.c_min, "N"),
-            "--distance: supporting neighbours a pixel needs in its 5x5 window")(
+            cli::with_numbers(
+                "--distance/--density: steepest incidence angle of a real "
+                "surface (default {} for --distance, {} for --density)",
+                {denoise::DistanceOptions{}.theta_max_deg, denoise::DensityOptions{}.theta_max_deg})
+                .c_str())("c-min", cli::value(denoise::DistanceOptions{}.c_min, "N"),
+                          "--distance: supporting neighbours a pixel needs in its 5x5 window")(
             "c-min-wide", cli::value(denoise::DistanceOptions{}.c_min_wide, "N"),
             "--distance: a pixel short of --c-min keeps its support with N supporting "
             "neighbours in its 7x7 window (0 = the 5x5 window only)")(
@@ -259,8 +265,12 @@ const cli::ToolSpec kSpec{
             "kept")("no-pass-a", "--distance: skip the grid support and speckle tests")(
             "knn-test", "--distance: add the normalised kNN distance test (--k, --alpha)")(
             "beta", cli::value<double>("X"),
-            "--density: keep a point when its density is at least X times the expected one "
-            "(default 0.1 against the sensors' expectation, 0.2 against the local median)")(
+            cli::with_numbers(
+                "--density: keep a point when its density is at least X times the "
+                "expected one (default {} against the sensors' expectation, {} "
+                "against the local median)",
+                {denoise::DensityOptions{}.beta, denoise::DensityOptions{}.beta_local})
+                .c_str())(
             "reference", cli::value<std::string>("auto", "NAME"),
             "--density: expected density from the sensors (views' cameras), local (median of "
             "the neighbours) or auto")(

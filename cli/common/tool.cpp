@@ -342,6 +342,22 @@ std::vector<double> parse_doubles(const std::string& text, const std::string& op
     return values;
 }
 
+std::string with_numbers(std::string_view text, std::initializer_list<double> values) {
+    std::string out;
+    auto value = values.begin();
+    for (std::size_t at = 0; at < text.size();) {
+        const std::size_t hole = text.find("{}", at);
+        out.append(text.substr(at, hole == std::string_view::npos ? text.npos : hole - at));
+        if (hole == std::string_view::npos) break;
+        RGBD_CHECK(value != values.end(),
+                   "with_numbers: more {} than values in: " + std::string(text));
+        out += format_number(*value++);
+        at = hole + 2;
+    }
+    RGBD_CHECK(value == values.end(), "with_numbers: more values than {} in: " + std::string(text));
+    return out;
+}
+
 std::string formatted(const char* format, ...) {
     std::va_list args;
     va_start(args, format);

@@ -9,11 +9,13 @@
 #include <chrono>
 #include <condition_variable>
 #include <functional>
+#include <initializer_list>
 #include <iosfwd>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <type_traits>
 #include <vector>
@@ -215,6 +217,11 @@ private:
 std::vector<long long> parse_range(const std::string& text, long long count);
 /// Parses a comma-separated list of doubles. Throws UsageError naming the option.
 std::vector<double> parse_doubles(const std::string& text, const std::string& option);
+/// `text` with each "{}" replaced by the next of `values` as format_number writes them: the
+/// help of an option whose default depends on the mode, read from the options structs, e.g.
+/// with_numbers("default {} for --distance, {} for --density", {16, 20}). Pass `.c_str()` to
+/// add_options() (boost copies the text).
+std::string with_numbers(std::string_view text, std::initializer_list<double> values);
 /// printf's formatting into a string, for the numbers of message lines ("%.3f", "%.1f mm").
 [[gnu::format(printf, 1, 2)]] std::string formatted(const char* format, ...);
 
