@@ -21,11 +21,11 @@ bool writes_in_place(const fs::path& path) {
 
 void check_output_path(const fs::path& path, const std::string& label) {
     const std::string name = label.empty() ? path.string() : label;
+    if (fs::is_directory(path)) throw IoError(name + ": is a folder, not a file");
     if (path.filename().empty()) throw IoError(name + ": not a file name");
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir))
         throw IoError(name + ": folder " + dir.string() + " does not exist");
-    if (fs::is_directory(path)) throw IoError(name + ": is a folder, not a file");
 }
 
 namespace {

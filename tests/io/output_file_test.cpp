@@ -77,7 +77,9 @@ TEST(OutputFile, BadPathsNameTheOutputAndTheProblem) {
               "-o x.ply: folder " + (dir / "missing").string() + " does not exist");
     EXPECT_EQ(io_error_of([&] { OutputFile f(dir); }), dir.string() + ": is a folder, not a file");
     EXPECT_EQ(io_error_of([&] { rgbd::io::check_output_path(dir / ""); }),
-              (dir / "").string() + ": not a file name");
+              (dir / "").string() + ": is a folder, not a file");
+    EXPECT_EQ(io_error_of([&] { rgbd::io::check_output_path(dir / "new" / ""); }),
+              (dir / "new" / "").string() + ": not a file name");
     EXPECT_NO_THROW(rgbd::io::check_output_path(dir / "fine.ply"));
     EXPECT_EQ(entries(dir), 0u);
     fs::remove_all(dir);
