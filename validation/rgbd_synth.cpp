@@ -17,6 +17,7 @@
 
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/option_names.hpp"
 #include "toolkit/report.hpp"
 #include "validation/synth/charuco_scene.hpp"
 #include "validation/synth/synthesize.hpp"
@@ -147,13 +148,18 @@ int main(int argc, char** argv) {
     po::positional_options_description positional;
     positional.add("mesh", 1);
 
+    // The options given with a value, as typed: a refused value's message names its option.
+    std::vector<rgbd::GivenOption> given;
     try {
         po::variables_map vm;
         try {
             po::parsed_options parsed =
                 po::command_line_parser(argc, argv).options(all).positional(positional).run();
-            for (const auto& opt : parsed.options)
+            for (const auto& opt : parsed.options) {
                 if (opt.string_key == "verbose") ++verbosity;
+                if (opt.string_key != "mesh" && !opt.value.empty())
+                    given.push_back({opt.string_key, opt.value.front()});
+            }
             po::store(parsed, vm);
             po::notify(vm);
         } catch (const po::error& e) {
@@ -244,7 +250,8 @@ int main(int argc, char** argv) {
         }
         return 0;
     } catch (const UsageError& e) {
-        std::cerr << kTool << ": error: " << e.what() << "\n";
+        std::cerr << kTool << ": error: " << e.what() << rgbd::option_named_by(e.what(), given)
+                  << "\n";
         return 2;
     } catch (const std::exception& e) {
         std::cerr << kTool << ": error: " << e.what() << "\n";

@@ -18,6 +18,7 @@
 #include "io/mesh_io.hpp"
 #include "io/output_file.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/option_names.hpp"
 
 namespace rgbd::cli {
 
@@ -383,63 +384,22 @@ std::optional<std::string> number_text(const boost::any& value) {
     if (const auto* u = boost::any_cast<unsigned long>(&value)) return std::to_string(*u);
     return std::nullopt;
 }
-/// Whether `message` says "got <number>" with nothing numeric right after it.
-bool quotes_number(const std::string& message, const std::string& number) {
-    const std::string quoted = "got " + number;
-    for (std::size_t at = message.find(quoted); at != std::string::npos;
-         at = message.find(quoted, at + 1)) {
-        const std::size_t end = at + quoted.size();
-        if (end == message.size() ||
-            !(std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '.'))
-            return true;
-    }
-    return false;
-}
 }  // namespace
 
 std::string option_named_by(const std::string& message, const po::variables_map& vm) {
-    if (message.find("--") != std::string::npos) return "";
-    std::vector<std::string> identifiers;  // the message's words (field names have '_')
-    for (std::size_t i = 0; i < message.size();) {
-        std::size_t j = i;
-        while (j < message.size() &&
-               (std::isalnum(static_cast<unsigned char>(message[j])) || message[j] == '_'))
-            ++j;
-        if (j > i) identifiers.push_back(message.substr(i, j - i));
-        i = std::max(j, i + 1);
-    }
-    const auto up_to_underscore = [](const std::string& longer, const std::string& shorter) {
-        return longer.size() > shorter.size() && longer.compare(0, shorter.size(), shorter) == 0 &&
-               longer[shorter.size()] == '_';
-    };
-    std::vector<std::string> by_value, by_field, by_word, by_prefix;
+    std::vector<GivenOption> given;
     for (const auto& [name, value] : vm) {
         // Given options with a value; not flags (--statistical names a mode, not a value).
         if (value.defaulted() || name == "input" || value.value().empty() ||
             value.value().type() == typeid(bool) ||
             value.value().type() == typeid(std::vector<bool>))
             continue;
-        if (const auto* text = boost::any_cast<std::string>(&value.value())) {
-            if (!text->empty() && message.find("'" + *text + "'") != std::string::npos)
-                by_value.push_back(name);
-        } else if (const auto number = number_text(value.value())) {
-            if (quotes_number(message, *number)) by_value.push_back(name);
-        }
-        std::string snake = name;
-        std::replace(snake.begin(), snake.end(), '-', '_');
-        if (std::find(identifiers.begin(), identifiers.end(), snake) != identifiers.end())
-            (snake.find('_') != std::string::npos ? by_field : by_word).push_back(name);
+        if (const auto* text = boost::any_cast<std::string>(&value.value()))
+            given.push_back({name, *text});
         else
-            for (const std::string& id : identifiers)
-                if (id.find('_') != std::string::npos &&
-                    (up_to_underscore(id, snake) || up_to_underscore(snake, id))) {
-                    by_prefix.push_back(name);
-                    break;
-                }
+            given.push_back({name, number_text(value.value()).value_or("")});
     }
-    for (const auto* found : {&by_value, &by_field, &by_word, &by_prefix})
-        if (!found->empty()) return found->size() == 1 ? " (--" + found->front() + ")" : "";
-    return "";
+    return rgbd::option_named_by(message, given);
 }
 
 namespace {

@@ -41,15 +41,8 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-/// The command-line option a usage error is about, as " (--name)", when the message does not
-/// name one itself: many come from an options struct's check() and name its field
-/// ("depth window z_min_m must be >= 0") or quote the bad value ("unknown noise model
-/// 'bogus'", "... got 1e300"). Of the options given with a value on the command line, the
-/// first of these that fits exactly one: the option whose value the message quotes (a text in
-/// quotes, a number after "got"); whose name written with
-/// underscores is a field name of the message (std-ratio: std_ratio); is a word of it
-/// (alpha); matches a field name up to a '_' (z-min: z_min_m; theta-max-deg: theta_max).
-/// "" when none fits or several do.
+/// rgbd::option_named_by (toolkit/option_names.hpp) over the options given with a value in `vm`
+/// (not defaulted, not flags): the option a usage error is about, as " (--name)", or "".
 std::string option_named_by(const std::string& message, const po::variables_map& vm);
 
 /// What a tool declares about itself: a tool declares it in its file's anonymous namespace with
