@@ -79,4 +79,56 @@ void OutputFile::commit() {
     temporary_.clear();
 }
 
+void write_folder_atomic(const fs::path& target_in,
+                         const std::function<void(const fs::path& folder)>& fill,
+                         const FolderPolicy& policy) {
+    if (target_in.empty()) throw IoError("output folder name is empty");
+    const fs::path absolute = fs::absolute(target_in).lexically_normal();
+    const fs::path target = absolute.has_filename() ? absolute : absolute.parent_path();
+    const std::string name = target.string();
+    std::error_code ec;
+    const bool existed = fs::exists(target, ec);
+    if (existed) {
+        if (!fs::is_directory(target)) throw IoError(name + ": exists and is not a folder");
+        const std::string why =
+            policy.refuse ? policy.refuse(target)
+                          : (fs::is_empty(target) ? "" : "folder exists and is not empty");
+        if (!why.empty()) throw IoError(name + ": " + why);
+    }
+    const fs::path parent = target.parent_path();
+    if (policy.create_parent) {
+        fs::create_directories(parent, ec);
+        if (ec) throw IoError(parent.string() + ": cannot create folder: " + ec.message());
+    } else if (!fs::is_directory(parent)) {
+        throw IoError(name + ": folder " + parent.string() + " does not exist");
+    }
+    const fs::path temporary = temporary_beside(target);
+    const fs::path old = temporary.string() + "-old";
+    fs::remove_all(temporary, ec);
+    if (!fs::create_directory(temporary, ec) || ec)
+        throw IoError(temporary.string() + ": cannot create folder: " + ec.message());
+    try {
+        try {
+            fill(temporary);
+        } catch (const fs::filesystem_error& e) {
+            throw IoError(name + ": " + e.what());
+        }
+        if (existed) {
+            fs::rename(target, old, ec);
+            if (ec) throw IoError(name + ": cannot move the old folder aside: " + ec.message());
+        }
+        fs::rename(temporary, target, ec);
+        if (ec) {
+            std::error_code ignored;
+            if (existed) fs::rename(old, target, ignored);
+            throw IoError(name + ": cannot rename into place: " + ec.message());
+        }
+    } catch (...) {
+        std::error_code ignored;
+        fs::remove_all(temporary, ignored);
+        throw;
+    }
+    if (existed) fs::remove_all(old, ec);
+}
+
 }  // namespace rgbd::io

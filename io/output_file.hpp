@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <ostream>
 #include <string>
 
@@ -53,5 +54,25 @@ private:
     bool ok_ = true;  ///< every write so far succeeded (known after close())
     bool closed_ = false;
 };
+
+/// How write_folder_atomic treats the target's surroundings.
+struct FolderPolicy {
+    /// Create the target's parent folders when missing (otherwise: IoError).
+    bool create_parent = false;
+    /// Why an existing `target` may not be replaced, "" when it may. Empty function: only an
+    /// empty folder may be (a non-empty one is "folder exists and is not empty").
+    std::function<std::string(const std::filesystem::path& target)> refuse;
+};
+
+/// Writes a folder that appears whole or not at all: `fill` writes into a new, empty
+/// temporary folder beside `target` (".<name>.tmp-<pid>-<n>"), which is then renamed to
+/// `target`; an existing `target` that `policy` lets go is moved aside first and removed once
+/// the new folder is in place. IoError "<target>: ..." when the parent folder does not exist,
+/// `target` is not a folder or is refused, or a rename fails. An exception from `fill`
+/// propagates after the temporary folder is removed (a std::filesystem error as IoError naming
+/// `target`); `target` is then as it was.
+void write_folder_atomic(const std::filesystem::path& target,
+                         const std::function<void(const std::filesystem::path& folder)>& fill,
+                         const FolderPolicy& policy = {});
 
 }  // namespace rgbd::io

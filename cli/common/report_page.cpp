@@ -1,13 +1,13 @@
 #include "cli/common/report_page.hpp"
 
 #include <tbb/parallel_invoke.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <sstream>
 
 #include "algorithms/evaluation/metrics.hpp"
 #include "io/capture_folder.hpp"
+#include "io/output_file.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 
@@ -124,52 +124,21 @@ std::string page_html(const ReportPage& page) {
 
 }  // namespace
 
-void write_report(const fs::path& dir_in, const ReportPage& page) {
-    const fs::path dir = fs::absolute(dir_in).lexically_normal();
-    const fs::path parent =
-        dir.has_filename() ? dir.parent_path() : dir.parent_path().parent_path();
-    const std::string name =
-        dir.has_filename() ? dir.filename().string() : dir.parent_path().filename().string();
-    const fs::path target = parent / name;
-    std::error_code ec;
-    if (fs::exists(target)) {
-        RGBD_CHECK_AS(IoError, fs::is_directory(target),
-                      target.string() + ": exists and is not a folder");
-        RGBD_CHECK_AS(IoError, fs::is_empty(target) || fs::exists(target / "index.html"),
-                      target.string() +
-                          ": exists and is not a report folder (no index.html); not replacing it");
-    }
-    fs::create_directories(parent, ec);
-    RGBD_CHECK_AS(IoError, !ec, parent.string() + ": cannot create folder: " + ec.message());
-    const std::string tag = std::to_string(::getpid());
-    const fs::path temp = parent / ("." + name + ".tmp-" + tag);
-    const fs::path old = parent / ("." + name + ".old-" + tag);
-    fs::remove_all(temp, ec);
-    fs::create_directory(temp, ec);
-    RGBD_CHECK_AS(IoError, !ec, temp.string() + ": cannot create folder: " + ec.message());
-    try {
-        for (const auto& im : page.images) io::write_image_atomic(temp / im.file, im.image);
-        io::write_text_atomic(temp / "metrics.json", page.metrics.dump(2) + "\n");
-        io::write_text_atomic(temp / "index.html", page_html(page));
-    } catch (...) {
-        fs::remove_all(temp, ec);
-        throw;
-    }
-    const bool had_old = fs::exists(target);
-    if (had_old) {
-        fs::rename(target, old, ec);
-        if (ec) {
-            fs::remove_all(temp);
-            throw IoError(target.string() + ": cannot replace: " + ec.message());
-        }
-    }
-    fs::rename(temp, target, ec);
-    if (ec) {
-        if (had_old) fs::rename(old, target);
-        fs::remove_all(temp);
-        throw IoError(target.string() + ": cannot write report: " + ec.message());
-    }
-    if (had_old) fs::remove_all(old, ec);
+void write_report(const fs::path& dir, const ReportPage& page) {
+    io::FolderPolicy policy;
+    policy.create_parent = true;
+    policy.refuse = [](const fs::path& target) -> std::string {
+        if (fs::is_empty(target) || fs::exists(target / "index.html")) return "";
+        return "exists and is not a report folder (no index.html); not replacing it";
+    };
+    io::write_folder_atomic(
+        dir,
+        [&](const fs::path& folder) {
+            for (const auto& im : page.images) io::write_image_atomic(folder / im.file, im.image);
+            io::write_text_atomic(folder / "metrics.json", page.metrics.dump(2) + "\n");
+            io::write_text_atomic(folder / "index.html", page_html(page));
+        },
+        policy);
 }
 
 std::string render_report_pictures(const PictureInputs& in, std::vector<ReportImage>& images,

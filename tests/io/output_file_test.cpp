@@ -1,5 +1,6 @@
 // io::OutputFile: a regular file appears whole at commit() or not at all; /dev/null, /dev/full
-// and FIFOs are written in place and stay what they are.
+// and FIFOs are written in place and stay what they are. io::write_folder_atomic: a folder
+// appears whole or not at all.
 #include "io/output_file.hpp"
 
 #include <gtest/gtest.h>
@@ -117,5 +118,71 @@ TEST(OutputFile, FifoStaysAFifoAndCarriesTheData) {
     EXPECT_EQ(fs::status(fifo).type(), fs::file_type::fifo);
     fs::remove_all(dir);
 }
+
+namespace folder_tests {
+
+using rgbd::io::FolderPolicy;
+using rgbd::io::write_folder_atomic;
+
+void write_one(const fs::path& folder, const std::string& text) {
+    std::ofstream(folder / "a.txt") << text;
+}
+
+TEST(WriteFolderAtomic, NewFolderAppearsWholeAndAnEmptyOneIsReplaced) {
+    const fs::path dir = rgbd::test::fresh_temp_dir("output_folder", "new");
+    write_folder_atomic(dir / "cap", [](const fs::path& f) { write_one(f, "one"); });
+    EXPECT_EQ(slurp(dir / "cap" / "a.txt"), "one");
+    fs::create_directory(dir / "empty");
+    write_folder_atomic(dir / "empty/", [](const fs::path& f) { write_one(f, "two"); });
+    EXPECT_EQ(slurp(dir / "empty" / "a.txt"), "two");
+    EXPECT_EQ(entries(dir), 2u);  // no temporaries left
+    fs::remove_all(dir);
+}
+
+TEST(WriteFolderAtomic, RefusedOrFailedLeavesTheTargetAsItWas) {
+    const fs::path dir = rgbd::test::fresh_temp_dir("output_folder", "refuse");
+    write_folder_atomic(dir / "cap", [](const fs::path& f) { write_one(f, "old"); });
+    EXPECT_EQ(io_error_of([&] { write_folder_atomic(dir / "cap", [](const fs::path&) {}); }),
+              (dir / "cap").string() + ": folder exists and is not empty");
+    EXPECT_THROW(write_folder_atomic(dir / "cap2",
+                                     [](const fs::path& f) {
+                                         write_one(f, "half");
+                                         throw IoError("disk full");
+                                     }),
+                 IoError);
+    EXPECT_EQ(
+        io_error_of([&] { write_folder_atomic(dir / "no" / "cap", [](const fs::path&) {}); }),
+        (dir / "no" / "cap").string() + ": folder " + (dir / "no").string() + " does not exist");
+    EXPECT_EQ(slurp(dir / "cap" / "a.txt"), "old");
+    EXPECT_EQ(entries(dir), 1u);
+    fs::remove_all(dir);
+}
+
+TEST(WriteFolderAtomic, APolicyMayReplaceAFullFolderAndCreateParents) {
+    const fs::path dir = rgbd::test::fresh_temp_dir("output_folder", "policy");
+    FolderPolicy policy;
+    policy.create_parent = true;
+    policy.refuse = [](const fs::path& t) {
+        return fs::exists(t / "a.txt") ? std::string() : std::string("not ours");
+    };
+    const fs::path target = dir / "deep" / "report";
+    write_folder_atomic(
+        target, [](const fs::path& f) { write_one(f, "first"); }, policy);
+    write_folder_atomic(
+        target, [](const fs::path& f) { write_one(f, "second"); }, policy);
+    EXPECT_EQ(slurp(target / "a.txt"), "second");
+    EXPECT_EQ(entries(dir / "deep"), 1u);  // the old folder moved aside is gone
+    fs::create_directories(dir / "other");
+    std::ofstream(dir / "other" / "keep.txt") << "x";
+    EXPECT_EQ(io_error_of([&] {
+                  write_folder_atomic(
+                      dir / "other", [](const fs::path&) {}, policy);
+              }),
+              (dir / "other").string() + ": not ours");
+    EXPECT_TRUE(fs::exists(dir / "other" / "keep.txt"));
+    fs::remove_all(dir);
+}
+
+}  // namespace folder_tests
 
 }  // namespace

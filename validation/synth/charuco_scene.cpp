@@ -6,6 +6,7 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
+#include "io/output_file.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/report.hpp"
 #include "validation/synth/random.hpp"
@@ -121,7 +122,7 @@ SynthSummary synthesize_charuco_capture(const fs::path& out_dir, const SynthOpti
         {-mg, -mg, 0}, {w + mg, -mg, 0}, {w + mg, h + mg, 0}, {-mg, h + mg, 0}};
     SynthSummary summary;
     summary.sensors = nsensors;
-    write_folder_atomically(out_dir, [&](const fs::path& root) {
+    io::write_folder_atomic(out_dir, [&](const fs::path& root) {
         const Stopwatch total;
         io::Rig rig_json;
         for (const auto& s : rig.sensors) rig_json.sensors.push_back(s.spec);

@@ -2,16 +2,15 @@
 
 #include <CGAL/bounding_box.h>
 #include <tbb/parallel_for.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
-#include <system_error>
 
 #include "io/mesh_io.hpp"
+#include "io/output_file.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/report.hpp"
 #include "validation/synth/random.hpp"
@@ -537,43 +536,11 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
 
 }  // namespace
 
-void write_folder_atomically(const fs::path& out_dir,
-                             const std::function<void(const fs::path& folder)>& write) {
-    RGBD_CHECK(!out_dir.empty(), "output folder name is empty");
-    std::error_code ec;
-    const bool exists = fs::exists(out_dir, ec);
-    if (exists) {
-        RGBD_CHECK(fs::is_directory(out_dir),
-                   "output exists and is not a folder: " + out_dir.string());
-        RGBD_CHECK(fs::is_empty(out_dir),
-                   "output folder exists and is not empty: " + out_dir.string());
-    }
-    const fs::path abs = fs::absolute(out_dir).lexically_normal();
-    const fs::path target = abs.has_filename() ? abs : abs.parent_path();
-    const fs::path parent = target.parent_path();
-    RGBD_CHECK_AS(IoError, fs::is_directory(parent),
-                  "parent folder does not exist: " + parent.string());
-    const fs::path tmp = parent / ("." + target.filename().string() + ".partial-" +
-                                   std::to_string(static_cast<long>(::getpid())));
-    fs::remove_all(tmp, ec);
-    try {
-        write(tmp);
-        if (exists) fs::remove(target);
-        fs::rename(tmp, target);
-    } catch (const fs::filesystem_error& e) {
-        fs::remove_all(tmp, ec);
-        throw IoError(std::string("cannot write capture ") + target.string() + ": " + e.what());
-    } catch (...) {
-        fs::remove_all(tmp, ec);
-        throw;
-    }
-}
-
 SynthSummary synthesize_capture(const Mesh& mesh, const fs::path& out_dir,
                                 const SynthOptions& options, const Progress& progress) {
     options.check();
     SynthSummary summary;
-    write_folder_atomically(out_dir, [&](const fs::path& folder) {
+    io::write_folder_atomic(out_dir, [&](const fs::path& folder) {
         write_capture(mesh, folder, options, progress, summary);
     });
     return summary;

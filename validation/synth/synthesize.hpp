@@ -174,16 +174,10 @@ struct SynthSummary {
 
 /// Writes a complete synthetic capture of `mesh` (input units, `options.up` up) to `out_dir`,
 /// which must not exist or be empty. Everything is written into a temporary sibling folder
-/// that is renamed at the end, so a failure leaves nothing behind. Throws InputError (bad
-/// options, non-empty folder) or IoError naming the file.
+/// that is renamed at the end, so a failure leaves nothing behind (io::write_folder_atomic).
+/// Throws InputError (bad options) or IoError (non-empty folder, naming the file).
 SynthSummary synthesize_capture(const Mesh& mesh, const std::filesystem::path& out_dir,
                                 const SynthOptions& options, const Progress& progress = {});
-
-/// Calls `write` with a temporary sibling folder of `out_dir` (which must not exist or be
-/// empty) and renames it to `out_dir` when `write` returns, so a failure leaves nothing
-/// behind. Throws InputError (non-empty folder), IoError naming the folder.
-void write_folder_atomically(const std::filesystem::path& out_dir,
-                             const std::function<void(const std::filesystem::path& folder)>& write);
 
 /// 4x4 row-major JSON array of a pose.
 nlohmann::json pose_to_json(const Pose& pose);
