@@ -1,9 +1,6 @@
 #include "cli/capture_live.hpp"
 
-#include <unistd.h>
-
 #include <chrono>
-#include <filesystem>
 #include <iostream>
 #include <opencv2/imgcodecs.hpp>
 
@@ -13,8 +10,6 @@
 #include "toolkit/error.hpp"
 
 namespace rgbd::cli {
-
-namespace fs = std::filesystem;
 
 // ------------------------------------------------------------------------------ FrameHistory
 

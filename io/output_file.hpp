@@ -17,8 +17,8 @@ namespace rgbd::io {
 /// replace the device or the FIFO with a regular file.
 bool writes_in_place(const std::filesystem::path& path);
 
-/// Throws IoError "<label>: ..." when `path` cannot name an output file: no file name, its
-/// folder does not exist, or it is a folder. `label` is how messages name the output (the
+/// Throws IoError "<label>: ..." when `path` cannot name an output file: it is a folder, it
+/// has no file name, or its folder does not exist. `label` is how messages name the output (the
 /// path itself when empty). Touches nothing.
 void check_output_path(const std::filesystem::path& path, const std::string& label = {});
 
