@@ -136,6 +136,8 @@ void run_reconstruct(cli::Context& ctx) {
         throw cli::UsageError(std::string("--stand: ") + e.what());
     }
     options.extraction.crop_radius_m = ctx.get<double>("crop-radius-m");
+    options.extraction.enabled = !ctx.options().count("no-extract");
+    options.extraction.subject.remove_ground = !ctx.options().count("keep-ground");
     if (!(options.extraction.crop_radius_m >= 0))
         throw cli::UsageError("--crop-radius-m must be >= 0");
     options.seed = ctx.seed();
@@ -222,6 +224,10 @@ void run_reconstruct(cli::Context& ctx) {
         Report picture_info;
         std::vector<cli::ReportImage> images;
         cli::render_report_pictures(pictures, images, picture_info);
+        if (!result.removed.empty()) {
+            cli::ReportImage extraction = cli::extraction_picture(result.input, result.removed);
+            if (!extraction.file.empty()) images.push_back(std::move(extraction));
+        }
         report["report"] = picture_info;
         timings["pictures"] = watch.seconds();
         timings["total"] = total.seconds();
@@ -289,7 +295,11 @@ const cli::ToolSpec kSpec{
             "kinect_v1, sr300 or generic")(
             "crop-radius-m",
             cli::value(pipeline::ReconstructOptions{}.extraction.crop_radius_m, "M"),
-            "object extraction radius around the sensors' common centre (0 = no crop)")(
+            "override of the object extraction's extent: keep a ball of this radius around "
+            "where the sensors' axes converge (0 = the subject's extent from the data: the "
+            "connected regions above the ground that the sensors look at together)")(
+            "keep-ground", "object extraction: keep the ground (floor, platter) in the views")(
+            "no-extract", "no object extraction: every point in the depth window is kept")(
             "method", cli::value(pipeline::ReconstructOptions{}.mesh.method, "NAME"),
             "surface reconstruction method of rgbd-mesh (front, poisson or advancing-front)")(
             "stand", cli::value<std::string>("auto", "MODE"),

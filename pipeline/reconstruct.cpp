@@ -77,7 +77,7 @@ void ReconstructOptions::check() const {
         RGBD_CHECK(std::find(optional_stages().begin(), optional_stages().end(), s) !=
                        optional_stages().end(),
                    "unknown stage '" + s + "' (valid: distance, upsample, density, fill)");
-    RGBD_CHECK(extraction.crop_radius_m >= 0, "crop_radius_m must be >= 0");
+    extraction.check();
     stand_options.check();
     upsample.check();
     mesh.check();
@@ -123,25 +123,48 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
     denoise::DensityOptions density_options = options.density;
     density_options.seed = options.seed;
 
-    // 1. clouds, 2. distance-based cleaning and 3. super-resolution, one view at a time.
+    // 1. clouds, then the object extraction over all of them, then 2. distance-based cleaning
+    // and 3. super-resolution, one view at a time.
     Stopwatch watch;
-    double clean_time = 0, upsample_time = 0;
-    std::size_t cloud_points = 0, clean_points = 0, upsample_views = 0;
+    double clean_time = 0, upsample_time = 0, extract_time = 0;
+    std::size_t cloud_points = 0, extracted_points = 0, clean_points = 0, upsample_views = 0;
     std::vector<PointCloud> views;
+    std::vector<RgbdFrame> loaded;
+    std::vector<Report> view_reports;
     report["views"] = Report::array();
     {
         StageScope scope(hooks, "clouds");
         const auto centre = object_centre(capture, frames);
         for (const auto& [id, position] : frames) {
             Report v;
-            const RgbdFrame frame = io::load_frame(capture, id, position);
-            PointCloud cloud = view_from_frame(frame, static_cast<int>(views.size()), options.cloud,
-                                               centre, options.extraction, v);
+            loaded.push_back(io::load_frame(capture, id, position));
+            views.push_back(view_from_frame(loaded.back(), static_cast<int>(views.size()),
+                                            options.cloud, centre, /*extraction=*/{0.0}, v));
+            cloud_points += views.back().size();
+            view_reports.push_back(std::move(v));
+            report_progress(scope.progress(), 0.5 * views.size() / frames.size());
+        }
+        Stopwatch extract_watch;
+        try {
+            report["extraction"] =
+                extract_stage(views, centre, options.extraction, {}, &result.removed);
+        } catch (const InputError& e) {
+            throw InputError(root + ": " + e.what());
+        }
+        if (report["extraction"].contains("note") && hooks.warn)
+            hooks.warn(report["extraction"]["note"].get<std::string>());
+        extract_time = extract_watch.seconds();
+        extracted_points = count_points(views);
+        for (std::size_t i = 0; i < views.size(); ++i) {
+            PointCloud& cloud = views[i];
+            const RgbdFrame& frame = loaded[i];
+            Report& v = view_reports[i];
+            const std::string& id = frame.sensor_id;
+            v["points"] = cloud.size();
             distance_options.noise_model =
                 options.noise_model
                     ? *options.noise_model
                     : view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
-            cloud_points += cloud.size();
             if (!skip.count("distance")) {
                 Stopwatch clean_watch;
                 v["distance"] = denoise::remove_distance_outliers(cloud, distance_options);
@@ -152,7 +175,7 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
             if (cloud.size() < 100)
                 throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
                                  ") has only " + std::to_string(cloud.size()) +
-                                 " points in the depth window");
+                                 " points of the subject");
             // Super-resolution where the colour camera has more pixels than the depth one.
             const bool finer_colour =
                 !frame.color.empty() &&
@@ -164,14 +187,16 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
                 ++upsample_views;
             }
             report["views"].push_back(v);
-            views.push_back(std::move(cloud));
-            report_progress(scope.progress(), static_cast<double>(views.size()) / frames.size());
+            report_progress(scope.progress(), 0.5 + 0.5 * (i + 1.0) / frames.size());
         }
     }
+    loaded.clear();
     const std::size_t upsampled_points = count_points(views);
-    add_stage("clouds", watch.seconds() - clean_time - upsample_time, 0, cloud_points,
-              {{"views", views.size()}});
-    if (!skip.count("distance")) add_stage("distance", clean_time, cloud_points, clean_points);
+    add_stage("clouds", watch.seconds() - clean_time - upsample_time - extract_time, 0,
+              cloud_points, {{"views", views.size()}});
+    if (options.extraction.enabled)
+        add_stage("extract", extract_time, cloud_points, extracted_points);
+    if (!skip.count("distance")) add_stage("distance", clean_time, extracted_points, clean_points);
     if (!skip.count("upsample")) {
         add_stage("upsample", upsample_time, clean_points, upsampled_points,
                   {{"views", upsample_views}});

@@ -50,7 +50,7 @@ struct ReconstructOptions {
     /// model when they all share one the denoisers know, else Kinect v2.
     std::optional<denoise::NoiseModel> noise_model;
     frames::CloudOptions cloud;
-    ExtractionOptions extraction;
+    SubjectStageOptions extraction;     ///< the object extraction after the clouds
     denoise::DistanceOptions distance;  ///< noise_model is set from `noise_model`
     upsample::UpsampleOptions upsample;
     registration::MultiViewOptions align;
@@ -91,6 +91,9 @@ struct ReconstructResult {
     std::vector<PointCloud> poses;
     /// The aligned points (with the filled ones) that were meshed, for pictures.
     render::Geometry input;
+    /// The points the object extraction removed (world frame of the initial poses, at most
+    /// 200,000), for the report's picture.
+    std::vector<Eigen::Vector3d> removed;
 
     /// The stages as a JSON array of {stage, time_s, points_in, points_out, ...}.
     Report stages_report() const;

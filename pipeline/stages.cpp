@@ -109,6 +109,26 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
     return cloud;
 }
 
+void SubjectStageOptions::check() const {
+    RGBD_CHECK(std::isfinite(crop_radius_m) && crop_radius_m >= 0,
+               "crop radius must be >= 0 m, got " + std::to_string(crop_radius_m));
+    subject.check();
+}
+
+Report extract_stage(std::vector<PointCloud>& views, const std::optional<Eigen::Vector3d>& centre,
+                     const SubjectStageOptions& options, const Progress& progress,
+                     std::vector<Eigen::Vector3d>* removed_world) {
+    options.check();
+    if (!options.enabled || views.empty()) return Report();
+    segment::SubjectOptions subject = options.subject;
+    subject.crop_radius_m = options.crop_radius_m;
+    subject.crop_centre = centre;
+    const denoise::NoiseModel fallback = stream_noise_model(views);
+    std::vector<denoise::NoiseModel> noise;
+    for (const auto& v : views) noise.push_back(view_noise_model(v).value_or(fallback));
+    return segment::extract_subject(views, noise, subject, /*mark=*/false, progress, removed_world);
+}
+
 namespace {
 
 /// Normals oriented towards each view's own sensor, for views that have none. Views in
@@ -211,6 +231,18 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
             if (view.view.world_from_sensor) sensors.push_back(*view.view.world_from_sensor);
         with_up.up = sensors_up(sensors, 0.7);
     }
+    // The ground the extraction removed (each view's plane moved by its aligned pose): a base
+    // that reaches it lies on it.
+    if (!with_up.ground)
+        if (const auto ground = segment::world_ground(views)) {
+            with_up.ground = Eigen::Vector4d(ground->normal.x(), ground->normal.y(),
+                                             ground->normal.z(), ground->offset);
+            with_up.ground_margin_m = ground->margin_m;
+            report["ground"] = {
+                {"normal", {ground->normal.x(), ground->normal.y(), ground->normal.z()}},
+                {"offset_m", ground->offset},
+                {"margin_m", ground->margin_m}};
+        }
     ensure_view_normals(views);
     for (auto& view : views) to_world_frame(view);
     PointCloud merged =

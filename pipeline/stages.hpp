@@ -16,6 +16,7 @@
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 #include "algorithms/registration/icp.hpp"
 #include "algorithms/segment/stand_removal.hpp"
+#include "algorithms/segment/subject_extraction.hpp"
 #include "io/capture_folder.hpp"
 #include "toolkit/mesh.hpp"
 #include "toolkit/point_cloud.hpp"
@@ -24,10 +25,33 @@
 
 namespace rgbd::pipeline {
 
-/// Options of the object extraction shared by rgbd-cloud and rgbd-reconstruct.
+/// The per-view crop of the live paths (3D video, rgbd-capture --live, rgbd-calibrate --refine),
+/// which see one view at a time: a ball around where the sensors' axes converge.
 struct ExtractionOptions {
     double crop_radius_m = 0.6;  ///< 0 = no world-space crop
 };
+
+/// The object extraction of rgbd-cloud and rgbd-reconstruct, over all views of a frame set
+/// (segment::extract_subject): the ground removed, the subject kept, its extent from the data.
+struct SubjectStageOptions {
+    bool enabled = true;  ///< false: every point in the depth window is kept (--no-extract)
+    /// > 0: a ball of this radius around where the sensors' axes converge decides the extent
+    /// instead of the regions (the override; the ground is still removed), metres.
+    double crop_radius_m = 0.0;
+    segment::SubjectOptions subject;  ///< remove_ground false: --keep-ground
+    /// Throws InputError for invalid values.
+    void check() const;
+};
+
+/// Runs the object extraction on the views of one frame set (sensor frames, initial poses):
+/// the crop when `options.crop_radius_m` > 0 and `centre` is known, then
+/// segment::extract_subject with each view's noise model (view_noise_model, else the stream's).
+/// Returns its report, with "crop" when the crop ran; null when the stage is off.
+/// `removed_world`, when given, receives the removed points in the world frame (at most 200,000,
+/// evenly strided) for the report's picture.
+Report extract_stage(std::vector<PointCloud>& views, const std::optional<Eigen::Vector3d>& centre,
+                     const SubjectStageOptions& options, const Progress& progress = {},
+                     std::vector<Eigen::Vector3d>* removed_world = nullptr);
 
 /// The object centre of a selection of frames: where the optical axes of their (initial)
 /// poses converge, or nullopt when the poses do not tell (one view, parallel axes, no poses).

@@ -252,7 +252,7 @@ Halfedge extrude_to_support(Mesh& mesh, Halfedge h, const SupportPlane& support,
 /// plane through all their vertices.
 std::vector<char> support_loops(const Mesh& mesh, const std::vector<Halfedge>& borders,
                                 const Eigen::Vector3d& up, double low, double high,
-                                SupportPlane& support) {
+                                SupportPlane& support, std::vector<Eigen::Vector3d>* rim_out) {
     std::vector<char> flags(borders.size(), 0);
     std::vector<LoopPlane> planes(borders.size());
     std::vector<Eigen::Vector3d> rim;
@@ -279,13 +279,15 @@ std::vector<char> support_loops(const Mesh& mesh, const std::vector<Halfedge>& b
         if (flags[i])
             for (const auto& p : loop_points(mesh, borders[i])) rim.push_back(p);
     support = support_plane(rim, up);
+    if (rim_out) *rim_out = rim;
     return flags;
 }
 
 }  // namespace
 
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
-                   std::size_t fair_max_edges, std::vector<Mesh::Face_index>* added) {
+                   std::size_t fair_max_edges, std::vector<Mesh::Face_index>* added,
+                   const std::optional<Eigen::Vector4d>& ground, double ground_margin_m) {
     Stopwatch watch;
     // Faces present before the fill are marked; without garbage, new faces are never recycled
     // ones and start unmarked.
@@ -306,8 +308,30 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     std::size_t faired = 0, refined = 0, flat = 0, fans = 0, largest = 0;
     const std::size_t faces_before = mesh.number_of_faces();
     SupportPlane support;
-    const std::vector<char> on_support = up ? support_loops(mesh, borders, *up, low, high, support)
-                                            : std::vector<char>(borders.size(), 0);
+    std::vector<Eigen::Vector3d> rim;
+    const std::vector<char> on_support =
+        up ? support_loops(mesh, borders, *up, low, high, support, &rim)
+           : std::vector<char>(borders.size(), 0);
+    Report base;
+    if (up && !rim.empty()) {
+        base["kind"] = "rim";
+        if (ground && ground->head<3>().allFinite() && std::isfinite((*ground)(3))) {
+            const Eigen::Vector3d n = ground->head<3>().normalized();
+            const double d = (*ground)(3) / ground->head<3>().norm();
+            // The rim's deep quintile above the ground, and its spread.
+            std::vector<double> heights;
+            for (const auto& p : rim) heights.push_back(n.dot(p) + d);
+            const double deep = rank_quantile(heights, 0.2);
+            const LoopPlane plane = fit_loop_plane(rim);
+            const double reach = std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms);
+            base["rim_above_ground_m"] = deep;
+            if (deep <= reach) {
+                support.down = -n;
+                support.point = -d * n;  // n . point + d = 0
+                base["kind"] = "ground";
+            }
+        }
+    }
     for (std::size_t loop = 0; loop < borders.size(); ++loop) {
         Halfedge h = borders[loop];
         if (!mesh.is_border(h)) continue;  // closed by an earlier fill
@@ -368,6 +392,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
         r["up"] = {(*up)(0), (*up)(1), (*up)(2)};
     else
         r["up"] = nullptr;
+    if (!base.is_null()) r["base"] = base;
     r["faces_added"] = mesh.number_of_faces() - faces_before;
     r["time_s"] = watch.seconds();
     return r;

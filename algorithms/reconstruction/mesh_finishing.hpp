@@ -32,12 +32,19 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// quintile (the sensors rarely see the last millimetres above a base); the sides are extended
 /// straight down to it and capped flat. Without `up`, a
 /// cut is a planar loop meeting the surface at a crease (the faces along it steep to its plane).
+/// With `ground` (n, d: n . p + d the height above the ground, metres) and the extraction's cut
+/// `ground_margin_m`: when the cut's rim reaches down to the ground (its deep quintile within
+/// the margin plus 3 robust RMS of the rim's plane, at least 1 cm), the object stood on the
+/// ground: the base goes on it. Otherwise the base is the rim's own plane at its deep quintile
+/// (never lower than the rim's lowest vertex: no skirt below what the sensors saw).
 /// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
-/// faces_added, largest_hole_edges, up (null when unknown), time_s.
+/// faces_added, largest_hole_edges, up (null when unknown), base ("ground" or "rim", with
+/// base_height_m above the ground when known), time_s.
 /// `added` (optional) receives the faces created.
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::nullopt,
-                   std::size_t fair_max_edges = 300,
-                   std::vector<Mesh::Face_index>* added = nullptr);
+                   std::size_t fair_max_edges = 300, std::vector<Mesh::Face_index>* added = nullptr,
+                   const std::optional<Eigen::Vector4d>& ground = std::nullopt,
+                   double ground_margin_m = 0.0);
 
 /// Removes the faces of folds and spikes, the defects an interpolating front leaves on noisy
 /// points: both faces of every edge across which the face normals differ by more than

@@ -533,7 +533,8 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                                                                options.min_component_fraction);
         std::vector<Mesh::Face_index> added;
         if (options.watertight && !CGAL::is_closed(mesh))
-            steps["holes"] = internal::close_holes(mesh, options.up, 300, &added);
+            steps["holes"] = internal::close_holes(mesh, options.up, 300, &added, options.ground,
+                                                   options.ground_margin_m);
         if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
         if (options.target_faces > 0)

@@ -44,6 +44,13 @@ struct ReconstructionOptions {
     /// other loop (crown, under the chin) continues the surface smoothly. Without it, a loop is
     /// taken for a cut by its shape alone (planar, meeting the surface at a crease).
     std::optional<Eigen::Vector3d> up;
+    /// The ground the object stood on (world frame: unit normal n pointing up and offset d,
+    /// n . p + d the height above it, metres), e.g. segment::world_ground of the views, and the
+    /// margin the extraction cut above it. With it, `watertight` puts the flat base of a cut
+    /// that reaches down to the ground (within the margin and the rim's noise) on the ground;
+    /// a cut that ends above it is capped at its own rim, never below.
+    std::optional<Eigen::Vector4d> ground;
+    double ground_margin_m = 0.0;
     /// Simplify by edge collapse to at most this many faces; 0 = keep the reconstruction's.
     std::size_t target_faces = 0;
     /// Connected components with fewer faces than this share of the largest one's are dropped

@@ -265,4 +265,29 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     return against;
 }
 
+ReportImage extraction_picture(const render::Geometry& kept,
+                               const std::vector<Eigen::Vector3d>& removed,
+                               const render::CameraOptions& camera) {
+    if (kept.vertices.empty() && removed.empty()) return {};
+    render::Geometry all;
+    all.sensors = kept.sensors;
+    all.vertices = kept.vertices;
+    const bool coloured = kept.colors.size() == kept.vertices.size();
+    all.colors = coloured ? kept.colors : std::vector<Rgb>(kept.vertices.size(), Rgb{200, 60, 40});
+    // Removed points: a neutral grey, lighter than most subjects.
+    for (const auto& p : removed) {
+        all.vertices.push_back(p);
+        all.colors.push_back(Rgb{185, 185, 185});
+    }
+    Eigen::Vector3d lo = all.vertices.front(), hi = lo;
+    for (const auto& v : all.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+    const render::Orientation orientation =
+        render::guess_orientation(all.sensors, 0.5 * (lo + hi), std::nullopt);
+    const render::Camera cam = render::fit_camera(all.vertices, orientation, camera);
+    return {"extraction.png",
+            "object extraction: " + std::to_string(kept.vertices.size()) + " points kept, " +
+                std::to_string(removed.size()) + " removed (grey)",
+            render::render_picture(all, cam, {}).image};
+}
+
 }  // namespace rgbd::cli

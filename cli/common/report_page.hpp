@@ -75,4 +75,11 @@ struct PictureInputs {
 std::string render_report_pictures(const PictureInputs& inputs, std::vector<ReportImage>& images,
                                    Report& info);
 
+/// The object extraction's picture: the kept points in their colours and the removed ones
+/// (world frame) in a neutral grey, seen from the sensors' side as the other pictures.
+/// Returns an image with an empty file name when there is nothing to draw.
+ReportImage extraction_picture(const render::Geometry& kept,
+                               const std::vector<Eigen::Vector3d>& removed,
+                               const render::CameraOptions& camera = {});
+
 }  // namespace rgbd::cli
