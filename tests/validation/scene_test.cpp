@@ -23,7 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr double kSphereRadius = 0.2;  // icosphere of radius 1 placed 0.4 m high
+constexpr double kSphereRadius = 0.225;  // icosphere of radius 1 placed 0.45 m high (default)
 
 Mesh sphere() {
     Mesh mesh;
@@ -38,7 +38,7 @@ nlohmann::json read_json(const fs::path& p) {
 
 Pose pose_from_json(const nlohmann::json& m) {
     Pose p = Pose::Identity();
-    Eigen::Matrix4d a;
+    Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c) a(r, c) = m[r][c].get<double>();
     p.matrix() = a;
@@ -268,7 +268,10 @@ TEST(SceneElements, PlinthUnderTheSubjectAndTheFloorBelowIt) {
     f.subject_lo.head<2>() = Eigen::Vector2d(-2, -2);
     f.subject_hi.head<2>() = Eigen::Vector2d(2, 2);
     Surroundings t;
-    EXPECT_THROW(add_surroundings(soup, t, o, f), InputError);
+    EXPECT_NO_THROW(add_surroundings(soup, t, o, f));  // the sensors look down from above it
+    f.sensor_positions = {{1.5, 0, 0.9}};
+    Surroundings u;
+    EXPECT_THROW(add_surroundings(soup, u, o, f), InputError);
 }
 
 TEST(SceneElements, PlacementFollowsTheSeed) {
