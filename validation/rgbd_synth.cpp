@@ -63,10 +63,23 @@ void print_help(const po::options_description& options) {
            "(--frames,\n"
            "default 40), seen by the sensors in front of it. gt/ holds world_from_depth.json,\n"
            "board_poses.json (world_from_board per frame set) and board.json.\n\n"
+           "Scene around the object (ring rig, static object; --rig turntable and --motion\n"
+           "refuse them): --floor under the object's lowest point (8 m square, grey tiles),\n"
+           "--plinth-height-m H (a box under the object, 1.2 x its footprint; the floor then\n"
+           "lies H lower), --walls N (2.5 m tall, 1 m beyond the ring, at 0, 90, 180, 270 deg),\n"
+           "--clutter N (boxes and cylinders of 0.1-0.5 m on the floor level at 0.6-1.3 x the\n"
+           "ring radius, 0.3 m or more from the object), --people N (0.45 x 0.3 x 1.7 m boxes\n"
+           "at 1.2-1.6 x the ring radius); --scene room = --floor --walls 2 --clutter 4\n"
+           "--people 1 (explicit options override it). Placement follows --seed; no element\n"
+           "encloses a sensor. gt/mesh.ply stays the object alone; gt/<sensor>/segment/ labels\n"
+           "every depth pixel (0 no return, 1 object, 2 floor/plinth/platter, 3 walls/clutter/\n"
+           "people, 4 valid depth without a surface) and gt/scene.json's \"scene\" entry holds\n"
+           "the floor height and every element's geometry.\n\n"
         << options
         << "\nExample:\n"
            "  rgbd-synth /tmp/cgaldata/data/meshes/bunny00.off -o cap --up y --height-m 0.45\n"
            "  rgbd-cloud cap --frameset 0 | rgbd-clean --distance | rgbd-align ...\n"
+           "  rgbd-synth bunny00.off -o room --up y --scene room --resolution-scale 0.5\n"
            "  rgbd-synth max-planck.obj -o tt --rig turntable --stops 24 --height-m 0.25\n"
            "  rgbd-synth --target charuco -o board --calib-error-deg 10 --calib-error-mm 100\n"
            "  rgbd-calibrate board -o rig.json\n";
@@ -80,6 +93,8 @@ int main(int argc, char** argv) {
     std::string board_path;
     rgbd::synth::BoardMotion motion;
     int verbosity = 0, stops = 12;
+    std::string scene_name = "bare";
+    rgbd::synth::SceneOptions scene;
     std::string motion_kind = "none";
     double fps = 30.0;
     bool quiet = false;
@@ -112,6 +127,18 @@ int main(int argc, char** argv) {
              ->value_name("D"), "turntable truth: std of each stop's angle error, degrees")
         ("stand", po::bool_switch(&options.stand),
          "turntable: render the platter the object stands on (dark disc, not in gt/mesh.ply)")
+        ("scene", po::value(&scene_name)->default_value("bare")->value_name("bare|room"),
+         "ring: elements around the object; room = --floor --walls 2 --clutter 4 --people 1")
+        ("floor", po::bool_switch(&scene.floor), "ring: a floor at the object's lowest point "
+         "(minus --plinth-height-m)")
+        ("plinth-height-m", po::value(&scene.plinth_height_m)->default_value(0.0, "0")
+             ->value_name("H"), "ring: a box plinth of height H under the object (0 = none)")
+        ("walls", po::value(&scene.walls)->default_value(0)->value_name("N"),
+         "ring: N walls (0-4) 1 m beyond the ring, 90 degrees apart")
+        ("clutter", po::value(&scene.clutter)->default_value(0)->value_name("N"),
+         "ring: N boxes and cylinders on the floor level around the object")
+        ("people", po::value(&scene.people)->default_value(0)->value_name("N"),
+         "ring: N standing people (boxes) outside the ring")
         ("resolution-scale", po::value(&options.resolution_scale)->default_value(1.0, "1")
              ->value_name("F"), "multiply the depth and colour pixel counts per side by F "
          "(0.1-4; e.g. 0.5 for fast tests)")
@@ -183,6 +210,14 @@ int main(int argc, char** argv) {
             options.rig = rgbd::synth::parse_rig_kind(rig);
             options.up = rgbd::synth::parse_up_axis(up);
             options.motion = rgbd::synth::parse_motion_kind(motion_kind);
+            // --scene sets the defaults; options given explicitly override it.
+            options.scene = rgbd::synth::scene_preset(scene_name);
+            options.scene.floor = options.scene.floor || scene.floor;
+            if (!vm["plinth-height-m"].defaulted())
+                options.scene.plinth_height_m = scene.plinth_height_m;
+            if (!vm["walls"].defaulted()) options.scene.walls = scene.walls;
+            if (!vm["clutter"].defaulted()) options.scene.clutter = scene.clutter;
+            if (!vm["people"].defaulted()) options.scene.people = scene.people;
             rgbd::check_range("--fps", fps, rgbd::Range::open_closed(0, 1000));
             options.frame_period_s = 1.0 / fps;
             if (noise == "none")
@@ -194,6 +229,8 @@ int main(int argc, char** argv) {
                 if (vm["frames"].defaulted()) options.frames = 40;
                 if (options.rig != rgbd::synth::RigKind::kRing)
                     throw rgbd::InputError("--target charuco needs --rig ring");
+                if (options.scene.any())
+                    throw rgbd::InputError("--target charuco takes no scene elements");
                 motion.check();
             }
             if (vm.count("stops")) {

@@ -11,6 +11,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -77,6 +79,24 @@ TEST_F(RgbdSynthTool, UsageErrorsExitTwoWithOneLine) {
         EXPECT_EQ(r.err.rfind("rgbd-synth: error: ", 0), 0u) << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_TRUE(r.out.empty());
+    }
+}
+
+TEST_F(RgbdSynthTool, BadSceneValuesAreUsageErrorsNamingTheOption) {
+    for (const auto& [args, option] : std::vector<std::pair<std::string, std::string>>{
+             {"mesh.off -o x --walls 7", "--walls"},
+             {"mesh.off -o x --plinth-height-m -1", "--plinth-height-m"},
+             {"mesh.off -o x --plinth-height-m nan", "--plinth-height-m"},
+             {"mesh.off -o x --clutter=-2", "--clutter"},
+             {"mesh.off -o x --people 99", "--people"},
+             {"mesh.off -o x --scene garden", "garden"},
+             {"mesh.off -o x --rig turntable --scene room", "--rig ring"},
+             {"mesh.off -o x --floor --motion turn", "--motion none"}}) {
+        const ToolRun r = run(args);
+        EXPECT_EQ(r.code, 2) << args;
+        EXPECT_EQ(r.err.rfind("rgbd-synth: error: ", 0), 0u) << r.err;
+        EXPECT_NE(r.err.find(option), std::string::npos) << args << ": " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     }
 }
 

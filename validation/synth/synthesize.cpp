@@ -60,15 +60,6 @@ cv::Mat to_depth16(const cv::Mat& depth_m, double depth_scale) {
     return out;
 }
 
-/// The turntable platter's colour (dark grey rubber).
-constexpr Rgb kPlatterColor{38, 38, 42};
-
-/// Triangles of `scene` that belong to the object (the first ones; the platter follows).
-int scene_object_triangles(const RenderScene& scene, const PlacedMesh& placed) {
-    return placed.object_triangles >= 0 ? placed.object_triangles
-                                        : static_cast<int>(scene.triangles().size());
-}
-
 /// Scales a camera's pixel grid by `f` per side (intrinsics in pixels alike, pixel centres
 /// kept: c' = (c + 0.5) f - 0.5).
 void scale_camera(PinholeIntrinsics& c, double f) {
@@ -109,6 +100,13 @@ void SynthOptions::check() const {
     texture.check();
     RGBD_CHECK(motion == MotionKind::kNone || rig == RigKind::kRing,
                "a moving object needs the ring rig");
+    scene.check();
+    RGBD_CHECK(!scene.any() || rig == RigKind::kRing,
+               "scene elements (--floor, --plinth-height-m, --walls, --clutter, --people, --scene "
+               "room) need --rig ring");
+    RGBD_CHECK(!scene.any() || motion == MotionKind::kNone,
+               "scene elements (--floor, --plinth-height-m, --walls, --clutter, --people, --scene "
+               "room) need a static object (--motion none)");
     check_range("motion_deg (degrees per second for a turn, amplitude for a nod)", motion_deg,
                 Range::closed(-3600, 3600));
     check_range("motion period", motion_period_s, Range::open(0, 3600), "s");
@@ -356,13 +354,14 @@ RenderedView render_view(const RenderScene& scene, const PlacedMesh& placed,
     const TextureOptions texture = options.texture;
     v.color = render_color(
         scene, spec.color, world_from_color,
-        [&placed, texture, object_triangles = scene_object_triangles(scene, placed)](
-            const Eigen::Vector3d& p_world, int triangle) {
-            if (triangle >= object_triangles) return kPlatterColor;
+        [&placed, &scene, texture](const Eigen::Vector3d& p_world, int triangle) {
+            if (const SceneElement* e = placed.surroundings.element_of(triangle))
+                return element_color(*e, p_world, scene.normals()[triangle]);
             return texture_color(placed.object_from_world(p_world), texture);
         },
         options.background);
     apply_color_noise(v.color, options.noise.color_sigma, derive_seed(seed, kColorSeed));
+    v.segment = segment_image(v.clean.triangle, v.noisy.depth, placed.surroundings);
     return v;
 }
 
@@ -377,34 +376,41 @@ nlohmann::json pose_to_json(const Pose& pose) {
 
 RenderScene scene_with_platter(PlacedMesh& placed) {
     const RenderScene object(placed.mesh);
-    std::vector<Eigen::Vector3d> v = object.vertices();
-    std::vector<std::array<int, 3>> t = object.triangles();
-    placed.object_triangles = static_cast<int>(t.size());
+    SceneSoup soup{object.vertices(), object.triangles()};
+    placed.surroundings = Surroundings{};
+    placed.surroundings.object_triangles = static_cast<int>(soup.triangles.size());
     double z_min = std::numeric_limits<double>::infinity(), r_max = 0;
-    for (const auto& p : v) {
+    for (const auto& p : soup.vertices) {
         z_min = std::min(z_min, p.z());
         r_max = std::max(r_max, (p - placed.centre).head<2>().norm());
     }
-    const double radius = 1.25 * r_max + 0.01, thickness = 0.02;
-    constexpr int kSides = 96;
-    const int base = static_cast<int>(v.size());
-    const Eigen::Vector3d c(placed.centre.x(), placed.centre.y(), z_min);
-    v.push_back(c);                                     // top centre
-    v.push_back(c - Eigen::Vector3d(0, 0, thickness));  // bottom centre
-    for (int k = 0; k < kSides; ++k) {
-        const double a = 2.0 * std::numbers::pi * k / kSides;
-        const Eigen::Vector3d r(radius * std::cos(a), radius * std::sin(a), 0);
-        v.push_back(c + r);
-        v.push_back(c + r - Eigen::Vector3d(0, 0, thickness));
+    add_platter(soup, placed.surroundings,
+                Eigen::Vector3d(placed.centre.x(), placed.centre.y(), z_min), r_max);
+    return RenderScene(std::move(soup.vertices), std::move(soup.triangles));
+}
+
+RenderScene make_render_scene(PlacedMesh& placed, const SynthOptions& o, const SyntheticRig& rig) {
+    o.check();
+    placed.surroundings = Surroundings{};
+    if (o.stand) return scene_with_platter(placed);
+    if (!o.scene.any()) return RenderScene(placed.mesh);
+    const RenderScene object(placed.mesh);
+    SceneSoup soup{object.vertices(), object.triangles()};
+    placed.surroundings.object_triangles = static_cast<int>(soup.triangles.size());
+    SceneFrame frame;
+    frame.subject_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    frame.subject_hi = -frame.subject_lo;
+    for (const auto& p : soup.vertices) {
+        frame.subject_lo = frame.subject_lo.cwiseMin(p);
+        frame.subject_hi = frame.subject_hi.cwiseMax(p);
     }
-    const auto top = [&](int k) { return base + 2 + 2 * (k % kSides); };
-    for (int k = 0; k < kSides; ++k) {
-        t.push_back({base, top(k), top(k + 1)});              // top face, normal +z
-        t.push_back({base + 1, top(k + 1) + 1, top(k) + 1});  // bottom face
-        t.push_back({top(k), top(k) + 1, top(k + 1) + 1});    // rim
-        t.push_back({top(k), top(k + 1) + 1, top(k + 1)});
-    }
-    return RenderScene(std::move(v), std::move(t));
+    frame.ring_radius_m = o.ring_radius_m;
+    for (const auto& s : rig.sensors)
+        for (const auto& pose : s.true_world_from_depth)
+            frame.sensor_positions.push_back(pose.translation());
+    frame.seed = o.seed;
+    add_surroundings(soup, placed.surroundings, o.scene, frame);
+    return RenderScene(std::move(soup.vertices), std::move(soup.triangles));
 }
 
 namespace {
@@ -414,7 +420,7 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
     const Stopwatch total;
     const SyntheticRig rig = make_rig(o);
     PlacedMesh placed = place_mesh(mesh, o.height_m, o.up, rig.object_centre);
-    const RenderScene scene = o.stand ? scene_with_platter(placed) : RenderScene(placed.mesh);
+    const RenderScene scene = make_render_scene(placed, o, rig);
 
     io::Rig rig_json;
     for (const auto& s : rig.sensors) rig_json.sensors.push_back(s.spec);
@@ -425,6 +431,7 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
     for (const auto& s : rig.sensors) {
         fs::create_directories(gt / s.spec.id / "depth_clean");
         fs::create_directories(gt / s.spec.id / "labels");
+        fs::create_directories(gt / s.spec.id / "segment");
     }
     const int nsensors = static_cast<int>(rig.sensors.size());
     const int nsets = rig.frames_per_sensor;
@@ -452,6 +459,8 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
                                    to_depth16(clean, s.spec.depth_scale));
             io::write_image_atomic(gt / s.spec.id / "labels" / frame_name(set, "png"),
                                    views[i].noisy.labels);
+            io::write_image_atomic(gt / s.spec.id / "segment" / frame_name(set, "png"),
+                                   views[i].segment);
         });
         io::FrameSet fs_line;
         fs_line.set = set;
@@ -529,6 +538,10 @@ void write_capture(const Mesh& mesh, const fs::path& root, const SynthOptions& o
         {"noise", o.noise.to_json()},
         {"options", o.to_json()},
         {"seed", o.seed}};
+    if (o.scene.any()) {  // absent without scene elements: scene.json as before
+        scene_json["scene"] = placed.surroundings.to_json();
+        scene_json["scene"]["options"] = o.scene.to_json();
+    }
     io::write_text_atomic(gt / "scene.json", scene_json.dump(2) + "\n");
     io::write_mesh(gt / "mesh.ply", placed.mesh);
     summary.total_s = total.seconds();

@@ -19,6 +19,7 @@
 #include "toolkit/progress.hpp"
 #include "validation/synth/noise.hpp"
 #include "validation/synth/rasterizer.hpp"
+#include "validation/synth/scene.hpp"
 #include "validation/synth/texture.hpp"
 
 namespace rgbd::synth {
@@ -71,8 +72,9 @@ struct SynthOptions {
     double motion_period_s = 2.0;           ///< nod: period, seconds
     std::uint64_t seed = 1;                 ///< seeds every random choice
     TextureOptions texture;                 ///< procedural colour
-    Rgb background{64, 64, 64};             ///< colour where the colour camera sees no object
-    std::string mesh_source;                ///< provenance written to gt/scene.json (free text)
+    SceneOptions scene;  ///< ring, static subject: floor, plinth, walls, clutter, people (none)
+    Rgb background{64, 64, 64};  ///< colour where the colour camera sees no object
+    std::string mesh_source;     ///< provenance written to gt/scene.json (free text)
 
     /// Throws InputError on absurd values.
     void check() const;
@@ -107,8 +109,9 @@ struct PlacedMesh {
     Eigen::Vector3d input_centre;               ///< bbox centre of the input mesh (input units)
     Eigen::Vector3d centre;                     ///< bbox centre in the world = object-frame origin
     Eigen::Matrix3d world_from_input_rotation;  ///< up-axis rotation
-    /// Triangles of the render scene that are the object's (the platter's follow); -1: all.
-    int object_triangles = -1;
+    /// The render scene beyond the object: its triangles come first, then the platter or the
+    /// scene elements (surroundings.object_triangles = -1: all are the object's).
+    Surroundings surroundings;
     /// Object frame (texture frame): world translated so that the centre is the origin.
     Eigen::Vector3d object_from_world(const Eigen::Vector3d& p_world) const {
         return p_world - centre;
@@ -143,19 +146,27 @@ SyntheticRig make_rig(const SynthOptions& options);
 /// The render scene of `placed` standing on a turntable platter: a dark disc 20 mm thick,
 /// 1.25 times the object's horizontal radius + 10 mm, its top at the object's lowest point,
 /// centred below the object; it turns with the object and is not part of the ground truth.
-/// Sets placed.object_triangles.
+/// Sets placed.surroundings.
 RenderScene scene_with_platter(PlacedMesh& placed);
+
+/// The render scene of a capture: the object alone (RenderScene(placed.mesh), as without scene
+/// elements), with the platter (options.stand), or with the scene elements of options.scene
+/// around it (scene.hpp; the rig's sensors are kept out of them). Sets placed.surroundings.
+RenderScene make_render_scene(PlacedMesh& placed, const SynthOptions& options,
+                              const SyntheticRig& rig);
 
 /// One rendered view.
 struct RenderedView {
     DepthRender clean;  ///< noise-free render, depth camera (metres, normals, triangle ids)
     NoisyDepth noisy;   ///< depth with noise and labels
     cv::Mat color;      ///< CV_8UC3 BGR, colour camera, with colour noise (before JPEG)
+    cv::Mat segment;    ///< CV_8UC1 SegmentLabel per depth pixel (segment_image, scene.hpp)
 };
 
 /// Renders one view of `scene` by a sensor whose depth camera is at `world_from_depth`;
 /// the colour camera sits at world_from_depth * color_from_depth^-1 and renders its own
-/// visibility. `seed` selects the noise.
+/// visibility. `seed` selects the noise. Triangles beyond the object's are shaded and labelled
+/// by placed.surroundings.
 RenderedView render_view(const RenderScene& scene, const PlacedMesh& placed,
                          const io::SensorSpec& spec, const DepthSensorTraits& traits,
                          const Pose& world_from_depth, const SynthOptions& options,
