@@ -78,8 +78,12 @@ BoardImages load_board_images(const io::Capture& capture, const io::SensorSpec& 
         return (path.is_absolute() ? path : capture.root / spec.id / path).string();
     };
     const std::string depth_file = resolve(r.depth);
-    const cv::Mat raw = cv::imread(depth_file, cv::IMREAD_UNCHANGED);
+    cv::Mat raw = cv::imread(depth_file, cv::IMREAD_UNCHANGED);
     RGBD_CHECK(!raw.empty(), depth_file + ": missing or undecodable depth image");
+    if (spec.depth_encoding != io::DepthEncoding::kPlain) {
+        RGBD_CHECK(raw.type() == CV_16UC1, depth_file + ": depth image is not 16-bit");
+        io::decode_depth(raw, spec.depth_encoding);
+    }
     BoardImages out;
     out.depth = io::frame_from_stored(spec, raw, cv::Mat(), depth_file).depth;
     if (!r.color.empty()) {

@@ -92,11 +92,20 @@ Report describe_capture(const std::string& path) {
     Report sensors = Report::array();
     for (const auto& s : capture.rig.sensors) {
         const auto it = capture.frames.find(s.id);
-        sensors.push_back({{"id", s.id},
-                           {"model", s.model},
-                           {"depth", {s.depth.width, s.depth.height}},
-                           {"color", {s.color.width, s.color.height}},
-                           {"frames", it == capture.frames.end() ? 0 : it->second.size()}});
+        std::size_t posed = 0;
+        if (it != capture.frames.end())
+            for (const io::FrameRecord& f : it->second) posed += f.world_from_depth.has_value();
+        Report sensor = {{"id", s.id},
+                         {"model", s.model},
+                         {"depth", {s.depth.width, s.depth.height}},
+                         {"color", {s.color.width, s.color.height}},
+                         {"frames", it == capture.frames.end() ? 0 : it->second.size()},
+                         {"frames_with_pose", posed}};
+        if (!s.noise_model.empty()) sensor["noise_model"] = s.noise_model;
+        if (s.depth_encoding != io::DepthEncoding::kPlain)
+            sensor["depth_encoding"] = io::to_string(s.depth_encoding);
+        if (s.range_max_m > 0) sensor["range_m"] = {s.range_min_m, s.range_max_m};
+        sensors.push_back(sensor);
     }
     r["sensors"] = sensors;
     r["ground_truth"] = fs::exists(fs::path(path) / "gt");

@@ -292,6 +292,26 @@ void check_size(const std::string& file, const cv::Mat& image, const PinholeIntr
 
 // ---------------------------------------------------------------------------------------
 
+std::string to_string(DepthEncoding encoding) {
+    switch (encoding) {
+        case DepthEncoding::kPlain:
+            return "plain";
+        case DepthEncoding::kApcRotated3:
+            return "apc_rotated3";
+    }
+    return "unknown";
+}
+
+void decode_depth(cv::Mat& stored, DepthEncoding encoding) {
+    if (encoding == DepthEncoding::kPlain) return;
+    if (stored.type() != CV_16UC1) throw InputError("decode_depth: depth must be CV_16UC1");
+    for (int y = 0; y < stored.rows; ++y) {
+        std::uint16_t* row = stored.ptr<std::uint16_t>(y);
+        for (int x = 0; x < stored.cols; ++x)  // rotate left by 13 = undo rotate right by 3
+            row[x] = static_cast<std::uint16_t>((row[x] << 13) | (row[x] >> 3));
+    }
+}
+
 const SensorSpec& Rig::sensor(const std::string& id) const {
     for (const SensorSpec& s : sensors)
         if (s.id == id) return s;
@@ -371,6 +391,13 @@ Capture open_capture(const fs::path& root) {
             cap.framesets = read_framesets_csv(root / "framesets.csv", cap.rig);
         return cap;
     }
+    if (has_file(root / "cam.info.txt")) {
+        static const std::regex kApcDepth(R"(frame-\d+\.depth\.png)");
+        std::vector<fs::path> depth;
+        for (const fs::path& f : list_files(root))
+            if (std::regex_match(f.filename().string(), kApcDepth)) depth.push_back(f);
+        if (!depth.empty()) return open_apc(root, depth);
+    }
     std::vector<fs::path> xmls;
     static const std::regex kCameraXml(R"(\d+_camera\.xml)");
     for (const fs::path& f : list_files(root))
@@ -380,7 +407,8 @@ Capture open_capture(const fs::path& root) {
     if (const auto folder = redwood_folder(root)) return open_redwood(root, *folder);
     fail(root,
          "not a capture folder (no rig.json, no TUM depth.txt or TUM_depth.png, no "
-         "color/ + depth/ folders, no NNN_camera.xml frames)");
+         "color/ + depth/ folders, no NNN_camera.xml frames, no APC cam.info.txt + "
+         "frame-NNNNNN.depth.png)");
 }
 
 RgbdFrame frame_from_stored(const SensorSpec& s, const cv::Mat& raw, const cv::Mat& color_bgr,
@@ -426,7 +454,11 @@ RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::
         return (path.is_absolute() ? path : capture.root / sensor_id / path).string();
     };
     const std::string depth_file = resolve(r.depth);
-    const cv::Mat raw = read_image(depth_file, cv::IMREAD_UNCHANGED, "depth");
+    cv::Mat raw = read_image(depth_file, cv::IMREAD_UNCHANGED, "depth");
+    if (s.depth_encoding != DepthEncoding::kPlain) {
+        if (raw.type() != CV_16UC1) fail(depth_file, "depth image is not 16-bit single-channel");
+        decode_depth(raw, s.depth_encoding);
+    }
     cv::Mat color;
     std::string color_file;
     if (!r.color.empty()) {

@@ -1,7 +1,9 @@
 // Capture folders (docs/formats.md): capture folder v1 (rig.json, framesets.csv, per-sensor
 // frames.csv with depth/ and color/ images, gt/ for synthetic captures), plus read-only
-// layouts: TUM RGB-D, Open3D/Redwood (intrinsic JSON + .log trajectory) and the
-// "frames with OpenCV camera xml" layout of shared/data/multiview/uva_cv2_person_kinect1.
+// layouts: TUM RGB-D, Open3D/Redwood (intrinsic JSON + .log trajectory), the
+// "frames with OpenCV camera xml" layout of shared/data/multiview/uva_cv2_person_kinect1 and the
+// APC vision toolbox scene layout (cam.info.txt + frame-NNNNNN.{color,depth}.png, Zeng et al.,
+// ICRA 2017) of shared/data/multiview/apc_realsense_f200_shelf.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +20,19 @@
 
 namespace rgbd::io {
 
+/// How a layout stores depth values in its 16-bit depth PNGs.
+enum class DepthEncoding {
+    kPlain,        ///< the value is the depth in depth_scale units (capture folders, TUM, ...)
+    kApcRotated3,  ///< APC vision toolbox: bits rotated right by 3, d = (v << 13 | v >> 3) & 0xFFFF
+};
+
+/// "plain" or "apc_rotated3".
+std::string to_string(DepthEncoding encoding);
+
+/// Undoes `encoding` on a stored depth image (CV_16UC1) in place, so that its values are depth
+/// in depth_scale units (0 stays 0 = invalid). kPlain returns at once without touching pixels.
+void decode_depth(cv::Mat& stored, DepthEncoding encoding);
+
 /// One sensor of rig.json.
 struct SensorSpec {
     std::string id;
@@ -25,7 +40,11 @@ struct SensorSpec {
     PinholeIntrinsics depth;
     PinholeIntrinsics color;
     double depth_scale = 1000.0;  ///< stored value / depth_scale = metres
-    double range_min_m = 0.0;     ///< valid depth range (0 = unknown)
+    /// How the layout's depth files store values; load_frame (and the playback sensor) undo it
+    /// when they read a file, so every depth image past them is plain. Not in rig.json: capture
+    /// folders v1 always store plain values (write_rig drops it, the writers write plain).
+    DepthEncoding depth_encoding = DepthEncoding::kPlain;
+    double range_min_m = 0.0;  ///< valid depth range (0 = unknown)
     double range_max_m = 0.0;
     Pose color_from_depth = Pose::Identity();
     Pose world_from_depth = Pose::Identity();
@@ -72,7 +91,7 @@ struct FrameSet {
 /// An opened capture: the rig, the frame lists and the frame sets.
 struct Capture {
     std::filesystem::path root;
-    std::string layout;  ///< "rgbd-capture", "tum", "redwood", "uva"
+    std::string layout;  ///< "rgbd-capture", "tum", "redwood", "uva", "apc"
     Rig rig;
     std::map<std::string, std::vector<FrameRecord>> frames;  ///< by sensor id, in file order
     std::vector<FrameSet> framesets;  ///< empty for single-sensor layouts without framesets.csv

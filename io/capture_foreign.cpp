@@ -1,5 +1,6 @@
-// Foreign capture layouts read by open_capture: UvA (OpenCV xml cameras), TUM RGB-D and
-// Open3D/Redwood. See io/capture_folder.hpp.
+// Foreign capture layouts read by open_capture: UvA (OpenCV xml cameras), TUM RGB-D,
+// Open3D/Redwood and the APC vision toolbox scenes (Zeng et al., ICRA 2017). See
+// io/capture_folder.hpp and docs/formats.md.
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -355,6 +356,188 @@ found_intrinsics:
         c.model = "ground_truth";
         add_sensor(cap, c, std::move(clean));
     }
+    return cap;
+}
+
+// ------------------------------------------------------------------------------ APC
+
+namespace {
+
+/// One '#'-titled block of cam.info.txt: the title and the rows of numbers below it.
+struct CamInfoBlock {
+    std::string title;  ///< the words of the '#' line after '#', joined by single spaces
+    std::vector<std::vector<double>> rows;
+};
+
+std::string join_words(const std::string& s) {
+    std::string out;
+    for (const std::string& w : split_ws(s)) out += (out.empty() ? "" : " ") + w;
+    return out;
+}
+
+/// The blocks of cam.info.txt in file order; numbers may be separated by tabs or spaces.
+std::vector<CamInfoBlock> read_cam_info(const fs::path& path) {
+    std::istringstream in(read_text(path));
+    std::vector<CamInfoBlock> blocks;
+    std::string line;
+    std::size_t number = 0;
+    while (std::getline(in, line)) {
+        ++number;
+        const std::string t = trim(line);
+        if (t.empty()) continue;
+        if (t[0] == '#') {
+            blocks.push_back({join_words(t.substr(1)), {}});
+            continue;
+        }
+        const std::string at = "line " + std::to_string(number);
+        if (blocks.empty()) fail(path, at + ": numbers before the first '# title' line");
+        std::vector<double> row;
+        for (const std::string& cell : split_ws(t)) {
+            double v = 0;
+            if (!to_double(cell, v) || !std::isfinite(v))
+                fail(path, at + " ('" + blocks.back().title + "'): bad number '" +
+                               cell.substr(0, 30) + "'");
+            row.push_back(v);
+        }
+        blocks.back().rows.push_back(std::move(row));
+    }
+    return blocks;
+}
+
+/// The rows x cols matrix (row-major) of the block titled `title`; errors name it as `what`.
+std::vector<double> cam_info_matrix(const fs::path& path, const std::vector<CamInfoBlock>& blocks,
+                                    const std::string& title, const std::string& what,
+                                    std::size_t rows, std::size_t cols) {
+    const CamInfoBlock* found = nullptr;
+    for (const CamInfoBlock& b : blocks)
+        if (b.title == title) {
+            if (found) fail(path, what + " is given twice");
+            found = &b;
+        }
+    if (!found) fail(path, "no " + what + " (block '# " + title + "')");
+    if (found->rows.size() != rows)
+        fail(path, what + " has " + std::to_string(found->rows.size()) + " rows (expected " +
+                       std::to_string(rows) + ")");
+    std::vector<double> m;
+    for (std::size_t r = 0; r < rows; ++r) {
+        if (found->rows[r].size() != cols)
+            fail(path, what + ": row " + std::to_string(r + 1) + " has " +
+                           std::to_string(found->rows[r].size()) + " numbers (expected " +
+                           std::to_string(cols) + ")");
+        m.insert(m.end(), found->rows[r].begin(), found->rows[r].end());
+    }
+    return m;
+}
+
+/// A 3x3 pinhole matrix [fx 0 cx; 0 fy cy; 0 0 1] of a width x height image.
+PinholeIntrinsics cam_info_intrinsics(const fs::path& path, const std::vector<CamInfoBlock>& blocks,
+                                      const std::string& title, const std::string& what, int width,
+                                      int height) {
+    const auto m = cam_info_matrix(path, blocks, title, what, 3, 3);
+    if (std::abs(m[1]) > 1e-9 || std::abs(m[3]) > 1e-9 || std::abs(m[6]) > 1e-9 ||
+        std::abs(m[7]) > 1e-9 || std::abs(m[8] - 1.0) > 1e-9)
+        fail(path, what + " is not a pinhole matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+    PinholeIntrinsics k;
+    k.width = width;
+    k.height = height;
+    k.fx = m[0];
+    k.fy = m[4];
+    k.cx = m[2];
+    k.cy = m[5];
+    try {
+        k.check();
+    } catch (const InputError& e) {
+        fail(path, what + ": " + e.what());
+    }
+    return k;
+}
+
+/// A 4x4 rigid transform (metres); re-orthonormalised (the file has 9 significant digits).
+Pose cam_info_pose(const fs::path& path, const std::vector<CamInfoBlock>& blocks,
+                   const std::string& title, const std::string& what) {
+    const auto m = cam_info_matrix(path, blocks, title, what, 4, 4);
+    std::array<double, 16> a{};
+    std::copy(m.begin(), m.end(), a.begin());
+    try {
+        return pose_from_4x4(a);
+    } catch (const InputError& e) {
+        fail(path, what + " is not a rigid transform: " + e.what());
+    }
+}
+
+json pose_json(const Pose& p) {
+    json rows = json::array();
+    for (int r = 0; r < 4; ++r)
+        rows.push_back({p.matrix()(r, 0), p.matrix()(r, 1), p.matrix()(r, 2), p.matrix()(r, 3)});
+    return rows;
+}
+
+}  // namespace
+
+Capture open_apc(const fs::path& root, const std::vector<fs::path>& depth) {
+    const fs::path info = root / "cam.info.txt";
+    const std::vector<CamInfoBlock> blocks = read_cam_info(info);
+    Capture cap = foreign_capture(root, "apc");
+    // The F200 is the SR300's predecessor (same coded-light principle, same 0.2-1.2 m range):
+    // the denoisers' SR300 noise model. Depth: 0.1 mm units.
+    SensorSpec s = foreign_camera("realsense_f200", 10000.0);
+    s.noise_model = "sr300";
+    s.depth_encoding = DepthEncoding::kApcRotated3;
+    s.range_min_m = 0.2;
+    s.range_max_m = 1.2;
+    // The image size is not in cam.info.txt: read it from the first depth image.
+    const cv::Mat first = cv::imread(depth.front().string(), cv::IMREAD_UNCHANGED);
+    if (first.empty()) fail(depth.front(), "missing or unreadable depth image");
+    // frame-N.depth.png is registered to the colour camera: it lies on the colour grid, so its
+    // intrinsics are the colour ones and colour_from_depth is the identity. The raw depth
+    // camera (raw/, its own intrinsics and the 25.7 mm depth-to-colour extrinsic) is kept in
+    // the sensor's extra keys for reference only.
+    s.color = cam_info_intrinsics(info, blocks, "Color camera intrinsic matrix",
+                                  "colour intrinsics", first.cols, first.rows);
+    s.depth = s.color;
+    const PinholeIntrinsics raw = cam_info_intrinsics(info, blocks, "Depth camera intrinsic matrix",
+                                                      "depth intrinsics", first.cols, first.rows);
+    const Pose color_from_raw = cam_info_pose(
+        info, blocks, "Depth-to-color camera extrinsic matrix", "depth-to-colour extrinsic");
+    s.extra["raw_depth"] = {
+        {"folder", "raw"},
+        {"encoding", to_string(DepthEncoding::kApcRotated3)},
+        {"intrinsics", {{"fx", raw.fx}, {"fy", raw.fy}, {"cx", raw.cx}, {"cy", raw.cy}}},
+        {"color_from_depth", pose_json(color_from_raw)}};
+    json apc = {{"world_from_bin",
+                 pose_json(cam_info_pose(info, blocks, "Bin-to-world transformation matrix",
+                                         "bin-to-world transform"))}};
+    for (const CamInfoBlock& b : blocks) {  // "# Environment: shelf", "# Bin ID: B", ...
+        const auto colon = b.title.find(':');
+        if (!b.rows.empty() || colon == std::string::npos) continue;
+        std::string key = join_words(b.title.substr(0, colon));
+        std::transform(key.begin(), key.end(), key.begin(),
+                       [](unsigned char c) { return c == ' ' ? '_' : std::tolower(c); });
+        const std::string value = trim(b.title.substr(colon + 1));
+        apc[key] = json::parse(value, nullptr, /*allow_exceptions=*/false);
+        if (apc[key].is_discarded()) apc[key] = value;  // not JSON: the text
+    }
+    cap.rig.extra["apc"] = apc;
+
+    std::vector<FrameRecord> frames;
+    for (const fs::path& file : depth) {
+        const std::string name = file.filename().string();
+        const std::string stem = name.substr(0, name.size() - std::string(".depth.png").size());
+        FrameRecord f;
+        if (!to_int64(stem.substr(std::string("frame-").size()), f.index))
+            fail(file, "bad frame number");
+        f.time_ns = f.index * 1'000'000'000;  // no timestamps in this layout: 1 s per frame
+        f.depth = absolute_path(file);
+        if (has_file(root / (stem + ".color.png")))
+            f.color = absolute_path(root / (stem + ".color.png"));
+        f.world_from_depth = cam_info_pose(
+            info, blocks, "Camera-to-world extrinsic matrix (camera pose) for " + stem,
+            "pose of " + stem);
+        frames.push_back(std::move(f));
+    }
+    std::sort(frames.begin(), frames.end(),
+              [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
+    add_sensor(cap, s, std::move(frames));
     return cap;
 }
 }  // namespace rgbd::io::internal

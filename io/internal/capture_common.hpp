@@ -1,5 +1,5 @@
 // Helpers shared by the capture folder reader (io/capture_folder.cpp), the foreign layouts
-// (io/capture_foreign.cpp: UvA, TUM RGB-D, Open3D/Redwood) and the writer
+// (io/capture_foreign.cpp: UvA, TUM RGB-D, Open3D/Redwood, APC) and the writer
 // (io/capture_writer.cpp): text and csv parsing, the rig.json error context, file checks.
 // See also: io/capture_folder.hpp for the folder format.
 #pragma once
@@ -103,5 +103,8 @@ Capture open_tum(const fs::path& root);
 std::optional<fs::path> redwood_folder(const fs::path& root);
 /// The Open3D/Redwood layout (color/, depth/, optional intrinsic json and .log trajectory).
 Capture open_redwood(const fs::path& root, const fs::path& folder);
+/// The APC vision toolbox scene layout: cam.info.txt and the `depth` images
+/// frame-NNNNNN.depth.png (with frame-NNNNNN.color.png) in `root`.
+Capture open_apc(const fs::path& root, const std::vector<fs::path>& depth);
 
 }  // namespace rgbd::io::internal

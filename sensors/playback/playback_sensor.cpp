@@ -48,6 +48,7 @@ PlaybackSensor::PlaybackSensor(const fs::path& root, const std::string& sensor_i
         id = capture_.rig.sensors.front().id;
     }
     spec_ = capture_.rig.sensor(id);
+    spec_.depth_encoding = io::DepthEncoding::kPlain;  // load() decodes the files' encoding
     records_ = capture_.frames.at(id);
     if (records_.empty()) throw InputError(root.string() + ": sensor '" + id + "' has no frames");
 
@@ -102,6 +103,7 @@ void PlaybackSensor::load(std::size_t position, Stored& out) const {
                          "x" + std::to_string(out.depth.rows) + ", the rig says " +
                          std::to_string(spec_.depth.width) + "x" +
                          std::to_string(spec_.depth.height));
+    io::decode_depth(out.depth, capture_.rig.sensor(spec_.id).depth_encoding);
     out.color.release();
     out.color_jpeg.clear();
     if (!r.color.empty()) {
