@@ -145,18 +145,19 @@ void LiveStream::emit(const LiveSet& live) {
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
         on_disk = on_disk_(live.ordinal);
     }
+    // The set's views first: the object extraction looks at them together, as rgbd-cloud does.
+    std::vector<PointCloud> views;
     for (std::size_t s = 0; s < rig_.sensors.size(); ++s) {
         const io::SensorSpec& spec = rig_.sensors[s];
         const LiveFrame& frame = live.frames[s];
         const std::string what =
             "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
-        io::Document document;
         Report report;
         try {
             RgbdFrame rgbd = rgbd_from_live(spec, frame, color_);
             if (on_disk == 1) rgbd.source = depth_file_(spec.id, frame.index);
-            document.cloud = view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
-                                             options_.extraction, report);
+            views.push_back(view_from_frame(rgbd, static_cast<int>(s), options_.cloud, centre_,
+                                            /*extraction=*/{0.0}, report));
         } catch (const Error& e) {
             context_.warn(std::string("live stream: ") + e.what() + "; view left out");
             continue;
@@ -164,6 +165,17 @@ void LiveStream::emit(const LiveSet& live) {
             context_.warn("live stream: " + what + ": " + e.what() + "; view left out");
             continue;
         }
+    }
+    try {
+        pipeline::extract_stage(views, centre_, options_.extraction);
+    } catch (const Error& e) {
+        context_.warn("live stream: set " + std::to_string(live.ordinal) + ": " + e.what() +
+                      "; its views are left out");
+        views.clear();
+    }
+    for (PointCloud& view : views) {
+        io::Document document;
+        document.cloud = std::move(view);
         bool written = true;
         try {
             io::write_document(*out_, document);

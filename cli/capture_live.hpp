@@ -80,7 +80,8 @@ struct LiveOptions {
         "-";  ///< "-" = stdout; a FIFO or device is written directly, a file atomically
     long long max_sets = 0;      ///< stop after this many sets (0 = no limit)
     frames::CloudOptions cloud;  ///< as rgbd-cloud's defaults
-    ExtractionOptions extraction;
+    /// The object extraction over each set's views, as rgbd-cloud's defaults.
+    pipeline::SubjectStageOptions extraction;
 };
 
 class LiveStream {

@@ -243,6 +243,11 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
                 {"offset_m", ground->offset},
                 {"margin_m", ground->margin_m}};
         }
+    // The measuring sensors, for the closure's check against the space they saw empty.
+    if (with_up.watertight && with_up.sensors.empty())
+        for (const auto& view : views)
+            if (view.view.world_from_sensor && view.view.intrinsics)
+                with_up.sensors.push_back({*view.view.world_from_sensor, view.view.intrinsics});
     ensure_view_normals(views);
     for (auto& view : views) to_world_frame(view);
     PointCloud merged =

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -15,6 +16,9 @@
 #include "toolkit/report.hpp"
 
 namespace rgbd::reconstruction::internal {
+
+/// Whether a sensor saw point p (world frame) with outward unit normal n as empty space.
+using SeenEmpty = std::function<bool(const Eigen::Vector3d& p, const Eigen::Vector3d& n)>;
 
 /// Removes connected components with fewer faces than `min_fraction` of the largest one's (and
 /// isolated vertices); returns the number of components removed.
@@ -37,6 +41,9 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// the margin plus 3 robust RMS of the rim's plane, at least 1 cm), the object stood on the
 /// ground: the base goes on it. Otherwise the base is the rim's own plane at its deep quintile
 /// (never lower than the rim's lowest vertex: no skirt below what the sensors saw).
+/// With `seen_empty` (whether a sensor saw the point with that outward normal as empty space),
+/// the faired or refined patches with more than `seen_through_max` of their face centres seen
+/// empty are counted (report: seen_through): surface the sensors contradict. They are kept.
 /// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
 /// faces_added, largest_hole_edges, up (null when unknown), base ("ground" or "rim", with
 /// base_height_m above the ground when known), time_s.
@@ -44,7 +51,8 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::nullopt,
                    std::size_t fair_max_edges = 300, std::vector<Mesh::Face_index>* added = nullptr,
                    const std::optional<Eigen::Vector4d>& ground = std::nullopt,
-                   double ground_margin_m = 0.0);
+                   double ground_margin_m = 0.0, const SeenEmpty& seen_empty = {},
+                   double seen_through_max = 0.5);
 
 /// Removes the faces of folds and spikes, the defects an interpolating front leaves on noisy
 /// points: both faces of every edge across which the face normals differ by more than

@@ -27,6 +27,7 @@
 #include <utility>
 #include <vector>
 
+#include "algorithms/holes/free_space.hpp"
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/poisson_solver.hpp"
@@ -123,6 +124,9 @@ void ReconstructionOptions::check() const {
                 Range::open_closed(0, 90));
     RGBD_CHECK(max_points == 0 || max_points >= 100,
                "reconstruction: max_points must be 0 or >= 100");
+    check_range("reconstruction: seen_through_max", seen_through_max, Range::closed(0, 1));
+    check_range("reconstruction: ground_margin_m", ground_margin_m, Range::closed_open(0, 1), "m");
+    RGBD_CHECK(!ground || ground->allFinite(), "reconstruction: the ground plane must be finite");
     check_range("reconstruction: sm_angle_deg", sm_angle_deg, Range::open_closed(0, 30));
     check_range("reconstruction: sm_radius", sm_radius, Range::open(0, 1e4));
     check_range("reconstruction: sm_distance", sm_distance, Range::open(0, 100));
@@ -532,9 +536,25 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                                                                options.spike_angle_deg, 3,
                                                                options.min_component_fraction);
         std::vector<Mesh::Face_index> added;
-        if (options.watertight && !CGAL::is_closed(mesh))
+        if (options.watertight && !CGAL::is_closed(mesh)) {
+            // The space the sensors saw empty, from the measured input points.
+            std::optional<holes::FreeSpace> free;
+            internal::SeenEmpty seen_empty;
+            if (!options.sensors.empty()) {
+                std::vector<Eigen::Vector3d> measured;
+                const auto synthetic = cloud.flag(prop::kSynthetic);
+                for (auto idx : cloud.points)
+                    if (!synthetic || !(*synthetic)[idx])
+                        measured.push_back(to_eigen(cloud.points.point(idx)));
+                free.emplace(measured, options.sensors, spacing, holes::FreeSpaceOptions{});
+                seen_empty = [&free](const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
+                    return free->seen_empty(p, n) >= 0;
+                };
+            }
             steps["holes"] = internal::close_holes(mesh, options.up, 300, &added, options.ground,
-                                                   options.ground_margin_m);
+                                                   options.ground_margin_m, seen_empty,
+                                                   options.seen_through_max);
+        }
         if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
         if (options.target_faces > 0)

@@ -24,6 +24,7 @@
 #include <optional>
 #include <string>
 
+#include "algorithms/holes/hole_detection.hpp"
 #include "toolkit/mesh.hpp"
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/progress.hpp"
@@ -51,6 +52,15 @@ struct ReconstructionOptions {
     /// a cut that ends above it is capped at its own rim, never below.
     std::optional<Eigen::Vector4d> ground;
     double ground_margin_m = 0.0;
+    /// The sensors of the measured points (world poses, intrinsics). With them, `watertight`
+    /// checks every faired hole patch against the space the sensors saw empty
+    /// (holes::FreeSpace over the measured input points: a sensor that faced the patch and
+    /// measured a surface well behind it, or background inside the object's silhouette, saw
+    /// through it) and reports the patches with more than `seen_through_max` of their faces
+    /// seen through (holes.seen_through): an opening the sensors looked into, such as the back
+    /// of a mask. They stay closed (removing them opened simple closed objects).
+    std::vector<holes::SensorView> sensors;
+    double seen_through_max = 0.5;
     /// Simplify by edge collapse to at most this many faces; 0 = keep the reconstruction's.
     std::size_t target_faces = 0;
     /// Connected components with fewer faces than this share of the largest one's are dropped

@@ -218,16 +218,25 @@ struct Components {
     }
 };
 
-/// The connectivity voxel: 3 pixel footprints at the median depth of the live points.
+/// The connectivity voxel: 3 pixel footprints at the median depth of the live points in the
+/// middle ninth of each image (where the sensors aim: the subject, not the far room around it).
 double auto_voxel(const std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views) {
     std::vector<double> footprint;
     for (std::size_t v = 0; v < views.size(); ++v) {
         const auto& intr = views[v].view.intrinsics;
         const double f = intr ? 0.5 * (intr->fx + intr->fy) : 500.0;
         const auto& xyz = vps[v].g.xyz;
-        const std::size_t stride = std::max<std::size_t>(1, xyz.size() / 2000);
-        for (std::size_t i = 0; i < xyz.size(); i += stride)
-            if (!vps[v].removed[i]) footprint.push_back(xyz[i].z() / f);
+        for (std::size_t i = 0; i < xyz.size(); ++i) {
+            if (vps[v].removed[i] || !(xyz[i].z() > 0)) continue;
+            if (intr) {
+                const double u = intr->fx * xyz[i].x() / xyz[i].z() + intr->cx;
+                const double w = intr->fy * xyz[i].y() / xyz[i].z() + intr->cy;
+                if (std::abs(u - 0.5 * intr->width) > intr->width / 6.0 ||
+                    std::abs(w - 0.5 * intr->height) > intr->height / 6.0)
+                    continue;
+            }
+            footprint.push_back(xyz[i].z() / f);
+        }
     }
     if (footprint.empty()) return 0.005;
     return std::max(0.005, 3.0 * rank_quantile(footprint, 0.5));
@@ -391,6 +400,25 @@ void select_subject(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
         if (near) keep[r] = 1;
     }
     report["subject_regions"] = keep.size();
+    std::size_t subject_points = 0;
+    for (const auto& [r, flag] : keep) subject_points += sizes[r].first;
+    // Noise left above the ground (far floor beyond the margin, stray returns) is not a
+    // subject: a subject gives each view dozens of points at least.
+    RGBD_CHECK(subject_points >= 50 * vps.size(),
+               "nothing above the ground forms a subject (the largest region the sensors aim at "
+               "has " +
+                   std::to_string(subject_points) + " points in " + std::to_string(vps.size()) +
+                   " views)");
+    // A subject mostly outside the co-visible core is touching something large (a wall, a
+    // table): say so rather than keep it silently.
+    std::size_t points = 0, core = 0;
+    for (const auto& [r, flag] : keep) points += sizes[r].first, core += sizes[r].second;
+    report["subject_core_share"] = points ? static_cast<double>(core) / points : 0.0;
+    if (points && core < 0.6 * points)
+        report["note"] =
+            "extraction: only " + std::to_string(static_cast<int>(100.0 * core / points)) +
+            "% of the subject lies where the sensors look together: it may touch a wall or "
+            "other large structure, which is kept with it (--crop-radius-m limits the extent)";
     for (std::size_t v = 0; v < vps.size(); ++v)
         for (std::size_t i = 0; i < vps[v].world.size(); ++i) {
             const int c = point_voxel[v][i];
@@ -577,12 +605,14 @@ Report extract_subject(std::vector<PointCloud>& views,
     std::size_t left = 0;
     for (const auto& vp : vps)
         for (auto r : vp.removed) left += !r;
-    if (left == 0)
+    if (left == 0 && crop) {
+        report["note"] = "extraction: the crop (--crop-radius-m) removed every point";
+    } else if (left == 0)
         throw InputError("extraction: nothing above the ground (every point of the " +
                          std::to_string(views.size()) + " views lies on or below it)");
 
     // 2-3. Regions and the subject.
-    if (options.select_subject && !crop) select_subject(vps, views, options, report);
+    if (options.select_subject && !crop && left > 0) select_subject(vps, views, options, report);
     report_progress(progress, 0.8);
 
     if (removed_world) {
@@ -607,7 +637,7 @@ Report extract_subject(std::vector<PointCloud>& views,
         per_view.push_back(
             {{"view", views[v].view.id}, {"removed", n}, {"kept", vps[v].removed.size() - n}});
     }
-    if (kept == 0) throw InputError("extraction: nothing of the subject is left");
+    if (kept == 0 && !crop) throw InputError("extraction: nothing of the subject is left");
     report["removed"] = removed;
     report["kept"] = kept;
     report["views"] = per_view;

@@ -97,8 +97,8 @@ TEST(ReconstructChain, PipeAndOneCommandGiveTheSameMesh) {
 
     // Every stage of the method ran, in order, with its time and point counts.
     const auto m = nlohmann::json::parse(slurp(temp_root() / "one_report" / "metrics.json"));
-    EXPECT_EQ(stage_names(m), (std::vector<std::string>{"clouds", "distance", "upsample", "align",
-                                                        "density", "fill", "mesh"}));
+    EXPECT_EQ(stage_names(m), (std::vector<std::string>{"clouds", "extract", "distance", "upsample",
+                                                        "align", "density", "fill", "mesh"}));
     std::size_t previous_out = 0;
     for (const auto& s : m["stages"]) {
         SCOPED_TRACE(s.dump());
@@ -150,7 +150,8 @@ TEST(ReconstructChain, SkipLeavesStagesOutAndNamesTheValidOnes) {
             "skip_report -q");
     ASSERT_EQ(skip.code, 0) << skip.err;
     const auto m = nlohmann::json::parse(slurp(temp_root() / "skip_report" / "metrics.json"));
-    EXPECT_EQ(stage_names(m), (std::vector<std::string>{"clouds", "align", "density", "mesh"}));
+    EXPECT_EQ(stage_names(m),
+              (std::vector<std::string>{"clouds", "extract", "align", "density", "mesh"}));
     EXPECT_EQ(m["skipped_stages"], (nlohmann::json{"distance", "upsample", "fill"}));
     EXPECT_GT(m["evaluation"]["surface"]["fscore_5mm"].get<double>(), 0.9);
 }

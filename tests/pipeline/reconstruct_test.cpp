@@ -39,15 +39,17 @@ TEST(Reconstruct, TheMeshMatchesTheSphereAndTheStagesChain) {
     for (const auto h : result.mesh.halfedges()) border += result.mesh.is_border(h);
     EXPECT_EQ(border, 0u) << "the default (watertight) mesh is closed";
     EXPECT_LT(off, result.mesh.number_of_vertices() / 50) << off << " vertices off the sphere";
-    // Rows: clouds, distance, (upsample: colour not finer, 0 views), align, density, fill, mesh.
+    // Rows: clouds, extract, distance, (upsample: colour not finer, 0 views), align, density,
+    // fill, mesh.
     std::vector<std::string> names;
     for (const auto& row : result.stages) names.push_back(row.stage);
-    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "distance", "upsample", "align", "density",
-                                               "fill", "mesh"}));
+    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "extract", "distance", "upsample", "align",
+                                               "density", "fill", "mesh"}));
     for (std::size_t i = 1; i < result.stages.size(); ++i)
         EXPECT_EQ(result.stages[i].points_in, result.stages[i - 1].points_out)
             << result.stages[i].stage;
-    EXPECT_LE(result.stages[1].points_out, result.stages[1].points_in);  // cleaning removes
+    EXPECT_LE(result.stages[1].points_out, result.stages[1].points_in);  // extraction removes
+    EXPECT_LE(result.stages[2].points_out, result.stages[2].points_in);  // cleaning removes
     const rgbd::Report timings = result.timings();
     ASSERT_EQ(timings.size(), result.stages.size());
     for (const auto& row : result.stages) EXPECT_EQ(timings[row.stage].get<double>(), row.time_s);
@@ -73,7 +75,7 @@ TEST(Reconstruct, SkippedStagesLeaveNoRowAndHooksSeeEveryStage) {
         capture(), rgbd::pipeline::frameset_frames(capture(), 0), options, hooks);
     std::vector<std::string> names;
     for (const auto& row : result.stages) names.push_back(row.stage);
-    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "align", "mesh"}));
+    EXPECT_EQ(names, (std::vector<std::string>{"clouds", "extract", "align", "mesh"}));
     EXPECT_EQ(begun, (std::vector<std::string>{"clouds", "align", "mesh"}));
     EXPECT_EQ(saved, (std::vector<std::string>{"views", "align"}));
     EXPECT_FALSE(result.report.contains("fill"));
