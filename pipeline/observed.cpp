@@ -39,6 +39,7 @@ Observations load_observations(const io::Capture& capture,
         fs::exists(segment_label_file(capture, frames[0].first, frames[0].second));
     Report per_view = Report::array();
     int view_id = 0;
+    bool masked = cloud_options.use_mask;
     for (const auto& [sensor_id, position] : frames) {
         const RgbdFrame frame = io::load_frame(capture, sensor_id, position);
         const std::string name =
@@ -46,6 +47,7 @@ Observations load_observations(const io::Capture& capture,
         RGBD_CHECK(frame.has_pose, name +
                                        " has no pose (rig.json world_from_depth or frames.csv "
                                        "pose columns); the observations need every view's pose");
+        masked = masked && !frame.mask.empty();
         Report report;
         obs.views.push_back(view_from_frame(frame, view_id++, cloud_options, std::nullopt,
                                             ExtractionOptions{/*crop_radius_m=*/0.0}, report));
@@ -66,7 +68,9 @@ Observations load_observations(const io::Capture& capture,
         per_view.push_back({{"sensor", sensor_id}, {"frame_index", frame.frame_index}});
     }
     const auto centre = object_centre(capture, frames);
-    obs.report = evaluation::observed_subject(obs.views, labels, centre, subject);
+    evaluation::SubjectOptions options = subject;
+    options.remove_ground = options.remove_ground && !masked;  // masks left no ground
+    obs.report = evaluation::observed_subject(obs.views, labels, centre, options);
     obs.report["views"] = obs.views.size();
     obs.report["labels"] =
         labelled ? Report((capture.root / "gt" / "<sensor>" / "segment").string()) : Report();

@@ -39,7 +39,8 @@ std::filesystem::path segment_label_file(const io::Capture& capture, const std::
 /// Loads `frames` of `capture` as views (io::load_frame, depth_to_cloud with `cloud_options`,
 /// no crop) and keeps the observed subject: the label images when the first frame has one
 /// (then every frame must), else the cylinder around where the sensors' axes converge
-/// (object_centre) minus the ground plane (evaluation::observed_subject).
+/// (object_centre) minus the ground plane (evaluation::observed_subject), which is not looked
+/// for when every frame's object mask was applied (the masks left no ground).
 /// @throws InputError naming the capture when no frame is selected, a frame has no pose
 ///         (rig.json world_from_depth or frames.csv pose columns), a label file is missing
 ///         while others exist, or no observed point is left; IoError for unreadable files.

@@ -77,6 +77,7 @@ void SubjectOptions::check() const {
     check_range("observed subject: ground inlier distance", ground_inlier_m, Range::open(0, 1),
                 "m");
     check_range("observed subject: ground margin", ground_margin_m, Range::closed_open(0, 1), "m");
+    check_range("observed subject: ground support", ground_min_support, Range::open(0, 1));
 }
 
 Report observed_subject(std::vector<PointCloud>& views, const std::vector<cv::Mat>& labels,
@@ -128,12 +129,14 @@ Report observed_subject(std::vector<PointCloud>& views, const std::vector<cv::Ma
     }
     Report ground = Report::object();
     ground["found"] = false;
-    if (up) {
-        report["up"] = vector_json(*up);
+    if (up) report["up"] = vector_json(*up);
+    if (!options.remove_ground) ground["skipped"] = "the views are cut to the subject by masks";
+    if (up && options.remove_ground) {
         segment::StandOptions plane_options;
         plane_options.max_tilt_deg = options.max_tilt_deg;
         plane_options.inlier_m = options.ground_inlier_m;
         plane_options.margin_m = options.ground_margin_m;
+        plane_options.min_support = options.ground_min_support;
         if (const auto plane = segment::find_support_plane(views, *up, plane_options)) {
             std::size_t removed = 0;
             for (auto& view : views)

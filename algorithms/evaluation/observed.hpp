@@ -31,6 +31,13 @@ struct SubjectOptions {
     double max_tilt_deg = 15.0;     ///< ground plane normal within this angle of the cameras' up
     double ground_inlier_m = 0.01;  ///< RANSAC inlier distance of the ground plane, m
     double ground_margin_m = 0.02;  ///< points up to this above the ground plane are dropped, m
+    /// The ground plane must be dominant: at least this share of the cylinder's points are its
+    /// inliers (a lower share is the curved or cut bottom of the subject, not the ground).
+    double ground_min_support = 0.10;
+    /// Look for the ground plane at all. Off when the views were already cut to the subject by
+    /// object masks (there is no ground left, and the lowest part of the subject may be flat
+    /// enough to pass for one).
+    bool remove_ground = true;
 
     /// Throws InputError for a non-positive or non-finite value, or a tilt outside (0, 90).
     void check() const;
@@ -43,7 +50,8 @@ struct SubjectOptions {
 ///    radius_m around `centre` (vertical = segment::cameras_up of the views), minus the
 ///    ground: the dominant plane among the lowest points of the cylinder whose normal is
 ///    within max_tilt_deg of the up (segment::find_support_plane), every point less than
-///    ground_margin_m above it dropped (none when no plane passes find_support_plane's tests);
+///    ground_margin_m above it dropped (none when no plane passes find_support_plane's tests,
+///    or remove_ground is off);
 ///  - without labels and centre: every point (still minus a ground plane when the views have
 ///    poses to tell the up).
 /// @param views   views in the sensor frame with world_from_sensor, or in the world frame.
