@@ -1,9 +1,12 @@
 // rgbd-eval: metrics of a reconstructed mesh or cloud (and of estimated poses) against ground
-// truth; side by side with Open3D's Screened Poisson on the same input (--baseline); a report
+// truth; how well a mesh explains a capture's own observations (--observed, real captures
+// without truth); side by side with Open3D's Screened Poisson on the same input, or with
+// Open3D's TSDF fusion and Screened Poisson on the same observations (--baseline); a report
 // page with pictures (--report).
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -15,11 +18,14 @@
 
 #include "algorithms/evaluation/mesh_quality.hpp"
 #include "algorithms/evaluation/metrics.hpp"
+#include "algorithms/evaluation/observed.hpp"
 #include "algorithms/render/picture.hpp"
 #include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
+#include "cli/eval_observed.hpp"
 #include "io/mesh_io.hpp"
+#include "pipeline/observed.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 
@@ -232,15 +238,20 @@ void run_eval(cli::Context& ctx) {
     const bool reference_given = ctx.options().count("reference") > 0;
     const bool baseline_given = ctx.options().count("baseline") > 0;
     const bool report_given = ctx.options().count("report") > 0;
+    const bool observed_given = ctx.options().count("observed") > 0;
     if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given && !report_given &&
-        !ctx.options().count("points"))
+        !ctx.options().count("points") && !observed_given)
         throw cli::UsageError(
-            "give --reference MESH, --points STREAM, --gt-poses JSON, --baseline NAME and/or "
-            "--report DIR");
+            "give --reference MESH, --observed CAPTURE, --points STREAM, --gt-poses JSON, "
+            "--baseline NAME and/or --report DIR");
     evaluation::MetricOptions options;
     std::vector<int> depths;
     double trim = 0;
     std::pair<int, int> picture_size{640, 480};
+    evaluation::ObservedOptions observed_options;
+    evaluation::SubjectOptions subject_options;
+    cli::ObservedPeerOptions peer_options;
+    std::vector<std::string> baselines;
     try {
         // In the options' millimetres (the library's checks would quote metres).
         options.taus_m.clear();
@@ -254,13 +265,29 @@ void run_eval(cli::Context& ctx) {
         options.samples = ctx.get<std::size_t>("samples");
         options.seed = ctx.seed();
         options.check();
+        observed_options.taus_m.clear();
+        for (double t :
+             cli::parse_doubles(ctx.get<std::string>("observed-tau-mm"), "observed-tau-mm")) {
+            check_range("--observed-tau-mm", t, Range::open_closed(0, 1e6), "mm");
+            observed_options.taus_m.push_back(t / 1000.0);
+        }
+        observed_options.samples = options.samples;
+        observed_options.seed = options.seed;
+        observed_options.check();
+        subject_options.radius_m = ctx.get<double>("observed-radius-m");
+        check_range("--observed-radius-m", subject_options.radius_m, Range::open_closed(0, 1e3),
+                    "m");
+        const double voxel_mm = ctx.get<double>("tsdf-voxel-mm");
+        check_range("--tsdf-voxel-mm", voxel_mm, Range::closed(0.5, 100), "mm");
+        peer_options.tsdf_voxel_m = voxel_mm / 1000.0;
+        peer_options.poisson_depth = ctx.get<int>("observed-poisson-depth");
+        check_range("--observed-poisson-depth", peer_options.poisson_depth, Range::closed(4, 12));
     } catch (const InputError& e) {
         throw cli::UsageError(e.what());
     }
-    if (baseline_given) {
-        if (ctx.get<std::string>("baseline") != "screened-poisson")
-            throw cli::UsageError("--baseline: unknown peer '" + ctx.get<std::string>("baseline") +
-                                  "' (screened-poisson)");
+    if (baseline_given)
+        baselines = cli::parse_baselines(ctx.get<std::string>("baseline"), observed_given);
+    if (baseline_given && !observed_given) {
         for (double d :
              cli::parse_doubles(ctx.get<std::string>("baseline-depths"), "baseline-depths")) {
             if (!(d >= 4 && d <= 12 && d == std::floor(d)))
@@ -271,6 +298,9 @@ void run_eval(cli::Context& ctx) {
         if (!(trim >= 0 && trim < 0.5))
             throw cli::UsageError("--baseline-trim must be in [0, 0.5)");
     }
+    peer_options.poisson_trim_quantile = ctx.get<double>("baseline-trim");
+    if (!(peer_options.poisson_trim_quantile >= 0 && peer_options.poisson_trim_quantile < 0.5))
+        throw cli::UsageError("--baseline-trim must be in [0, 0.5)");
     if (report_given) picture_size = parse_size(ctx.get<std::string>("report-size"));
 
     const std::string input = ctx.inputs().front();
@@ -284,8 +314,13 @@ void run_eval(cli::Context& ctx) {
         input_points = cli::LoadedResult{};
         input_points->views = result.views;  // a cloud result is its own input
     }
-    if (baseline_given && !input_points)
-        throw cli::UsageError("--baseline needs the input points: give --points STREAM");
+    if (baseline_given && !input_points && !observed_given)
+        throw cli::UsageError(
+            "--baseline needs the input points: give --points STREAM or --observed CAPTURE");
+    if (observed_given && !result.mesh)
+        throw InputError(input + ": --observed judges a mesh; this file holds points");
+    if (result.mesh && result.mesh->number_of_faces() == 0)
+        throw InputError(input + ": the mesh has no faces");
     std::optional<render::Geometry> input_geometry;
     if (input_points) input_geometry = render::from_views(input_points->views);
     if (input_geometry && input_geometry->vertices.empty())
@@ -310,6 +345,50 @@ void run_eval(cli::Context& ctx) {
                                         quality_options);
     };
     if (result.mesh) out["mesh_quality"] = mesh_quality(*result.mesh);
+
+    // --observed: the capture's own observations of the subject against the mesh.
+    std::optional<pipeline::Observations> observations;
+    std::optional<render::Geometry> observed_geometry;
+    std::vector<cli::ObservedBaseline> observed_runs;
+    if (observed_given) {
+        {
+            auto bar = ctx.progress("observations");
+            observations = cli::load_observed(ctx, subject_options);
+        }
+        const std::vector<Eigen::Vector3d> points = observations->world_points();
+        ctx.info("observed subject: " + std::to_string(points.size()) + " points (" +
+                 observations->report["selection"].get<std::string>() + ")");
+        Report& o = out["observed"];
+        o = cli::observed_report(*result.mesh, points, observed_options);
+        o["capture"] = ctx.get<std::string>("observed");
+        o["subject"] = observations->report;
+        if (baseline_given) {
+            auto bar = ctx.progress("baselines");
+            observed_runs =
+                cli::run_observed_baselines(*observations, baselines, peer_options, ctx);
+            for (auto& run : observed_runs) {
+                run.report["observed"] = cli::observed_report(run.mesh, points, observed_options);
+                if (run.mesh.number_of_faces() > 0)
+                    run.report["mesh_quality"] = mesh_quality(run.mesh);
+                out["baselines"][run.name] = run.report;
+            }
+            std::ostringstream t;
+            t << "observed (tau " << observed_options.taus_m[0] * 1000 << " mm)  ours";
+            for (const auto& run : observed_runs) t << "  " << run.name;
+            t << "\n";
+            for (const char* key : {"explained", "covered", "unsupported_area_fraction"}) {
+                t << key << ": " << cell(o, key);
+                for (const auto& run : observed_runs)
+                    t << "  " << cell(run.report["observed"], key);
+                t << "\n";
+            }
+            t << "time_s: -";
+            for (const auto& run : observed_runs) t << "  " << cell(run.report, "time_s");
+            t << "\n";
+            std::cerr << t.str();
+        }
+        if (!input_geometry) observed_geometry = render::from_views(observations->views);
+    }
     if (ctx.options().count("gt-poses")) {
         out["poses"] = cli::evaluate_poses(result.views, ctx.get<std::string>("gt-poses"),
                                            !ctx.options().count("keep-gauge"));
@@ -317,7 +396,7 @@ void run_eval(cli::Context& ctx) {
 
     std::vector<BaselineRun> runs;
     int best = -1;
-    if (baseline_given) {
+    if (baseline_given && !observed_given) {
         Report& b = out["baseline"];
         b["method"] = "open3d-screened-poisson";
         b["open3d"] = "0.16 (python3-open3d)";
@@ -409,19 +488,32 @@ void run_eval(cli::Context& ctx) {
         if (reference) page.facts.push_back({"reference", ctx.get<std::string>("reference")});
         if (ctx.options().count("points"))
             page.facts.push_back({"input", ctx.get<std::string>("points")});
-        if (baseline_given)
+        if (observed_given)
+            page.facts.push_back(
+                {"observed",
+                 ctx.get<std::string>("observed") + ": " +
+                     std::to_string(out["observed"]["subject"]["points"].get<std::size_t>()) +
+                     " subject points (" +
+                     out["observed"]["subject"]["selection"].get<std::string>() + ")"});
+        if (baseline_given && !observed_given)
             page.facts.push_back({"baseline", "Open3D 0.16 Screened Poisson, depths " +
                                                   ctx.get<std::string>("baseline-depths") +
                                                   ", trim quantile " + trim_text(trim) +
                                                   "; best depth " +
                                                   std::to_string(runs[best].depth)});
         cli::PictureInputs pictures;
-        pictures.input = input_geometry ? &*input_geometry : nullptr;
+        pictures.input = input_geometry      ? &*input_geometry
+                         : observed_geometry ? &*observed_geometry
+                                             : nullptr;
         pictures.result = result.mesh ? &*result.mesh : nullptr;
         if (best >= 0) {
             pictures.baseline = &runs[best].mesh;
             pictures.baseline_name =
                 "Open3D Screened Poisson depth " + std::to_string(runs[best].depth);
+        }
+        if (!observed_runs.empty()) {
+            pictures.baseline = &observed_runs.back().mesh;
+            pictures.baseline_name = "Open3D " + observed_runs.back().name;
         }
         pictures.reference = reference ? &*reference : nullptr;
         pictures.camera.width = picture_size.first;
@@ -442,6 +534,22 @@ void run_eval(cli::Context& ctx) {
         page.tables.push_back(cli::side_by_side("Metrics", columns));
         if (out.contains("poses"))
             page.tables.push_back(cli::side_by_side("Poses", {{"poses", out["poses"]}}));
+        if (out.contains("observed")) {
+            Report ours_observed = out["observed"];
+            ours_observed.erase("subject");
+            ours_observed.erase("capture");
+            std::vector<std::pair<std::string, Report>> observed_columns{{"ours", ours_observed}};
+            for (const auto& run : observed_runs) {
+                Report r = run.report["observed"];
+                r["peer_time_s"] = run.report.value("time_s", 0.0);
+                observed_columns.push_back({"Open3D " + run.name, r});
+            }
+            page.tables.push_back(cli::side_by_side(
+                "Observations: explained = share of the observed subject points within tau of "
+                "the mesh; covered = share of the mesh area within tau of an observation; "
+                "unsupported = share farther than 2 tau from every observation",
+                observed_columns));
+        }
         page.metrics = out;
         const fs::path dir = ctx.get<std::string>("report");
         cli::write_report(dir, page);
@@ -454,8 +562,8 @@ void run_eval(cli::Context& ctx) {
 const cli::ToolSpec kSpec{
     .name = "rgbd-eval",
     .usage =
-        "rgbd-eval RESULT [--reference MESH] [--points STREAM] [--baseline screened-poisson] "
-        "[--report DIR] [options] [-o metrics.json]",
+        "rgbd-eval RESULT [--reference MESH] [--observed CAPTURE] [--points STREAM] "
+        "[--baseline screened-poisson|tsdf,...] [--report DIR] [options] [-o metrics.json]",
     .description =
         "Compares a result (a mesh, or a view stream / point file) with a reference surface "
         "and prints the metrics as one JSON object: Chamfer distance (mean of both directed "
@@ -476,7 +584,22 @@ const cli::ToolSpec kSpec{
         "times it, and evaluates its meshes exactly like the result, side by side (JSON and a "
         "table on stderr). --report DIR writes a page (index.html, pictures, metrics.json) "
         "with pictures of the input, the result, the best baseline depth and heat maps of the "
-        "distance to the reference (else to the input points). The result is read whole.",
+        "distance to the reference (else to the input points). The result is read whole.\n\n"
+        "--observed CAPTURE judges a mesh against the capture's own observations (real "
+        "captures without truth): every view of --frameset (a capture without frame sets: "
+        "every frame, or --frames) back-projected with the capture's calibration (depth window "
+        "and masks as rgbd-cloud) into the world, cut to the subject: the pixels labelled 1 in "
+        "gt/<sensor>/segment/ when the capture has them, else the points inside a vertical "
+        "cylinder of --observed-radius-m around where the sensors' axes converge, minus a "
+        "ground plane (within 15 deg of the cameras' up; 2 cm above it dropped). \"observed\" "
+        "reports, at the first --observed-tau-mm t (the others under at_<t>mm): explained "
+        "(share of the subject points within t of the mesh), covered (share of the mesh area "
+        "within t of an observation), unsupported_area_fraction (share farther than 2t from "
+        "every observation), the areas in m^2 and counts, and the selection used. With "
+        "--observed, --baseline tsdf,screened-poisson runs Open3D 0.16 on the same subject "
+        "points: TSDF fusion of each view's subject depth (--tsdf-voxel-mm, truncation 4 "
+        "voxels, RGB8, marching cubes) and Screened Poisson (--observed-poisson-depth, normals "
+        "towards each view's camera, --baseline-trim), scored alike under \"baselines\".",
     .example =
         "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
         "screened-poisson --report bust_report/",
@@ -498,12 +621,31 @@ const cli::ToolSpec kSpec{
             "points", cli::value<std::string>("STREAM"),
             "the input points of the result (view stream or point file)")(
             "baseline", cli::value<std::string>("NAME"),
-            "run a peer on the same input: screened-poisson (Open3D 0.16)")(
+            "run peers on the same input (Open3D 0.16): screened-poisson; with --observed "
+            "also tsdf (a list: tsdf,screened-poisson)")(
             "baseline-depths", cli::value<std::string>("8,9,10", "LIST"),
             "octree depths of the Screened Poisson baseline")(
             "baseline-trim", cli::value<double>(0.02, "Q"),
             "drop baseline vertices below this density quantile (0 = untrimmed)")(
             "report", cli::value<std::string>("DIR"), "write a report page with pictures to DIR")(
+            "observed", cli::value<std::string>("CAPTURE"),
+            "judge the mesh against this capture folder's observations of the subject")(
+            "frameset", cli::value<long long>(0, "N"),
+            "--observed: frame set whose views are the observations (multi-sensor captures)")(
+            "frames", cli::value<std::string>("A:B[:STEP]"),
+            "--observed: frame positions per sensor (default: all of a capture without frame "
+            "sets)")("observed-tau-mm", cli::value<std::string>("20,5", "LIST"),
+                     "--observed thresholds in millimetres (the first is the main one)")(
+            "observed-radius-m", cli::value(evaluation::SubjectOptions{}.radius_m, "M"),
+            "--observed without labels: radius of the subject cylinder around the axes' "
+            "convergence")(
+            "z-min", cli::value(frames::CloudOptions{}.z_min_m, "M"),
+            "--observed: depth window near limit in metres (0 = the sensor's range)")(
+            "z-max", cli::value(frames::CloudOptions{}.z_max_m, "M"),
+            "--observed: depth window far limit in metres (0 = the sensor's range)")(
+            "tsdf-voxel-mm", cli::value(6.0, "MM"), "--baseline tsdf: voxel size")(
+            "observed-poisson-depth", cli::value(9, "D"),
+            "--observed --baseline screened-poisson: octree depth")(
             "report-size", cli::value<std::string>("640x480", "WxH"),
             "size of each report picture, WxH");
     }};

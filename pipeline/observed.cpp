@@ -1,0 +1,85 @@
+#include "pipeline/observed.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "pipeline/stages.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::pipeline {
+
+namespace fs = std::filesystem;
+
+std::vector<Eigen::Vector3d> Observations::world_points() const {
+    std::vector<Eigen::Vector3d> out;
+    for (const auto& v : views) {
+        const Pose pose = v.view.frame == ViewFrame::kSensor && v.view.world_from_sensor
+                              ? *v.view.world_from_sensor
+                              : Pose::Identity();
+        for (auto i : v.points) out.push_back(pose * to_eigen(v.points.point(i)));
+    }
+    return out;
+}
+
+fs::path segment_label_file(const io::Capture& capture, const std::string& sensor_id,
+                            std::size_t position) {
+    const io::FrameRecord& record = capture.frames.at(sensor_id).at(position);
+    return capture.root / "gt" / sensor_id / "segment" / fs::path(record.depth).filename();
+}
+
+Observations load_observations(const io::Capture& capture,
+                               const std::vector<std::pair<std::string, std::size_t>>& frames,
+                               const frames::CloudOptions& cloud_options,
+                               const evaluation::SubjectOptions& subject) {
+    const std::string root = capture.root.string();
+    RGBD_CHECK(!frames.empty(), root + ": no frame selected");
+    subject.check();
+    Observations obs;
+    std::vector<cv::Mat> labels;
+    const bool labelled =
+        fs::exists(segment_label_file(capture, frames[0].first, frames[0].second));
+    Report per_view = Report::array();
+    int view_id = 0;
+    bool masked = cloud_options.use_mask;
+    for (const auto& [sensor_id, position] : frames) {
+        const RgbdFrame frame = io::load_frame(capture, sensor_id, position);
+        const std::string name =
+            root + ": frame " + std::to_string(frame.frame_index) + " of sensor " + sensor_id;
+        RGBD_CHECK(frame.has_pose, name +
+                                       " has no pose (rig.json world_from_depth or frames.csv "
+                                       "pose columns); the observations need every view's pose");
+        masked = masked && !frame.mask.empty();
+        Report report;
+        obs.views.push_back(view_from_frame(frame, view_id++, cloud_options, std::nullopt,
+                                            ExtractionOptions{/*crop_radius_m=*/0.0}, report));
+        if (labelled) {
+            const fs::path file = segment_label_file(capture, sensor_id, position);
+            RGBD_CHECK(fs::exists(file), file.string() +
+                                             ": missing (the capture has subject labels for "
+                                             "other frames)");
+            cv::Mat label = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+            RGBD_CHECK_AS(IoError, !label.empty(), file.string() + ": cannot read the image");
+            RGBD_CHECK(label.type() == CV_8UC1 && label.cols == frame.depth.cols &&
+                           label.rows == frame.depth.rows,
+                       file.string() + ": not an 8-bit one-channel image of the depth size (" +
+                           std::to_string(frame.depth.cols) + "x" +
+                           std::to_string(frame.depth.rows) + ")");
+            labels.push_back(std::move(label));
+        }
+        per_view.push_back({{"sensor", sensor_id}, {"frame_index", frame.frame_index}});
+    }
+    const auto centre = object_centre(capture, frames);
+    evaluation::SubjectOptions options = subject;
+    options.remove_ground = options.remove_ground && !masked;  // masks left no ground
+    obs.report = evaluation::observed_subject(obs.views, labels, centre, options);
+    obs.report["views"] = obs.views.size();
+    obs.report["labels"] =
+        labelled ? Report((capture.root / "gt" / "<sensor>" / "segment").string()) : Report();
+    for (std::size_t v = 0; v < obs.views.size(); ++v) per_view[v]["points"] = obs.views[v].size();
+    obs.report["per_view"] = per_view;
+    RGBD_CHECK(obs.report["points"].get<std::size_t>() > 0,
+               root + ": no observed subject point is left (selection " +
+                   obs.report["selection"].get<std::string>() + ")");
+    return obs;
+}
+
+}  // namespace rgbd::pipeline
