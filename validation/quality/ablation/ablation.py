@@ -615,6 +615,9 @@ def main():
         sys.exit("ablation: no object to run")
     b = os.path.abspath(a.bin)
     eb = os.path.abspath(a.eval_bin or a.bin)
+    for tool in ("rgbd-synth", "rgbd-cloud", "rgbd-reconstruct"):
+        if not os.access(os.path.join(b, tool), os.X_OK):
+            sys.exit(f"ablation: {b}/{tool} is absent (--bin: the folder of the rgbd-* tools)")
     chain = a.chain
     if chain == "auto":
         chain = "reconstruct" if has_skip(b) else "pipe"
