@@ -14,8 +14,10 @@ DIR/objects.json: {"objects": [{name, file, kind, synth, scene, provenance, ...}
 
 Sources: Debian's libcgal-dev demo data (/usr/share/doc/libcgal-dev/data.tar.gz,
 data/meshes/*.off), ../shared/data/meshes beside the checkout (the busts; left out when absent),
-and procedural meshes made here with numpy (every part a closed surface; a union of closed
-parts overlaps, which the ray-casting renderer and the unsigned-distance scorer accept):
+and procedural meshes made here with numpy: unions of closed parts (capsules, boxes,
+ellipsoids, surfaces of revolution, a capped tube) of which only the outer surface is written
+(each part's faces inside another part dropped: the truth must not hold hidden inner walls,
+which would count as unseen surface; the seams where parts meet stay open):
 - cellist: a seated figure (capsules, boxes, ellipsoids) on a chair whose four legs stand at the
   lowest point (the floor), with a cello between the knees (its end pin on the floor) and a
   bow 10 mm thick (5 mm radius) held across the strings: closure of a seated figure, thin parts;
@@ -98,14 +100,59 @@ class Mesh:
         return self
 
     def arrays(self):
-        return np.concatenate(self.v), np.concatenate(self.f)
+        """The outer surface of the union: every part's faces whose centroid lies inside another
+        part are dropped (the truth the scorer compares with must hold only what a sensor can
+        see from outside; the seams where parts meet stay open), unused vertices removed."""
+        v = np.concatenate(self.v)
+        keep = []
+        for i, f in enumerate(self.f):
+            c = v[f].mean(1)
+            inside = np.zeros(len(f), bool)
+            for j in range(len(self.f)):
+                if j != i:
+                    inside |= self.inside(j, c)
+            keep.append(f[~inside])
+        f = np.concatenate(keep)
+        used = np.unique(f)
+        remap = np.full(len(v), -1)
+        remap[used] = np.arange(len(used))
+        return v[used], remap[f]
+
+    def inside(self, j, points):
+        """Which points lie inside closed part j: the side of the closest triangle's plane
+        (Open3D closest-point queries; its ray casts return no hits on this machine's build)."""
+        import open3d as o3d
+        vj = self.v[j]
+        fj = self.f[j] - sum(len(x) for x in self.v[:j])
+        lo, hi = vj.min(0), vj.max(0)
+        near = np.all((points >= lo) & (points <= hi), 1)
+        out = np.zeros(len(points), bool)
+        if not near.any():
+            return out
+        a, b, c = vj[fj[:, 0]], vj[fj[:, 1]], vj[fj[:, 2]]
+        n = np.cross(b - a, c - a)
+        if np.einsum("ij,ij->", a, n) < 0:  # six times the signed volume: inward faces
+            n = -n
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(o3d.core.Tensor(vj.astype(np.float32)),
+                            o3d.core.Tensor(fj.astype(np.uint32)))
+        q = points[near].astype(np.float32)
+        r = scene.compute_closest_points(o3d.core.Tensor(q))
+        cp, tri = r["points"].numpy(), r["primitive_ids"].numpy()
+        out[np.flatnonzero(near)] = np.einsum("ij,ij->i", q - cp, n[tri]) < -1e-6
+        return out
 
 
-def revolve(profile, seg=48):
+def revolve(profile, seg=48, step=0.01):
     """Closed surface of revolution about z of a profile [(r, z)] that starts and ends on the
-    axis (r = 0: the poles); returns (vertices, faces) outward for a profile going up the
-    outside (counter-clockwise in the r-z half plane)."""
-    prof = np.asarray(profile, float)
+    axis (r = 0: the poles), its segments cut to `step` metres at most; returns (vertices,
+    faces) outward for a profile going up the outside (counter-clockwise in the r-z half
+    plane)."""
+    prof = [np.asarray(profile[0], float)]
+    for q in np.asarray(profile[1:], float):
+        k = int(np.ceil(np.linalg.norm(q - prof[-1]) / step))
+        prof += [prof[-1] + (q - prof[-1]) * t for t in np.arange(1, k + 1) / k]
+    prof = np.array(prof)
     assert prof[0, 0] == 0 and prof[-1, 0] == 0
     inner = prof[1:-1]
     a = np.linspace(0, 2 * np.pi, seg, endpoint=False)
@@ -154,12 +201,16 @@ def ellipsoid(c, radii, seg=32):
     return np.asarray(c) + v * np.asarray(radii), f
 
 
-def box(lo, hi):
+def box(lo, hi, step=0.015):
+    """Closed box, its faces split (midpoint subdivision) to edges of about `step` metres or
+    less, so that dropping the faces inside another part leaves the rest of a face."""
+    import open3d as o3d
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    v = np.array([[(hi if (k >> i) & 1 else lo)[i] for i in range(3)] for k in range(8)])
-    f = [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4),
-         (2, 6, 7), (2, 7, 3), (0, 4, 6), (0, 6, 2), (1, 3, 7), (1, 7, 5)]
-    return v, np.array(f)
+    m = o3d.geometry.TriangleMesh.create_box(*(hi - lo))
+    k = int(np.ceil(np.log2(max(1.0, (hi - lo).max() / step))))
+    if k:
+        m = m.subdivide_midpoint(number_of_iterations=k)
+    return np.asarray(m.vertices) + lo, np.asarray(m.triangles)
 
 
 def tube_arc(centre, radius, r, a0, a1, plane=(0, 2), seg=16, steps=24):
@@ -237,7 +288,7 @@ def jug():
     prof = [(0, 0)] + outer + [(0.089, 0.3)] + inner[1:-1] + [(0.094, 0.01), (0, 0.01)]
     # the inside: from the rim down to the bottom (10 mm thick), then the axis.
     m = Mesh().add(*revolve(prof, 64))
-    m.add(*tube_arc((0.09, 0, 0.16), 0.075, 0.012, -np.pi / 2 + 0.25, np.pi / 2 - 0.25, (0, 2)))
+    m.add(*tube_arc((0.08, 0, 0.16), 0.08, 0.012, -np.pi / 2 + 0.25, np.pi / 2 - 0.25, (0, 2)))
     return m.arrays()
 
 
@@ -312,8 +363,8 @@ def make(out, names=None, shared=SHARED):
             if height is None:
                 height = round(float(np.ptp(v[:, 2])), 4)
             e["provenance"] = (f"procedural (objects.py {name}()): {note}; {len(v)} vertices, "
-                               f"{len(f)} faces, {boundary_edges(f)} boundary edges (closed "
-                               f"parts)")
+                               f"{len(f)} faces, {boundary_edges(f)} boundary edges (the "
+                               f"seams of the union of closed parts)")
         e["file"] = file
         e["synth"] = ["--up", up, "--height-m", f"{height:g}"] + extra
         e["rig"] = "turntable" if "turntable" in extra else "ring"
