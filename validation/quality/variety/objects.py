@@ -329,6 +329,32 @@ def boundary_edges(f):
     return int((c == 1).sum())
 
 
+def cap_holes(v, f):
+    """Closes every boundary loop of (v, f) with a fan around the loop's centroid, oriented
+    with its faces (a bust's neck cut becomes a flat-ish base, as the sculpted busts have one:
+    otherwise the closed reconstruction's base would count as invented against an open truth);
+    returns (vertices, faces, number of loops)."""
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = lambda a, b: a * len(v) + b  # noqa: E731
+    directed = set(key(a, b) for a, b in e)
+    nxt = {}
+    for a, b in e:
+        if key(b, a) not in directed:  # boundary edge a -> b: the cap runs b -> a
+            nxt[b] = a
+    v, f, loops = list(v), list(f), 0
+    while nxt:
+        start = next(iter(nxt))
+        loop, x = [start], nxt.pop(start)
+        while x != start and x in nxt:
+            loop.append(x)
+            x = nxt.pop(x)
+        c = len(v)
+        v.append(np.mean([v[i] for i in loop], 0))
+        f += [(loop[i], loop[(i + 1) % len(loop)], c) for i in range(len(loop))]
+        loops += 1
+    return np.array(v), np.array(f), loops
+
+
 def make(out, names=None, shared=SHARED):
     """Writes the set into `out` (the busts from `shared`, the meshes folder of ../shared/data);
     returns the objects.json entries (absent sources left out)."""
@@ -356,6 +382,14 @@ def make(out, names=None, shared=SHARED):
             with open(os.path.join(out, file), "wb") as o:
                 o.write(tar.extractfile(f"data/meshes/{rel}").read())
             e["provenance"] = CGAL + rel + "; " + note
+            import open3d as o3d
+            m = o3d.io.read_triangle_mesh(os.path.join(out, file))
+            f = np.asarray(m.triangles)
+            if boundary_edges(f):
+                v, f, loops = cap_holes(np.asarray(m.vertices), f)
+                write_off(os.path.join(out, file), v, f)
+                e["provenance"] += (f"; its {loops} boundary loop(s) capped by a fan (objects.py "
+                                    f"cap_holes): {boundary_edges(f)} boundary edges left")
         else:
             v, f = PROCEDURAL[name]()
             file = name + ".off"
