@@ -28,7 +28,8 @@ Chosen CGAL meshes (inspected: vertex and face counts, boundary edges, up axis f
 orthographic views): lion-head (bust, y up, neck cut: 36 boundary edges), mannequin-devil (a
 horned head and neck, z up, 64 boundary edges at the neck), man (standing figure, z up,
 closed), homer (y up, closed), armadillo (y up, closed), elephant, cow, bull, camel (z up),
-bunny00 (animals, closed), bear (a teddy: ears, y up, closed). Left out: nefertiti (a
+bunny00 (animals, closed), bear (a teddy: ears, y up, closed). The two neck cuts are capped by
+a fan (cap_holes) so that the truth is closed like the reconstruction. Left out: nefertiti (a
 299-vertex face shell, open at the back), mpi (a 90-vertex blob), handle (a bar), hand (a fist).
 
 Ring geometry (rgbd-synth's fixed defaults): 8 Kinect v2 sensors 1.5 m from the axis at 1.6 m
