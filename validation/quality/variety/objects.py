@@ -27,7 +27,7 @@ which would count as unseen surface; the seams where parts meet stay open):
 Chosen CGAL meshes (inspected: vertex and face counts, boundary edges, up axis from
 orthographic views): lion-head (bust, y up, neck cut: 36 boundary edges), mannequin-devil (a
 horned head and neck, z up, 64 boundary edges at the neck), man (standing figure, z up,
-closed), homer (y up, closed), armadillo (y up, closed), elephant, cow, bull, camel (z up),
+closed), homer (y up, closed), armadillo (y up, closed), elephant, cow, bull, camel (y up),
 bunny00 (animals, closed), bear (a teddy: ears, y up, closed). The two neck cuts are capped by
 a fan (cap_holes) so that the truth is closed like the reconstruction. Left out: nefertiti (a
 299-vertex face shell, open at the back), mpi (a 90-vertex blob), handle (a bar), hand (a fist).
@@ -72,7 +72,7 @@ CATALOGUE = [
     ("elephant", "cgal", "elephant.off", "animal", "y", 0.6, [], [], "closed; trunk raised"),
     ("cow", "cgal", "cow.off", "animal", "y", 0.5, [], [], "closed; thin legs, horns"),
     ("bull", "cgal", "bull.off", "animal", "y", 0.55, [], [], "closed; running, tail up"),
-    ("camel", "cgal", "camel.off", "animal", "z", 0.9, [], [], "closed; long thin legs"),
+    ("camel", "cgal", "camel.off", "animal", "y", 0.9, [], [], "closed; long thin legs"),
     ("bear", "cgal", "bear.off", "animal", "y", 0.5, [], [], "teddy bear, closed; ears"),
     ("cellist", "procedural", None, "seated", "z", None, [], FLOOR,
      "seated figure on a chair on the floor, cello, bow 10 mm thick"),
