@@ -8,6 +8,11 @@ Objects (--objects):
 - max_planck, bust_man_wreath: the busts of ../common/rgbd_stream.py (BUSTS, their rgbd-synth
   arguments);
   all with rgbd-synth's default noise and rig.json poses off by 1.5 deg / 15 mm, --seed;
+- the variety set (--objects-dir DIR made by validation/quality/variety/objects.py --out DIR,
+  or --variety: made in WORK/objects): busts, standing figures, animals, a seated cellist on a
+  chair on the floor, a jug with a thin handle, a puppet on the SR300 turntable rig; each with
+  its own rgbd-synth arguments from DIR/objects.json, its scene options (--floor ...) only when
+  rgbd-synth lists them; --objects then names any of them (default: all of the set);
 - person: the real sequence shared/data/multiview/uva_cv2_person_kinect1 (Kinect v1 class,
   per-frame camera.xml poses, no true surface), frames --person-frames (positions A:B).
 
@@ -54,7 +59,10 @@ the mean; "no measurable harm" when one is worse on the mean by less than twice 
 error of the paired difference (the seeds' spread); "HURTS" beyond it. "Measurably better"
 lists the measures (those three, F@1mm, accuracy) the stage improves beyond twice the standard
 error, with the number of seeds on which it did: what the stage is there for. On the busts, the
-issue's targets on every seed: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm.
+issue's targets on every seed: F@2mm >= 0.96, invented <= 0.5%, completeness <= 1.0 mm (also on
+the set's objects of kind bust); on every object with truth, the fill stage's own points
+farther than 5 mm from the truth <= 2%. A per-object summary table lists F@2mm / invented /
+completeness of every variant, the fill share and the targets.
 """
 import argparse
 import datetime
@@ -74,6 +82,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "common"))
+sys.path.insert(0, os.path.join(HERE, "..", "variety"))
+import objects as variety  # noqa: E402
 from open3d_peer import (merge_views, optimise, pair_icp, prepare_views, run_in_child,  # noqa: E402
                          screened_poisson)
 from rgbd_stream import BUSTS, DATA, pose_of, read_stream  # noqa: E402
@@ -83,6 +93,8 @@ CGAL_DATA = "/usr/share/doc/libcgal-dev/data.tar.gz"
 STAGES = ["distance", "upsample", "density", "fill"]
 ALL_VARIANTS = ["default"] + [f"skip-{s}" for s in STAGES] + ["o3d-spr", "o3d-spr-trim"]
 BUSTS_WITH_TARGETS = ("max_planck", "bust_man_wreath")
+FILL_FAR_TARGET = 0.02  # every object: the fill stage's points farther than 5 mm from the truth
+OBJSET = {}  # name -> objects.json entry of --objects-dir / --variety (with "path")
 
 
 def sh(cmd, log=None):
@@ -104,13 +116,33 @@ def has_skip(b):
 # --------------------------------------------------------------------------- captures
 
 
+def synth_options(b):
+    """The option names the rgbd-synth in `b` lists in its --help."""
+    r = subprocess.run([f"{b}/rgbd-synth", "--help"], capture_output=True, text=True)
+    return {w.rstrip(",=") for w in (r.stdout + r.stderr).split() if w.startswith("--")}
+
+
+def set_arguments(entry, b):
+    """rgbd-synth arguments of an object of the set: its own, plus its scene options when the
+    rgbd-synth in `b` has them (older builds render the object alone)."""
+    scene = entry.get("scene") or []
+    known = synth_options(b)
+    if scene and all(x in known for x in scene if x.startswith("--")):
+        return entry["synth"] + scene
+    return entry["synth"]
+
+
 def make_capture(obj, b, work, seed):
     """Capture folder of a synthetic object (rendered once per work dir and seed)."""
     cap = os.path.join(work, f"{obj}_s{seed}", "cap")
     if os.path.isdir(os.path.join(cap, "gt")):
         return cap
     os.makedirs(os.path.dirname(cap), exist_ok=True)
-    if obj == "bunny":
+    if obj in OBJSET:
+        mesh, extra = OBJSET[obj]["path"], set_arguments(OBJSET[obj], b)
+        with open(os.path.join(work, f"{obj}_s{seed}", "synth_args.txt"), "w") as f:
+            f.write(" ".join(extra) + "\n")
+    elif obj == "bunny":
         mesh = os.path.join(work, "bunny00.off")
         if not os.path.exists(mesh):
             with tarfile.open(CGAL_DATA) as t:
@@ -252,7 +284,7 @@ def fill_points(stream, reference):
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(gt))
     dist = scene.compute_distance(o3d.core.Tensor(pts.astype(np.float32))).numpy()
     out = {}
-    for name, ks in FILL_GROUPS:
+    for name, ks in FILL_GROUPS + [("all", tuple(range(1, 256)))]:
         sel = np.isin(mech, ks)
         if sel.any():
             d = dist[sel]
@@ -386,6 +418,69 @@ def paired(base, skip, key, sign):
     return with_, without, float(d.mean()), se, int((d < 0).sum())
 
 
+def is_bust(obj):
+    return obj in BUSTS_WITH_TARGETS or OBJSET.get(obj, {}).get("kind") == "bust"
+
+
+def fill_far(r):
+    """The fill stage's points farther than 5 mm from the truth (share), or None."""
+    f = (r.get("fill_points") or {}).get("all")
+    return f["over5"] if f else None
+
+
+def targets(obj, base):
+    """[(target, held on every seed)] of an object's default runs: on the busts, F@2mm >= 0.96,
+    invented <= 0.5%, completeness <= 1.0 mm; on every object with truth, the fill stage's
+    points farther than 5 mm <= 2% (held when the fill stage added no point)."""
+    base = list(base)
+    t = []
+    if is_bust(obj):
+        t = [("F@2mm >= 0.96", min(r["f2"] for r in base) >= 0.96),
+             ("invented <= 0.5%", max(r["invented"] for r in base) <= 0.005),
+             ("completeness <= 1.0 mm", max(r["completeness_mm"] for r in base) <= 1.0)]
+    if obj != "person":
+        far = [fill_far(r) or 0.0 for r in base]
+        t.append(("fill > 5 mm <= 2%", max(far) <= FILL_FAR_TARGET))
+    return t
+
+
+SUMMARY_VARIANTS = ["default"] + [f"skip-{s}" for s in STAGES] + ["o3d-spr", "o3d-spr-trim"]
+
+
+def summary(rows):
+    """Per object (means over the seeds): F@2mm / invented / completeness mm of every variant
+    run, the fill stage's points farther than 5 mm (default job) and the targets."""
+    by = {}
+    for r in rows:
+        by.setdefault(r["object"], {}).setdefault(r["variant"], []).append(r)
+    variants = [v for v in SUMMARY_VARIANTS if any(v in x for x in by.values())]
+    lines = ["| object | kind | " + " | ".join(variants) + " | fill > 5 mm | targets |",
+             "|---|---|" + "---|" * (len(variants) + 2)]
+    for obj, v in by.items():
+        if obj == "person":
+            continue
+        cells = []
+        for var in variants:
+            rs = v.get(var)
+            if not rs or rs[0]["f2"] is None:
+                cells.append("-")
+                continue
+            m = lambda k: float(np.mean([r[k] for r in rs]))  # noqa: E731
+            cells.append(f"{m('f2'):.3f} / {100 * m('invented'):.2f}% / "
+                         f"{m('completeness_mm'):.2f}")
+        base = v.get("default") or []
+        far = [fill_far(r) for r in base]
+        far = [x for x in far if x is not None]
+        t = targets(obj, base) if base and base[0]["f2"] is not None else []
+        kind = OBJSET.get(obj, {}).get("kind") or ("bust" if is_bust(obj) else
+                                                   "animal" if obj == "bunny" else "-")
+        lines.append(f"| {obj} | {kind} | " + " | ".join(cells) + " | " +
+                     (f"{100 * max(far):.2f}%" if far else "-") + " | " +
+                     (", ".join(f"{n}: {'yes' if ok else '**NO**'}" for n, ok in t) or "-") +
+                     " |")
+    return lines
+
+
 def verdicts(rows):
     """Per object and stage: the paired differences default - skip-STAGE over the seeds. A stage
     "HURTS" when F@2mm, completeness or invented surface is worse on the mean by more than twice
@@ -438,12 +533,8 @@ def verdicts(rows):
         n = len(base)
         line = f"- {obj} ({n} seed{'s' if n > 1 else ''}): " + (
             "; ".join(parts) if parts else "no --skip variant run")
-        if obj in BUSTS_WITH_TARGETS:
-            worst = {k: [r[k] for r in base.values()] for k in ("f2", "invented",
-                                                               "completeness_mm")}
-            t = [("F@2mm >= 0.96", min(worst["f2"]) >= 0.96),
-                 ("invented <= 0.5%", max(worst["invented"]) <= 0.005),
-                 ("completeness <= 1.0 mm", max(worst["completeness_mm"]) <= 1.0)]
+        t = targets(obj, base.values())
+        if t:
             line += "; targets (every seed): " + ", ".join(
                 f"{n} {'yes' if ok else 'NO'}" for n, ok in t)
         out.append(line)
@@ -469,7 +560,15 @@ def mean_rows(rows):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--objects", default="bunny,max_planck,bust_man_wreath,person")
+    ap.add_argument("--objects", default=None,
+                    help="comma list (default: bunny,max_planck,bust_man_wreath,person; with "
+                    "--objects-dir or --variety: every object of the set; 'all' = the set)")
+    ap.add_argument("--objects-dir", default=None,
+                    help="an object set made by validation/quality/variety/objects.py --out DIR")
+    ap.add_argument("--variety", action="store_true",
+                    help="make the variety object set in WORK/objects and use it")
+    ap.add_argument("--shared", default=variety.SHARED,
+                    help="--variety: the meshes folder of ../shared/data (the busts)")
     ap.add_argument("--variants", default=",".join(ALL_VARIANTS))
     ap.add_argument("--bin", default="build/bin", help="folder of the rgbd-* tools")
     ap.add_argument("--eval-bin", default=None,
@@ -482,6 +581,17 @@ def main():
     ap.add_argument("--chain", default="auto", choices=["auto", "reconstruct", "pipe"])
     ap.add_argument("--out", default=None, help="also write the table to this markdown file")
     a = ap.parse_args()
+    a.work = os.path.abspath(a.work or tempfile.mkdtemp(prefix="ablation_"))
+    os.makedirs(a.work, exist_ok=True)
+    if a.variety and a.objects_dir:
+        sys.exit("ablation: --variety and --objects-dir exclude each other")
+    if a.variety:
+        a.objects_dir = os.path.join(a.work, "objects")
+        variety.make(a.objects_dir, None, a.shared)
+    if a.objects_dir:
+        OBJSET.update(variety.load(os.path.abspath(a.objects_dir)))
+    if a.objects is None or a.objects == "all":
+        a.objects = ",".join(OBJSET) if OBJSET else "bunny,max_planck,bust_man_wreath,person"
     a.objects = [x for x in a.objects.split(",") if x]
     a.variants = [x for x in a.variants.split(",") if x]
     a.seeds = [a.seed] if a.seed is not None else [int(x) for x in a.seeds.split(",") if x]
@@ -491,11 +601,11 @@ def main():
         if v not in ALL_VARIANTS:
             sys.exit(f"ablation: unknown variant {v} ({', '.join(ALL_VARIANTS)})")
     for o in a.objects:
-        if o not in ("bunny", "person") and o not in BUSTS:
+        if o not in ("bunny", "person") and o not in BUSTS and o not in OBJSET:
             sys.exit(f"ablation: unknown object {o}")
     # The busts and the person come from ../shared/data beside the checkout; the bunny ships
     # with Debian's libcgal-dev.
-    missing = [o for o in a.objects if o != "bunny" and not os.path.exists(
+    missing = [o for o in a.objects if o != "bunny" and o not in OBJSET and not os.path.exists(
         PERSON if o == "person" else os.path.join(DATA, BUSTS[o][0]))]
     for o in missing:
         print(f"ablation: skipping {o}: its data is not in {os.path.dirname(DATA)}",
@@ -505,8 +615,9 @@ def main():
         sys.exit("ablation: no object to run")
     b = os.path.abspath(a.bin)
     eb = os.path.abspath(a.eval_bin or a.bin)
-    a.work = os.path.abspath(a.work or tempfile.mkdtemp(prefix="ablation_"))
-    os.makedirs(a.work, exist_ok=True)
+    for tool in ("rgbd-synth", "rgbd-cloud", "rgbd-reconstruct"):
+        if not os.access(os.path.join(b, tool), os.X_OK):
+            sys.exit(f"ablation: {b}/{tool} is absent (--bin: the folder of the rgbd-* tools)")
     chain = a.chain
     if chain == "auto":
         chain = "reconstruct" if has_skip(b) else "pipe"
@@ -538,6 +649,16 @@ def main():
     if len(fill_lines) > 2:
         lines += ["", "The fill stage's added points against the true surface (default job):", ""]
         lines += fill_lines
+    lines += ["", "Per object (mean over the seeds): F@2mm / invented / completeness mean mm of "
+              "every variant; the fill stage's points farther than 5 mm from the truth (default "
+              "job); the targets on every seed:", ""] + summary(rows)
+    if OBJSET:
+        lines += ["", "Objects (rgbd-synth arguments as run):", ""]
+        for o in a.objects:
+            if o in OBJSET:
+                e = OBJSET[o]
+                lines.append(f"- {o} ({e['kind']}): {' '.join(set_arguments(e, b))}; "
+                             f"{e['provenance']}")
     table = "\n".join(lines)
     print(table)
     print()
