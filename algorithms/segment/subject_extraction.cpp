@@ -38,13 +38,18 @@ struct ViewPoints {
         if (at.empty()) return Eigen::Vector3d::Zero();
         const int u = static_cast<int>(pixel[i] % width), r = static_cast<int>(pixel[i] / width);
         const Eigen::Vector3d& p = g.xyz[i];
+        // The nearest valid pixel within 3 steps in each direction (registered depth maps
+        // have regular holes).
         auto neighbour = [&](int du, int dr, Eigen::Vector3d& q) {
-            const int uu = u + du, rr = r + dr;
-            if (uu < 0 || rr < 0 || uu >= width || rr >= height) return false;
-            const int j = at[static_cast<std::size_t>(rr) * width + uu];
-            if (j < 0) return false;
-            q = g.xyz[j];
-            return std::abs(q.z() - p.z()) < 0.05 * p.z();
+            for (int k = 1; k <= 3; ++k) {
+                const int uu = u + k * du, rr = r + k * dr;
+                if (uu < 0 || rr < 0 || uu >= width || rr >= height) return false;
+                const int j = at[static_cast<std::size_t>(rr) * width + uu];
+                if (j < 0) continue;
+                q = g.xyz[j];
+                return std::abs(q.z() - p.z()) < 0.05 * k * p.z();
+            }
+            return false;
         };
         Eigen::Vector3d a, b, c, d;
         if (!neighbour(1, 0, a) || !neighbour(-1, 0, b) || !neighbour(0, 1, c) ||
@@ -88,40 +93,18 @@ bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d
     return true;
 }
 
-/// The pooled ground plane: RANSAC over the lower part of the scene, hypotheses within the tilt
-/// limit of `up`, scored by the samples within the band; refined by least squares. Accepted when
-/// it holds ground_min_share of the samples and few samples (under 2%) lie far below it: it is
-/// the lowest large plane, not a table with the floor in view below it.
-std::optional<Plane> pooled_ground(const std::vector<Sample>& all_samples,
-                                   const Eigen::Vector3d& up, const SubjectOptions& o,
-                                   std::size_t& inliers) {
-    if (all_samples.size() < 100) return std::nullopt;
-    // Only points whose surface faces up can be ground: a plane through the ring of a wall's
-    // bottom edge (the cut end of a bust or torso) is not.
-    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
-    std::vector<Eigen::Vector3d> samples, facing;
-    for (const auto& s : all_samples) {
-        samples.push_back(s.p);
-        if (s.n.isZero() || s.n.dot(up) >= cos_tilt) facing.push_back(s.p);  // zero: unknown
-    }
-    if (facing.size() < o.ground_min_share * samples.size()) return std::nullopt;
-    std::vector<double> h(samples.size());
-    for (std::size_t i = 0; i < samples.size(); ++i) h[i] = samples[i].dot(up);
-    std::vector<double> sorted = h;
-    const double lo = rank_quantile(sorted, 0.01), hi = rank_quantile(sorted, 0.99);
-    const double band_top = lo + o.ground_search * (hi - lo);
-    std::vector<Eigen::Vector3d> low;
-    for (const auto& p : facing)
-        if (p.dot(up) <= band_top) low.push_back(p);
-    if (low.size() < 3) return std::nullopt;
-    const double inlier = 0.5 * o.ground_band_m;
-    std::uint64_t state = o.seed;
-    Plane best;
-    std::size_t best_score = 0;
-    for (int it = 0; it < o.iterations; ++it) {
-        const auto& a = low[splitmix64_next(state) % low.size()];
-        const auto& b = low[splitmix64_next(state) % low.size()];
-        const auto& c = low[splitmix64_next(state) % low.size()];
+/// RANSAC for the plane within the tilt limit of `up` that holds the most of `points` within
+/// `inlier`, hypotheses drawn from `points`; false when no hypothesis holds 3 points.
+bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
+                  double cos_tilt, double inlier, int iterations, std::uint64_t seed, Plane& best,
+                  std::size_t& best_score) {
+    best_score = 0;
+    if (points.size() < 3) return false;
+    std::uint64_t state = seed;
+    for (int it = 0; it < iterations; ++it) {
+        const auto& a = points[splitmix64_next(state) % points.size()];
+        const auto& b = points[splitmix64_next(state) % points.size()];
+        const auto& c = points[splitmix64_next(state) % points.size()];
         Eigen::Vector3d n = (b - a).cross(c - a);
         if (n.norm() < 1e-12) continue;
         n.normalize();
@@ -129,24 +112,65 @@ std::optional<Plane> pooled_ground(const std::vector<Sample>& all_samples,
         if (n.dot(up) < cos_tilt) continue;
         const Plane p{n, -n.dot(a)};
         std::size_t score = 0;
-        for (const auto& q : low) score += std::abs(p.height(q)) <= inlier;
+        for (const auto& q : points) score += std::abs(p.height(q)) <= inlier;
         if (score > best_score) best_score = score, best = p;
     }
-    if (best_score < 3) return std::nullopt;
-    for (int round = 0; round < 2; ++round) {
+    return best_score >= 3;
+}
+
+/// The pooled ground plane: RANSAC over the points whose surface faces up (grid normals within
+/// the tilt limit; points without a normal count too) for the plane near `up` with the most of
+/// them within the band; then the same below it (more than two bands lower): a plane there
+/// holding at least a third as many is the lower one (the floor under a table top). Refined
+/// by least squares on a band that shrinks to a quarter. Accepted when it holds
+/// ground_min_share of all samples with at most 15% of the samples more than half a band below
+/// it (stray returns, reflections in a shiny floor) and fewer below than above it.
+std::optional<Plane> pooled_ground(const std::vector<Sample>& all_samples,
+                                   const Eigen::Vector3d& up, const SubjectOptions& o,
+                                   std::size_t& inliers) {
+    if (all_samples.size() < 100) return std::nullopt;
+    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    std::vector<Eigen::Vector3d> samples, facing;
+    for (const auto& s : all_samples) {
+        samples.push_back(s.p);
+        if (s.n.isZero() || s.n.dot(up) >= cos_tilt) facing.push_back(s.p);  // zero: unknown
+    }
+    const double n_all = static_cast<double>(samples.size());
+    if (facing.size() < o.ground_min_share * n_all) return std::nullopt;
+    const double inlier = 0.5 * o.ground_band_m;
+    Plane best;
+    std::size_t best_score = 0;
+    if (!ransac_plane(facing, up, cos_tilt, inlier, o.iterations, o.seed, best, best_score))
+        return std::nullopt;
+    // A large plane lower down is the ground, not this one.
+    std::vector<Eigen::Vector3d> lower;
+    for (const auto& q : facing)
+        if (best.height(q) < -2.0 * o.ground_band_m) lower.push_back(q);
+    Plane low;
+    std::size_t low_score = 0;
+    if (ransac_plane(lower, up, cos_tilt, inlier, o.iterations, o.seed + 1, low, low_score) &&
+        low_score * 3 >= best_score && low_score >= o.ground_min_share * n_all)
+        best = low;
+    for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
         std::vector<Eigen::Vector3d> in;
         for (const auto& q : facing)
-            if (std::abs(best.height(q)) <= inlier) in.push_back(q);
+            if (std::abs(best.height(q)) <= band) in.push_back(q);
         Plane refined;
         if (!fit_plane(in, up, refined) || refined.n.dot(up) < cos_tilt) break;
         best = refined;
     }
-    std::size_t count = 0, below = 0;
+    std::size_t count = 0, below = 0, above = 0;
     for (const auto& q : facing) count += std::abs(best.height(q)) <= inlier;
-    for (const auto& q : samples) below += best.height(q) < -2.0 * o.ground_band_m;
+    for (const auto& q : samples) {
+        below += best.height(q) < -inlier;
+        above += best.height(q) > inlier;
+    }
     inliers = count;
-    const double n = static_cast<double>(samples.size());
-    if (count < o.ground_min_share * n || below > 0.02 * n) return std::nullopt;
+    // The lowest large plane: little below it, and less below than above it (a cap or a
+    // ring of an object's surface has its object below it).
+    if (count < o.ground_min_share * n_all || below > 0.15 * n_all ||
+        (below > above && below + above > 0.1 * n_all))
+        return std::nullopt;
     return best;
 }
 
@@ -440,7 +464,6 @@ void SubjectOptions::check() const {
     check_range("extraction: ground max tilt", ground_max_tilt_deg, Range::open(0, 90), "deg");
     check_range("extraction: ground band", ground_band_m, Range::open(0, 1), "m");
     check_range("extraction: ground min share", ground_min_share, Range::open(0, 1));
-    check_range("extraction: ground search", ground_search, Range::open_closed(0, 1));
     check_range("extraction: ground sigmas", ground_sigmas, Range::closed_open(0, 100));
     check_range("extraction: ground min margin", ground_min_margin_m, Range::closed_open(0, 1),
                 "m");
@@ -569,29 +592,48 @@ Report extract_subject(std::vector<PointCloud>& views,
             ground["offset_m"] = plane->d;
             ground["sample_inliers"] = inliers;
             ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
-            Report per_view = Report::array();
-            std::size_t removed = 0;
+            // Each view refits the plane on its own points and cuts above it; the cut is kept
+            // only when the views see a flat surface (the median of their fits' RMS under a
+            // seventh of the band): the curved bottom of an object standing on nothing is no
+            // ground.
+            std::vector<std::vector<std::uint8_t>> before(views.size());
+            std::vector<ViewGround> grounds(views.size());
+            std::vector<double> rms(views.size(), 0), fitted;
             for (std::size_t v = 0; v < views.size(); ++v) {
-                double rms = 0;
+                before[v] = vps[v].removed;
                 const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-                const ViewGround g = cut_view_ground(vps[v], views[v], *plane, model, options, rms);
-                std::size_t n = 0;
-                for (auto r : vps[v].removed) n += r;
-                removed += n;
-                auto& comments = views[v].view.extra_comments;
-                comments.erase(std::remove_if(comments.begin(), comments.end(),
-                                              [](const std::string& c) {
-                                                  return c.rfind(kGroundKey, 0) == 0;
-                                              }),
-                               comments.end());
-                comments.push_back(plane_line(g));
-                per_view.push_back({{"view", views[v].view.id},
-                                    {"removed", n},
-                                    {"margin_m", g.margin_m},
-                                    {"rms_m", rms}});
+                grounds[v] = cut_view_ground(vps[v], views[v], *plane, model, options, rms[v]);
+                if (rms[v] > 0) fitted.push_back(rms[v]);
             }
-            ground["removed"] = removed;
-            ground["views"] = per_view;
+            const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+            ground["fit_rms_m"] = median_rms;
+            if (median_rms > options.ground_band_m / 7.0) {
+                for (std::size_t v = 0; v < views.size(); ++v) vps[v].removed = before[v];
+                ground["found"] = false;
+                ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
+                                 std::to_string(median_rms * 1000.0) + " mm): no ground";
+            } else {
+                Report per_view = Report::array();
+                std::size_t removed = 0;
+                for (std::size_t v = 0; v < views.size(); ++v) {
+                    std::size_t n = 0;
+                    for (auto r : vps[v].removed) n += r;
+                    removed += n;
+                    auto& comments = views[v].view.extra_comments;
+                    comments.erase(std::remove_if(comments.begin(), comments.end(),
+                                                  [](const std::string& c) {
+                                                      return c.rfind(kGroundKey, 0) == 0;
+                                                  }),
+                                   comments.end());
+                    comments.push_back(plane_line(grounds[v]));
+                    per_view.push_back({{"view", views[v].view.id},
+                                        {"removed", n},
+                                        {"margin_m", grounds[v].margin_m},
+                                        {"rms_m", rms[v]}});
+                }
+                ground["removed"] = removed;
+                ground["views"] = per_view;
+            }
         } else {
             ground["note"] = "no ground plane in view";
         }

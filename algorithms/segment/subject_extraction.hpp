@@ -44,9 +44,8 @@ struct SubjectOptions {
     /// RANSAC inlier band of the pooled plane, metres: wide enough for calibration error between
     /// views (1.5 deg at 2 m is 5 cm); each view then refits its own plane within it.
     double ground_band_m = 0.05;
-    double ground_min_share = 0.02;  ///< the plane holds at least this share of all points
-    double ground_search = 0.5;      ///< hypotheses from the lowest this share of the height range
-    double ground_sigmas = 3.0;      ///< cut margin in sigma_z of the sensor noise at the point
+    double ground_min_share = 0.02;      ///< the plane holds at least this share of all points
+    double ground_sigmas = 3.0;          ///< cut margin in sigma_z of the sensor noise at the point
     double ground_min_margin_m = 0.003;  ///< the margin is never less than this, metres
     double voxel_m = 0.0;                ///< connectivity voxel, metres; 0 = 3 pixel footprints at
                                          ///< the median depth, at least 5 mm
