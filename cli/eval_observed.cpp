@@ -26,24 +26,6 @@ namespace fs = std::filesystem;
 constexpr const char* kPeerScript = "open3d_observed.py";
 constexpr const char* kPython = "/usr/bin/python3";
 
-/// The peer script: beside the executable (copied there at build time), else in the source
-/// tree this binary was built from.
-fs::path find_script() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec && fs::exists(exe.parent_path() / kPeerScript)) return exe.parent_path() / kPeerScript;
-    const fs::path source = fs::path(RGBD_SOURCE_DIR) / "cli" / "peers" / kPeerScript;
-    if (fs::exists(source)) return source;
-    throw IoError(std::string("cannot find ") + kPeerScript + " beside rgbd-eval or in " +
-                  source.parent_path().string());
-}
-
-std::string quote(const std::string& s) {
-    std::string out = "'";
-    for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return out + "'";
-}
-
 std::string number(double x) {
     std::ostringstream s;
     s.precision(17);
@@ -181,7 +163,7 @@ std::vector<ObservedBaseline> run_observed_baselines(pipeline::Observations& obs
                                                      const std::vector<std::string>& methods,
                                                      const ObservedPeerOptions& options,
                                                      const Context& ctx) {
-    const fs::path script = find_script();
+    const fs::path script = find_peer_script(kPeerScript);
     RGBD_CHECK(fs::exists(kPython), std::string("--baseline with --observed needs Debian's ") +
                                         kPython + " with python3-open3d");
     normals::NormalOptions normal_options;  // kAuto: towards the sensor at the origin
@@ -194,13 +176,13 @@ std::vector<ObservedBaseline> run_observed_baselines(pipeline::Observations& obs
     std::vector<ObservedBaseline> out;
     for (const std::string& method : methods) {
         const fs::path mesh_file = tmp.path / (method + ".ply");
-        std::string command = std::string(kPython) + " " + quote(script.string()) + " --points " +
-                              quote(points.string()) + " --views " + quote(cameras.string()) +
-                              " --method " + method + " --out " + quote(mesh_file.string()) +
-                              " --voxel " + number(options.tsdf_voxel_m) + " --trunc-voxels " +
-                              number(options.tsdf_trunc_voxels) + " --depth " +
-                              std::to_string(options.poisson_depth) + " --trim-quantile " +
-                              number(options.poisson_trim_quantile);
+        std::string command =
+            std::string(kPython) + " " + shell_quote(script.string()) + " --points " +
+            shell_quote(points.string()) + " --views " + shell_quote(cameras.string()) +
+            " --method " + method + " --out " + shell_quote(mesh_file.string()) + " --voxel " +
+            number(options.tsdf_voxel_m) + " --trunc-voxels " + number(options.tsdf_trunc_voxels) +
+            " --depth " + std::to_string(options.poisson_depth) + " --trim-quantile " +
+            number(options.poisson_trim_quantile);
         std::string output;
         int code = run_command(command, output, ctx);
         Report extra = Report::object();
@@ -237,6 +219,22 @@ std::vector<ObservedBaseline> run_observed_baselines(pipeline::Observations& obs
         out.push_back(std::move(b));
     }
     return out;
+}
+
+fs::path find_peer_script(const std::string& name) {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec && fs::exists(exe.parent_path() / name)) return exe.parent_path() / name;
+    const fs::path source = fs::path(RGBD_SOURCE_DIR) / "cli" / "peers" / name;
+    if (fs::exists(source)) return source;
+    throw IoError("cannot find " + name + " beside rgbd-eval or in " +
+                  source.parent_path().string());
+}
+
+std::string shell_quote(const std::string& s) {
+    std::string out = "'";
+    for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
 }
 
 }  // namespace rgbd::cli

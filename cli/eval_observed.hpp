@@ -4,6 +4,7 @@
 // same observed metrics beside ours.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,13 @@
 #include "toolkit/report.hpp"
 
 namespace rgbd::cli {
+
+/// A peer script of rgbd-eval (`name` in cli/peers/): beside the executable (copied there at
+/// build time), else in the source tree this binary was built from. IoError when neither has it.
+std::filesystem::path find_peer_script(const std::string& name);
+
+/// `s` quoted for /bin/sh (single quotes, embedded ones escaped).
+std::string shell_quote(const std::string& s);
 
 /// Settings of the observed peers.
 struct ObservedPeerOptions {

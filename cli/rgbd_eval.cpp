@@ -37,24 +37,6 @@ namespace {
 constexpr const char* kPeerScript = "open3d_screened_poisson.py";
 constexpr const char* kPython = "/usr/bin/python3";
 
-/// The peer script: beside this executable (copied there at build time), else in the source
-/// tree this binary was built from.
-fs::path find_peer_script() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec && fs::exists(exe.parent_path() / kPeerScript)) return exe.parent_path() / kPeerScript;
-    const fs::path source = fs::path(RGBD_SOURCE_DIR) / "cli" / "peers" / kPeerScript;
-    if (fs::exists(source)) return source;
-    throw IoError(std::string("cannot find ") + kPeerScript + " beside rgbd-eval or in " +
-                  source.parent_path().string());
-}
-
-std::string shell_quote(const std::string& s) {
-    std::string out = "'";
-    for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return out + "'";
-}
-
 /// A temporary folder removed on destruction.
 struct TempDir {
     fs::path path;
@@ -141,7 +123,7 @@ struct BaselineRun {
 std::vector<BaselineRun> run_screened_poisson(const std::vector<PointCloud>& input,
                                               const std::vector<int>& depths, double trim,
                                               Report& info, const cli::Context& ctx) {
-    const fs::path script = find_peer_script();
+    const fs::path script = cli::find_peer_script(kPeerScript);
     RGBD_CHECK_AS(IoError, fs::exists(kPython),
                   std::string("--baseline screened-poisson needs Debian's ") + kPython +
                       " with python3-open3d");
@@ -155,9 +137,9 @@ std::vector<BaselineRun> run_screened_poisson(const std::vector<PointCloud>& inp
     for (int d : depths) depth_list += (depth_list.empty() ? "" : ",") + std::to_string(d);
     std::ostringstream trim_text;
     trim_text << trim;
-    const std::string command = std::string(kPython) + " " + shell_quote(script.string()) +
-                                " --input " + shell_quote(points.string()) + " --out-dir " +
-                                shell_quote(tmp.path.string()) + " --depths " + depth_list +
+    const std::string command = std::string(kPython) + " " + cli::shell_quote(script.string()) +
+                                " --input " + cli::shell_quote(points.string()) + " --out-dir " +
+                                cli::shell_quote(tmp.path.string()) + " --depths " + depth_list +
                                 " --trim-quantile " + trim_text.str() +
                                 (colored ? "" : " --no-colors");
     // Runs the script; its exit code (the shell's: 128 + N when signal N ended it).

@@ -2,12 +2,12 @@
 
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
 #include "algorithms/denoise/outlier_common.hpp"
+#include "algorithms/internal/plane_fit.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 #include "toolkit/random.hpp"
@@ -31,22 +31,10 @@ std::vector<Eigen::Vector3d> world_points(const PointCloud& view,
     return out;
 }
 
-/// Least-squares plane through `points` (normal = smallest principal axis), oriented along
-/// `up`. Returns false for fewer than 3 points.
+/// internal::fit_plane into a SupportPlane.
 bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
                SupportPlane& plane) {
-    if (points.size() < 3) return false;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& p : points) mean += p;
-    mean /= static_cast<double>(points.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    Eigen::Vector3d n = eig.eigenvectors().col(0).normalized();
-    if (n.dot(up) < 0) n = -n;
-    plane.normal = n;
-    plane.offset = -n.dot(mean);
-    return true;
+    return internal::fit_plane(points, up, plane.normal, plane.offset);
 }
 
 }  // namespace

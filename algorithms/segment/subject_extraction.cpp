@@ -2,7 +2,6 @@
 
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -10,6 +9,7 @@
 #include <unordered_map>
 
 #include "algorithms/denoise/outlier_common.hpp"
+#include "algorithms/internal/plane_fit.hpp"
 #include "algorithms/segment/stand_removal.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
@@ -75,22 +75,10 @@ struct Plane {
     double height(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
 };
 
-/// Least-squares plane through `points`, its normal on the side of `up`; false below 3 points.
+/// internal::fit_plane into a Plane.
 bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up, Plane& out,
                double* rms = nullptr) {
-    if (points.size() < 3) return false;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& p : points) mean += p;
-    mean /= static_cast<double>(points.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    Eigen::Vector3d n = eig.eigenvectors().col(0).normalized();
-    if (n.dot(up) < 0) n = -n;
-    out.n = n;
-    out.d = -n.dot(mean);
-    if (rms) *rms = std::sqrt(std::max(0.0, eig.eigenvalues()(0)) / points.size());
-    return true;
+    return internal::fit_plane(points, up, out.n, out.d, rms);
 }
 
 /// RANSAC for the plane within the tilt limit of `up` that holds the most of `points` within
