@@ -274,6 +274,39 @@ int frustum_count(const Eigen::Vector3d& p, const std::vector<PointCloud>& views
     return count;
 }
 
+/// The subject is what the sensors aim at: each view votes for the regions (`region` per voxel,
+/// -1 none) of its points (`point_voxel` per point), weighted by a Gaussian around its principal
+/// point (sigma a sixth of the image's larger side); a sensor looking elsewhere casts one vote
+/// among many. Returns the summed votes per region (each view's votes sum to 1).
+std::unordered_map<int, double> aim_votes(const std::vector<ViewPoints>& vps,
+                                          const std::vector<PointCloud>& views,
+                                          const std::vector<std::vector<int>>& point_voxel,
+                                          const std::vector<int>& region) {
+    std::unordered_map<int, double> votes;
+    for (std::size_t v = 0; v < vps.size(); ++v) {
+        const auto& intr = views[v].view.intrinsics;
+        std::unordered_map<int, double> view_votes;
+        double total = 0;
+        for (std::size_t i = 0; i < vps[v].g.xyz.size(); ++i) {
+            const int c = point_voxel[v][i];
+            if (c < 0 || region[c] < 0) continue;
+            double w = 1.0;
+            if (intr) {
+                const Eigen::Vector3d& q = vps[v].g.xyz[i];
+                const double sigma = std::max(intr->width, intr->height) / 6.0;
+                const double du = intr->fx * q.x() / q.z() + intr->cx - 0.5 * (intr->width - 1);
+                const double dv = intr->fy * q.y() / q.z() + intr->cy - 0.5 * (intr->height - 1);
+                w = std::exp(-(du * du + dv * dv) / (2 * sigma * sigma));
+            }
+            view_votes[region[c]] += w;
+            total += w;
+        }
+        if (total > 0)
+            for (const auto& [r, w] : view_votes) votes[r] += w / total;
+    }
+    return votes;
+}
+
 /// Steps 2 and 3: regions of the points not yet removed, the subject among them; marks every
 /// other point removed. Adds voxel_m, core_views, regions, subject_regions to the report.
 void select_subject(std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views,
@@ -357,31 +390,7 @@ void select_subject(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
     }
     report["regions"] = sizes.size();
     RGBD_CHECK(!sizes.empty(), "nothing above the ground forms a connected region");
-    // The subject is what the sensors aim at: each view votes for the regions of its points,
-    // weighted by a Gaussian around its principal point (sigma a sixth of the image's larger
-    // side); a sensor looking elsewhere casts one vote among many.
-    std::unordered_map<int, double> votes;
-    for (std::size_t v = 0; v < vps.size(); ++v) {
-        const auto& intr = views[v].view.intrinsics;
-        std::unordered_map<int, double> view_votes;
-        double total = 0;
-        for (std::size_t i = 0; i < vps[v].g.xyz.size(); ++i) {
-            const int c = point_voxel[v][i];
-            if (c < 0 || region[c] < 0) continue;
-            double w = 1.0;
-            if (intr) {
-                const Eigen::Vector3d& q = vps[v].g.xyz[i];
-                const double sigma = std::max(intr->width, intr->height) / 6.0;
-                const double du = intr->fx * q.x() / q.z() + intr->cx - 0.5 * (intr->width - 1);
-                const double dv = intr->fy * q.y() / q.z() + intr->cy - 0.5 * (intr->height - 1);
-                w = std::exp(-(du * du + dv * dv) / (2 * sigma * sigma));
-            }
-            view_votes[region[c]] += w;
-            total += w;
-        }
-        if (total > 0)
-            for (const auto& [r, w] : view_votes) votes[r] += w / total;
-    }
+    const std::unordered_map<int, double> votes = aim_votes(vps, views, point_voxel, region);
     int subject = -1;
     double best = 0;
     for (const auto& [r, vote] : votes)
@@ -444,6 +453,84 @@ std::string plane_line(const ViewGround& g) {
     s << kGroundKey << g.normal.x() << ' ' << g.normal.y() << ' ' << g.normal.z() << ' ' << g.offset
       << ' ' << g.margin_m;
     return s.str();
+}
+
+/// Step 1: finds the ground in the views (pooled_ground), refits and cuts it per view
+/// (cut_view_ground), writes each view's plane into its metadata and marks the cut points
+/// removed, unless the views' refits are not flat. Returns the report's "ground" section.
+Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& views,
+                     const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& options,
+                     std::size_t total) {
+    Report ground = {{"found", false}};
+    const auto up = cameras_up(views);
+    if (options.remove_ground && up) {
+        std::vector<Sample> samples;
+        const std::size_t stride =
+            std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
+        std::size_t k = 0;
+        for (std::size_t v = 0; v < vps.size(); ++v)
+            for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+                if (k++ % stride == 0)
+                    samples.push_back(
+                        {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+        std::size_t inliers = 0;
+        if (const auto plane = pooled_ground(samples, *up, options, inliers)) {
+            ground["found"] = true;
+            ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
+            ground["offset_m"] = plane->d;
+            ground["sample_inliers"] = inliers;
+            ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
+            // Each view refits the plane on its own points and cuts above it; the cut is kept
+            // only when the views see a flat surface (the median of their fits' RMS under a
+            // seventh of the band): the curved bottom of an object standing on nothing is no
+            // ground.
+            std::vector<std::vector<std::uint8_t>> before(views.size());
+            std::vector<ViewGround> grounds(views.size());
+            std::vector<double> rms(views.size(), 0), fitted;
+            for (std::size_t v = 0; v < views.size(); ++v) {
+                before[v] = vps[v].removed;
+                const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+                grounds[v] = cut_view_ground(vps[v], views[v], *plane, model, options, rms[v]);
+                if (rms[v] > 0) fitted.push_back(rms[v]);
+            }
+            const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+            ground["fit_rms_m"] = median_rms;
+            if (median_rms > options.ground_band_m / 7.0) {
+                for (std::size_t v = 0; v < views.size(); ++v) vps[v].removed = before[v];
+                ground["found"] = false;
+                ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
+                                 std::to_string(median_rms * 1000.0) + " mm): no ground";
+            } else {
+                Report per_view = Report::array();
+                std::size_t removed = 0;
+                for (std::size_t v = 0; v < views.size(); ++v) {
+                    std::size_t n = 0;
+                    for (auto r : vps[v].removed) n += r;
+                    removed += n;
+                    auto& comments = views[v].view.extra_comments;
+                    comments.erase(std::remove_if(comments.begin(), comments.end(),
+                                                  [](const std::string& c) {
+                                                      return c.rfind(kGroundKey, 0) == 0;
+                                                  }),
+                                   comments.end());
+                    comments.push_back(plane_line(grounds[v]));
+                    per_view.push_back({{"view", views[v].view.id},
+                                        {"removed", n},
+                                        {"margin_m", grounds[v].margin_m},
+                                        {"rms_m", rms[v]}});
+                }
+                ground["removed"] = removed;
+                ground["views"] = per_view;
+            }
+        } else {
+            ground["note"] = "no ground plane in view";
+        }
+    } else if (options.remove_ground) {
+        ground["note"] = "no camera up (no poses)";
+    } else {
+        ground["note"] = "kept (--keep-ground)";
+    }
+    return ground;
 }
 
 }  // namespace
@@ -561,76 +648,7 @@ Report extract_subject(std::vector<PointCloud>& views,
     }
 
     // 1. The ground.
-    Report ground = {{"found", false}};
-    const auto up = cameras_up(views);
-    if (options.remove_ground && up) {
-        std::vector<Sample> samples;
-        const std::size_t stride =
-            std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
-        std::size_t k = 0;
-        for (std::size_t v = 0; v < vps.size(); ++v)
-            for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-                if (k++ % stride == 0)
-                    samples.push_back(
-                        {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
-        std::size_t inliers = 0;
-        if (const auto plane = pooled_ground(samples, *up, options, inliers)) {
-            ground["found"] = true;
-            ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
-            ground["offset_m"] = plane->d;
-            ground["sample_inliers"] = inliers;
-            ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
-            // Each view refits the plane on its own points and cuts above it; the cut is kept
-            // only when the views see a flat surface (the median of their fits' RMS under a
-            // seventh of the band): the curved bottom of an object standing on nothing is no
-            // ground.
-            std::vector<std::vector<std::uint8_t>> before(views.size());
-            std::vector<ViewGround> grounds(views.size());
-            std::vector<double> rms(views.size(), 0), fitted;
-            for (std::size_t v = 0; v < views.size(); ++v) {
-                before[v] = vps[v].removed;
-                const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-                grounds[v] = cut_view_ground(vps[v], views[v], *plane, model, options, rms[v]);
-                if (rms[v] > 0) fitted.push_back(rms[v]);
-            }
-            const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
-            ground["fit_rms_m"] = median_rms;
-            if (median_rms > options.ground_band_m / 7.0) {
-                for (std::size_t v = 0; v < views.size(); ++v) vps[v].removed = before[v];
-                ground["found"] = false;
-                ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
-                                 std::to_string(median_rms * 1000.0) + " mm): no ground";
-            } else {
-                Report per_view = Report::array();
-                std::size_t removed = 0;
-                for (std::size_t v = 0; v < views.size(); ++v) {
-                    std::size_t n = 0;
-                    for (auto r : vps[v].removed) n += r;
-                    removed += n;
-                    auto& comments = views[v].view.extra_comments;
-                    comments.erase(std::remove_if(comments.begin(), comments.end(),
-                                                  [](const std::string& c) {
-                                                      return c.rfind(kGroundKey, 0) == 0;
-                                                  }),
-                                   comments.end());
-                    comments.push_back(plane_line(grounds[v]));
-                    per_view.push_back({{"view", views[v].view.id},
-                                        {"removed", n},
-                                        {"margin_m", grounds[v].margin_m},
-                                        {"rms_m", rms[v]}});
-                }
-                ground["removed"] = removed;
-                ground["views"] = per_view;
-            }
-        } else {
-            ground["note"] = "no ground plane in view";
-        }
-    } else if (options.remove_ground) {
-        ground["note"] = "no camera up (no poses)";
-    } else {
-        ground["note"] = "kept (--keep-ground)";
-    }
-    report["ground"] = ground;
+    report["ground"] = remove_ground(vps, views, noise, options, total);
     report_progress(progress, 0.4);
     std::size_t left = 0;
     for (const auto& vp : vps)
