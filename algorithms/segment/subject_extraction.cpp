@@ -9,7 +9,7 @@
 #include <unordered_map>
 
 #include "algorithms/denoise/outlier_common.hpp"
-#include "algorithms/internal/plane_fit.hpp"
+#include "algorithms/segment/ground_plane.hpp"
 #include "algorithms/segment/stand_removal.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
@@ -62,152 +62,6 @@ struct ViewPoints {
         return world_from_sensor.linear() * n;
     }
 };
-
-/// A sample of the pooled points: its world position and its grid normal (zero: unknown).
-struct Sample {
-    Eigen::Vector3d p, n;
-};
-
-/// A plane n . p + d = 0 with unit normal n.
-struct Plane {
-    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
-    double d = 0;
-    double height(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
-};
-
-/// internal::fit_plane into a Plane.
-bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up, Plane& out,
-               double* rms = nullptr) {
-    return internal::fit_plane(points, up, out.n, out.d, rms);
-}
-
-/// RANSAC for the plane within the tilt limit of `up` that holds the most of `points` within
-/// `inlier`, hypotheses drawn from `points`; false when no hypothesis holds 3 points.
-bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
-                  double cos_tilt, double inlier, int iterations, std::uint64_t seed, Plane& best,
-                  std::size_t& best_score) {
-    best_score = 0;
-    if (points.size() < 3) return false;
-    std::uint64_t state = seed;
-    for (int it = 0; it < iterations; ++it) {
-        const auto& a = points[splitmix64_next(state) % points.size()];
-        const auto& b = points[splitmix64_next(state) % points.size()];
-        const auto& c = points[splitmix64_next(state) % points.size()];
-        Eigen::Vector3d n = (b - a).cross(c - a);
-        if (n.norm() < 1e-12) continue;
-        n.normalize();
-        if (n.dot(up) < 0) n = -n;
-        if (n.dot(up) < cos_tilt) continue;
-        const Plane p{n, -n.dot(a)};
-        std::size_t score = 0;
-        for (const auto& q : points) score += std::abs(p.height(q)) <= inlier;
-        if (score > best_score) best_score = score, best = p;
-    }
-    return best_score >= 3;
-}
-
-/// The pooled ground plane: RANSAC over the points whose surface faces up (grid normals within
-/// the tilt limit; points without a normal count too) for the plane near `up` with the most of
-/// them within the band; then the same below it (more than two bands lower): a plane there
-/// holding at least a third as many is the lower one (the floor under a table top). Refined
-/// by least squares on a band that shrinks to a quarter. Accepted when it holds
-/// ground_min_share of all samples with at most 15% of the samples more than half a band below
-/// it (stray returns, reflections in a shiny floor) and fewer below than above it.
-std::optional<Plane> pooled_ground(const std::vector<Sample>& all_samples,
-                                   const Eigen::Vector3d& up, const SubjectOptions& o,
-                                   std::size_t& inliers) {
-    if (all_samples.size() < 100) return std::nullopt;
-    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
-    std::vector<Eigen::Vector3d> samples, facing;
-    for (const auto& s : all_samples) {
-        samples.push_back(s.p);
-        if (s.n.isZero() || s.n.dot(up) >= cos_tilt) facing.push_back(s.p);  // zero: unknown
-    }
-    const double n_all = static_cast<double>(samples.size());
-    if (facing.size() < o.ground_min_share * n_all) return std::nullopt;
-    const double inlier = 0.5 * o.ground_band_m;
-    Plane best;
-    std::size_t best_score = 0;
-    if (!ransac_plane(facing, up, cos_tilt, inlier, o.iterations, o.seed, best, best_score))
-        return std::nullopt;
-    // A large plane lower down is the ground, not this one.
-    std::vector<Eigen::Vector3d> lower;
-    for (const auto& q : facing)
-        if (best.height(q) < -2.0 * o.ground_band_m) lower.push_back(q);
-    Plane low;
-    std::size_t low_score = 0;
-    if (ransac_plane(lower, up, cos_tilt, inlier, o.iterations, o.seed + 1, low, low_score) &&
-        low_score * 3 >= best_score && low_score >= o.ground_min_share * n_all)
-        best = low;
-    for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
-        std::vector<Eigen::Vector3d> in;
-        for (const auto& q : facing)
-            if (std::abs(best.height(q)) <= band) in.push_back(q);
-        Plane refined;
-        if (!fit_plane(in, up, refined) || refined.n.dot(up) < cos_tilt) break;
-        best = refined;
-    }
-    std::size_t count = 0, below = 0, above = 0;
-    for (const auto& q : facing) count += std::abs(best.height(q)) <= inlier;
-    for (const auto& q : samples) {
-        below += best.height(q) < -inlier;
-        above += best.height(q) > inlier;
-    }
-    inliers = count;
-    // The lowest large plane: little below it, and less below than above it (a cap or a
-    // ring of an object's surface has its object below it).
-    if (count < o.ground_min_share * n_all || below > 0.15 * n_all ||
-        (below > above && below + above > 0.1 * n_all))
-        return std::nullopt;
-    return best;
-}
-
-/// Refits the pooled plane (world frame) on one view's own points within the band, in the
-/// view's sensor frame, and removes the view's points less than the noise margin above it.
-ViewGround cut_view_ground(ViewPoints& vp, const PointCloud& view, const Plane& world_plane,
-                           denoise::NoiseModel model, const SubjectOptions& o, double& rms) {
-    const Pose& pose = *view.view.world_from_sensor;
-    // The world plane in the sensor frame: n_s = R^T n, d_s = d + n . t.
-    Plane p{pose.linear().transpose() * world_plane.n,
-            world_plane.d + world_plane.n.dot(pose.translation())};
-    const Eigen::Vector3d up_s = p.n;
-    std::vector<Eigen::Vector3d> in;
-    for (const auto& q : vp.g.xyz)
-        if (std::abs(p.height(q)) <= 0.5 * o.ground_band_m) in.push_back(q);
-    rms = 0;
-    if (in.size() >= 50) {
-        // Two rounds, the second on the points within 3 RMS of the first fit.
-        Plane refined;
-        double r = 0;
-        if (fit_plane(in, up_s, refined, &r) &&
-            refined.n.dot(up_s) > std::cos(o.ground_max_tilt_deg * kDeg)) {
-            std::vector<Eigen::Vector3d> tight;
-            for (const auto& q : in)
-                if (std::abs(refined.height(q)) <= std::max(3.0 * r, 0.005)) tight.push_back(q);
-            if (fit_plane(tight, up_s, p, &r) && p.n.dot(up_s) < 0) p.n = -p.n;
-            rms = r;
-        }
-    }
-    std::vector<double> margins;
-    for (std::size_t i = 0; i < vp.g.xyz.size(); ++i) {
-        const Eigen::Vector3d& q = vp.g.xyz[i];
-        const double z = q.z();
-        const double cos_theta = std::clamp(std::abs(q.normalized().dot(p.n)), 0.0, 1.0);
-        const double theta = std::min(std::acos(cos_theta), 80.0 * kDeg);
-        const double margin = std::max(o.ground_min_margin_m,
-                                       o.ground_sigmas * denoise::sigma_z_m(model, z, theta) + rms);
-        const double h = p.height(q);
-        if (h < margin) {
-            vp.removed[i] = 1;
-            if (h > -margin) margins.push_back(margin);
-        }
-    }
-    ViewGround g;
-    g.normal = p.n;
-    g.offset = p.d;
-    g.margin_m = margins.empty() ? o.ground_min_margin_m : rank_quantile(margins, 0.5);
-    return g;
-}
 
 /// Packs integer voxel coordinates into one key (21 bits each, offset).
 std::int64_t voxel_key(const Eigen::Vector3i& c) {
@@ -463,73 +317,93 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
                      std::size_t total) {
     Report ground = {{"found", false}};
     const auto up = cameras_up(views);
-    if (options.remove_ground && up) {
-        std::vector<Sample> samples;
-        const std::size_t stride =
-            std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
-        std::size_t k = 0;
-        for (std::size_t v = 0; v < vps.size(); ++v)
-            for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-                if (k++ % stride == 0)
-                    samples.push_back(
-                        {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
-        std::size_t inliers = 0;
-        if (const auto plane = pooled_ground(samples, *up, options, inliers)) {
-            ground["found"] = true;
-            ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
-            ground["offset_m"] = plane->d;
-            ground["sample_inliers"] = inliers;
-            ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
-            // Each view refits the plane on its own points and cuts above it; the cut is kept
-            // only when the views see a flat surface (the median of their fits' RMS under a
-            // seventh of the band): the curved bottom of an object standing on nothing is no
-            // ground.
-            std::vector<std::vector<std::uint8_t>> before(views.size());
-            std::vector<ViewGround> grounds(views.size());
-            std::vector<double> rms(views.size(), 0), fitted;
-            for (std::size_t v = 0; v < views.size(); ++v) {
-                before[v] = vps[v].removed;
-                const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-                grounds[v] = cut_view_ground(vps[v], views[v], *plane, model, options, rms[v]);
-                if (rms[v] > 0) fitted.push_back(rms[v]);
-            }
-            const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
-            ground["fit_rms_m"] = median_rms;
-            if (median_rms > options.ground_band_m / 7.0) {
-                for (std::size_t v = 0; v < views.size(); ++v) vps[v].removed = before[v];
-                ground["found"] = false;
-                ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
-                                 std::to_string(median_rms * 1000.0) + " mm): no ground";
-            } else {
-                Report per_view = Report::array();
-                std::size_t removed = 0;
-                for (std::size_t v = 0; v < views.size(); ++v) {
-                    std::size_t n = 0;
-                    for (auto r : vps[v].removed) n += r;
-                    removed += n;
-                    auto& comments = views[v].view.extra_comments;
-                    comments.erase(std::remove_if(comments.begin(), comments.end(),
-                                                  [](const std::string& c) {
-                                                      return c.rfind(kGroundKey, 0) == 0;
-                                                  }),
-                                   comments.end());
-                    comments.push_back(plane_line(grounds[v]));
-                    per_view.push_back({{"view", views[v].view.id},
-                                        {"removed", n},
-                                        {"margin_m", grounds[v].margin_m},
-                                        {"rms_m", rms[v]}});
-                }
-                ground["removed"] = removed;
-                ground["views"] = per_view;
-            }
-        } else {
-            ground["note"] = "no ground plane in view";
-        }
-    } else if (options.remove_ground) {
-        ground["note"] = "no camera up (no poses)";
-    } else {
+    if (!options.remove_ground) {
         ground["note"] = "kept (--keep-ground)";
+        return ground;
     }
+    if (!up) {
+        ground["note"] = "no camera up (no poses)";
+        return ground;
+    }
+    std::vector<detail::GroundSample> samples;
+    const std::size_t stride =
+        std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
+    std::size_t k = 0;
+    for (std::size_t v = 0; v < vps.size(); ++v)
+        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+            if (k++ % stride == 0)
+                samples.push_back(
+                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    std::size_t inliers = 0;
+    const auto plane = detail::pooled_ground(samples, *up, options, inliers);
+    if (!plane) {
+        ground["note"] = "no ground plane in view";
+        return ground;
+    }
+    // Each view refits the plane in its own frame (its pose may be centimetres off before
+    // alignment). The plane is the ground when the views see it flat (the median of their
+    // fits' RMS under a seventh of the band: not the curved bottom of an object standing on
+    // nothing) and as the lowest large surface (at most 15% of the points more than half a
+    // band below it, and fewer below than above it: a cap or a ring of an object's surface has
+    // its object below it).
+    std::vector<detail::ViewGroundFit> fits(views.size());
+    std::vector<double> fitted;
+    std::size_t below = 0, above = 0, points = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const Pose& pose = *views[v].view.world_from_sensor;
+        const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
+                                      plane->d + plane->n.dot(pose.translation())};
+        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, options, options.seed + 2 + v);
+        if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
+        below += fits[v].below, above += fits[v].above, points += fits[v].points;
+    }
+    const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+    ground["fit_rms_m"] = median_rms;
+    ground["below_share"] = points ? double(below) / double(points) : 0.0;
+    ground["above_share"] = points ? double(above) / double(points) : 0.0;
+    ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
+    ground["offset_m"] = plane->d;
+    ground["sample_inliers"] = inliers;
+    ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
+    const double n = static_cast<double>(points);
+    if (median_rms > options.ground_band_m / 7.0) {
+        ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
+                         std::to_string(median_rms * 1000.0) + " mm): no ground";
+        return ground;
+    }
+    if (below > 0.15 * n || (below > above && below + above > 0.1 * n)) {
+        ground["note"] = "the lowest plane facing up has much of the scene below it: no ground";
+        return ground;
+    }
+    ground["found"] = true;
+    Report per_view = Report::array();
+    std::size_t removed = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+        const std::size_t before =
+            static_cast<std::size_t>(std::count(vps[v].removed.begin(), vps[v].removed.end(), 1));
+        ViewGround g;
+        g.normal = fits[v].plane.n;
+        g.offset = fits[v].plane.d;
+        g.margin_m =
+            detail::cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
+        const std::size_t cut =
+            static_cast<std::size_t>(std::count(vps[v].removed.begin(), vps[v].removed.end(), 1)) -
+            before;
+        removed += cut;
+        auto& comments = views[v].view.extra_comments;
+        comments.erase(
+            std::remove_if(comments.begin(), comments.end(),
+                           [](const std::string& c) { return c.rfind(kGroundKey, 0) == 0; }),
+            comments.end());
+        comments.push_back(plane_line(g));
+        per_view.push_back({{"view", views[v].view.id},
+                            {"removed", cut},
+                            {"margin_m", g.margin_m},
+                            {"rms_m", fits[v].rms_m}});
+    }
+    ground["removed"] = removed;
+    ground["views"] = per_view;
     return ground;
 }
 

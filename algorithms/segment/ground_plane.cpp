@@ -1,0 +1,147 @@
+#include "algorithms/segment/ground_plane.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "algorithms/internal/plane_fit.hpp"
+#include "toolkit/order_statistics.hpp"
+#include "toolkit/random.hpp"
+
+namespace rgbd::segment::detail {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// internal::fit_plane into a Plane.
+bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up, Plane& out,
+               double* rms = nullptr) {
+    return internal::fit_plane(points, up, out.n, out.d, rms);
+}
+
+}  // namespace
+
+bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
+                  double cos_tilt, double inlier, int iterations, std::uint64_t seed, Plane& best,
+                  std::size_t& best_score) {
+    best_score = 0;
+    if (points.size() < 3) return false;
+    std::uint64_t state = seed;
+    for (int it = 0; it < iterations; ++it) {
+        const auto& a = points[splitmix64_next(state) % points.size()];
+        const auto& b = points[splitmix64_next(state) % points.size()];
+        const auto& c = points[splitmix64_next(state) % points.size()];
+        Eigen::Vector3d n = (b - a).cross(c - a);
+        if (n.norm() < 1e-12) continue;
+        n.normalize();
+        if (n.dot(up) < 0) n = -n;
+        if (n.dot(up) < cos_tilt) continue;
+        const Plane p{n, -n.dot(a)};
+        std::size_t score = 0;
+        for (const auto& q : points) score += std::abs(p.height(q)) <= inlier;
+        if (score > best_score) best_score = score, best = p;
+    }
+    return best_score >= 3;
+}
+
+std::optional<Plane> pooled_ground(const std::vector<GroundSample>& all_samples,
+                                   const Eigen::Vector3d& up, const SubjectOptions& o,
+                                   std::size_t& inliers) {
+    inliers = 0;
+    if (all_samples.size() < 100) return std::nullopt;
+    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    std::vector<Eigen::Vector3d> facing;
+    for (const auto& s : all_samples)
+        if (s.n.isZero() || s.n.dot(up) >= cos_tilt) facing.push_back(s.p);  // zero: unknown
+    const double n_all = static_cast<double>(all_samples.size());
+    if (facing.size() < o.ground_min_share * n_all) return std::nullopt;
+    const double inlier = 0.5 * o.ground_band_m;
+    Plane best;
+    std::size_t best_score = 0;
+    if (!ransac_plane(facing, up, cos_tilt, inlier, o.iterations, o.seed, best, best_score))
+        return std::nullopt;
+    // A large plane lower down is the ground, not this one.
+    std::vector<Eigen::Vector3d> lower;
+    for (const auto& q : facing)
+        if (best.height(q) < -2.0 * o.ground_band_m) lower.push_back(q);
+    Plane low;
+    std::size_t low_score = 0;
+    if (ransac_plane(lower, up, cos_tilt, inlier, o.iterations, o.seed + 1, low, low_score) &&
+        low_score * 3 >= best_score && low_score >= o.ground_min_share * n_all)
+        best = low;
+    for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
+        std::vector<Eigen::Vector3d> in;
+        for (const auto& q : facing)
+            if (std::abs(best.height(q)) <= band) in.push_back(q);
+        Plane refined;
+        if (!fit_plane(in, up, refined) || refined.n.dot(up) < cos_tilt) break;
+        best = refined;
+    }
+    for (const auto& q : facing) inliers += std::abs(best.height(q)) <= inlier;
+    if (inliers < o.ground_min_share * n_all) return std::nullopt;
+    return best;
+}
+
+ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
+                                const SubjectOptions& o, std::uint64_t seed) {
+    ViewGroundFit fit;
+    fit.plane = pooled;
+    fit.points = xyz.size();
+    const double half = 0.5 * o.ground_band_m;
+    std::vector<Eigen::Vector3d> near;
+    for (const auto& q : xyz)
+        if (std::abs(pooled.height(q)) <= o.ground_band_m) near.push_back(q);
+    if (near.size() >= 50) {
+        Plane local;
+        std::size_t score = 0;
+        if (ransac_plane(near, pooled.n, std::cos(5.0 * kDeg), 0.2 * o.ground_band_m,
+                         std::max(50, o.iterations / 4), seed, local, score)) {
+            // Two least-squares rounds: on the points within half a band of the RANSAC plane,
+            // then on those within 3 RMS of that fit.
+            std::vector<Eigen::Vector3d> in;
+            for (const auto& q : near)
+                if (std::abs(local.height(q)) <= half) in.push_back(q);
+            Plane first;
+            double r = 0;
+            if (in.size() >= 50 && fit_plane(in, pooled.n, first, &r) &&
+                first.n.dot(pooled.n) > std::cos(o.ground_max_tilt_deg * kDeg)) {
+                std::vector<Eigen::Vector3d> tight;
+                for (const auto& q : in)
+                    if (std::abs(first.height(q)) <= std::max(3.0 * r, 0.005)) tight.push_back(q);
+                Plane second;
+                if (fit_plane(tight, pooled.n, second, &r)) {
+                    fit.plane = second;
+                    fit.rms_m = r;
+                }
+            }
+        }
+    }
+    for (const auto& q : xyz) {
+        const double h = fit.plane.height(q);
+        fit.below += h < -half;
+        fit.above += h > half;
+    }
+    return fit;
+}
+
+double cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
+                        denoise::NoiseModel model, const SubjectOptions& o,
+                        std::vector<std::uint8_t>& removed) {
+    std::vector<double> margins;
+    for (std::size_t i = 0; i < xyz.size(); ++i) {
+        const Eigen::Vector3d& q = xyz[i];
+        const double cos_theta = std::clamp(std::abs(q.normalized().dot(fit.plane.n)), 0.0, 1.0);
+        const double theta = std::min(std::acos(cos_theta), 80.0 * kDeg);
+        const double margin =
+            std::max(o.ground_min_margin_m,
+                     o.ground_sigmas * denoise::sigma_z_m(model, q.z(), theta) + fit.rms_m);
+        const double h = fit.plane.height(q);
+        if (h < margin) {
+            removed[i] = 1;
+            if (h > -margin) margins.push_back(margin);
+        }
+    }
+    return margins.empty() ? o.ground_min_margin_m : rank_quantile(margins, 0.5);
+}
+
+}  // namespace rgbd::segment::detail

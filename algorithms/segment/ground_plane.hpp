@@ -1,0 +1,72 @@
+// The ground step of the subject extraction (docs/method.md, "Object extraction", step 1):
+// the pooled ground plane of all views, its refit in each view's own frame, and the cut above
+// it. Internal to algorithms/segment (subject_extraction.cpp is its only user).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "algorithms/denoise/sensor_noise.hpp"
+#include "algorithms/segment/subject_extraction.hpp"
+
+namespace rgbd::segment::detail {
+
+/// A plane n . p + d = 0 with unit normal n.
+struct Plane {
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    double d = 0;
+    double height(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
+};
+
+/// A sample of the pooled points: its world position and its grid normal (zero: unknown).
+struct GroundSample {
+    Eigen::Vector3d p, n;
+};
+
+/// RANSAC for the plane within acos(cos_tilt) of `up` that holds the most of `points` within
+/// `inlier` (metres), hypotheses drawn from `points`; false when no hypothesis holds 3 points.
+bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
+                  double cos_tilt, double inlier, int iterations, std::uint64_t seed, Plane& best,
+                  std::size_t& best_score);
+
+/// The pooled ground candidate (world frame): RANSAC over the samples whose surface faces up
+/// (grid normals within ground_max_tilt_deg of `up`; samples without a normal count too) for the
+/// plane near `up` with the most of them within half a band; then the same below it (more than
+/// two bands lower): a plane there holding at least a third as many is the lower one (the floor
+/// under a table top). Refined by least squares on a band that shrinks to an eighth. Returned
+/// when it holds ground_min_share of all samples (`inliers`: how many are within half a band).
+/// Whether it is the ground is judged per view (ViewGroundFit), in each view's own frame: the
+/// views' poses may disagree by centimetres before alignment, which spreads a pooled floor.
+std::optional<Plane> pooled_ground(const std::vector<GroundSample>& samples,
+                                   const Eigen::Vector3d& up, const SubjectOptions& options,
+                                   std::size_t& inliers);
+
+/// One view's refit of the pooled plane in its sensor frame.
+struct ViewGroundFit {
+    Plane plane;            ///< the view's plane (the pooled one when it could not refit)
+    double rms_m = 0;       ///< RMS of the refit's points about it; 0 = not refitted
+    std::size_t below = 0;  ///< the view's points more than half a band below the plane
+    std::size_t above = 0;  ///< ... and more than half a band above it
+    std::size_t points = 0;
+};
+
+/// Refits `pooled` (sensor frame) on one view's points `xyz` (sensor frame, metres): RANSAC
+/// among the points within a band of it for the plane within 5 degrees of it that holds the
+/// most within a fifth of a band (the view's own offset and tilt: a pose a few centimetres or a
+/// degree off), least squares on its points within half a band, then on those within 3 RMS
+/// (at least 5 mm). The RMS of that fit judges flatness (a floor: the sensor's noise; the
+/// curved bottom of an object: much more).
+ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
+                                const SubjectOptions& options, std::uint64_t seed);
+
+/// Marks in `removed` the points of `xyz` (sensor frame) less than the noise margin above
+/// `fit.plane`: ground_sigmas x the sensor's sigma_z at the point's depth and incidence, plus
+/// the fit's RMS, at least ground_min_margin_m. Returns the median margin of the cut points
+/// within a margin of the plane (metres; ground_min_margin_m when none).
+double cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
+                        denoise::NoiseModel model, const SubjectOptions& options,
+                        std::vector<std::uint8_t>& removed);
+
+}  // namespace rgbd::segment::detail
