@@ -60,6 +60,8 @@ void run_fill(cli::Context& ctx) {
         inpaint.patch = ctx.get<int>("patch");
         inpaint.search_window = ctx.get<double>("search-window");
         inpaint.top_fraction = ctx.get<double>("top-fraction");
+        inpaint.top_min_up = ctx.get<double>("top-min-up");
+        inpaint.top_fit_radii = ctx.get<double>("top-fit-radii");
         inpaint.ellipsoid = vm.count("no-ellipsoid") == 0;
         inpaint.max_ellipsoid_rms = ctx.get<double>("max-ellipsoid-rms");
         inpaint.biharmonic = vm.count("no-biharmonic") == 0;
@@ -208,7 +210,14 @@ const cli::ToolSpec kSpec{
             "Criminisi's search window, X times the hole's bounding box")(
             "top-fraction", cli::value(holes::InpaintOptions{}.top_fraction, "F"),
             "head top: the top F of the height along the vertical axis")(
-            "no-ellipsoid", "head top: no ellipsoid fit (inpainted heights only)")(
+            "top-min-up", cli::value(holes::InpaintOptions{}.top_min_up, "C"),
+            "head top: a height-map column is known only if its highest point's outward normal "
+            "has a component along the vertical axis of at least C (a chin seen from below is "
+            "not the crown; -1: every column)")(
+            "top-fit-radii", cli::value(holes::InpaintOptions{}.top_fit_radii, "K"),
+            "head top: fit the ellipsoid to the top points at most K hole radii below the "
+            "highest (0: every top point)")("no-ellipsoid",
+                                            "head top: no ellipsoid fit (inpainted heights only)")(
             "max-ellipsoid-rms", cli::value(holes::InpaintOptions{}.max_ellipsoid_rms, "X"),
             "head top: use the ellipsoid only when it fits the top points within X spacings "
             "RMS")("top-without-ellipsoid",

@@ -30,6 +30,8 @@ void InpaintOptions::check() const {
     check_range("inpaint: clearance", clearance, Range::closed(0, 5), "spacings");
     check_range("inpaint: minimum rim n.radial", min_rim_radial, Range::closed(-1, 1));
     check_range("inpaint: top fraction", top_fraction, Range::open_closed(0, 0.5));
+    check_range("inpaint: top minimum up component", top_min_up, Range::closed(-1, 1));
+    check_range("inpaint: ellipsoid fit depth", top_fit_radii, Range::closed(0, 100), "hole radii");
     check_range("inpaint: top component share", top_component, Range::closed(0, 1));
     check_visibility("inpaint", visible_max_angle_deg, ray_clearance);
     RGBD_CHECK(std::isfinite(max_ellipsoid_rms) && max_ellipsoid_rms > 0,

@@ -91,10 +91,24 @@ struct InpaintOptions {
     /// be filled; infinity = no test (see fill_large_holes).
     double max_step_rms = 3.0;
     double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
+    /// §13 step 2 [M]: a column of the top-down height map is known only when its highest
+    /// point's outward normal has at least this component along the up axis. A ring below the
+    /// crown sees the chin and the jaw from below: they face down, so the body lies above them
+    /// and the column's top was not seen (taken as known, such columns pulled the inpainted
+    /// crown 5-55 mm low on a standing man whose head is above the sensors). -1 = every column
+    /// with a point (the dissertation's map).
+    double top_min_up = 0.0;
     /// §13 [M]: head-top hole components smaller than this share of the largest one are
     /// sampling gaps among seen pixels, not the crown (left to §11).
     double top_component = 0.1;
     bool ellipsoid = true;  ///< §13 step 4: ellipsoid height (else inpainted only)
+    /// §13 step 4 [M]: the ellipsoid is fitted to the top points at most this many hole radii
+    /// (the equivalent radius of the hole's area) below the highest one: the crown's
+    /// neighbourhood. The top region is a share of the whole height, which on a standing figure
+    /// reaches the neck and the chin: an ellipsoid through them is taller and more pointed than
+    /// the crown, and put a standing man's crown up to 14 mm too high (58% of its points farther
+    /// than 5 mm; 2: none). 0 = every top point (the dissertation's fit).
+    double top_fit_radii = 2.0;
     /// ... used only when the fit's RMS residual over the top points is at most this many
     /// spacings (a wreath or a hat is no ellipsoid).
     double max_ellipsoid_rms = 3.0;
