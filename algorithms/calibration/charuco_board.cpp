@@ -8,8 +8,8 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "algorithms/internal/foreign_errors.hpp"
 #include "toolkit/error.hpp"
-#include "toolkit/foreign_errors.hpp"
 
 namespace rgbd::calibration {
 namespace {
@@ -158,7 +158,7 @@ cv::Mat board_image(const BoardSpec& board, double pixels_per_m) {
                          " pixels are too small to draw at " + format_number(pixels_per_m) +
                          " pixels per metre (" + board.dictionary + " needs " +
                          std::to_string(bits + 4) + ")");
-    return with_foreign_errors("image of the " + name, [&] {
+    return internal::with_foreign_errors("image of the " + name, [&] {
         cv::Mat image;
         make_board(board)->draw(
             cv::Size(static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h))), image, 0,
@@ -265,11 +265,11 @@ DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& int
     options.check();
     RGBD_CHECK(!image.empty() && (image.type() == CV_8UC3 || image.type() == CV_8UC1),
                "board detection needs an 8-bit colour or grey image");
-    return with_foreign_errors("detection of the " + std::to_string(board.squares_x) + " x " +
-                                   std::to_string(board.squares_y) + " board in a " +
-                                   std::to_string(image.cols) + " x " + std::to_string(image.rows) +
-                                   " image",
-                               [&] { return detect_checked(image, intrinsics, board, options); });
+    return internal::with_foreign_errors(
+        "detection of the " + std::to_string(board.squares_x) + " x " +
+            std::to_string(board.squares_y) + " board in a " + std::to_string(image.cols) + " x " +
+            std::to_string(image.rows) + " image",
+        [&] { return detect_checked(image, intrinsics, board, options); });
 }
 
 PlaneCheck check_board_plane(const cv::Mat& depth_m, const PinholeIntrinsics& intrinsics,

@@ -3,6 +3,7 @@
 // is an rgbd::Error naming the input, never a cv::Exception or a CGAL::Failure_exception (the
 // tools' driver and the fuzz targets rely on that; validation/robustness/README.md).
 // Validate inputs first (RGBD_CHECK): this is the net for what validation cannot foresee.
+// In algorithms/internal (not installed): it includes CGAL's and OpenCV's headers.
 #pragma once
 
 #include <CGAL/assertions.h>
@@ -13,7 +14,7 @@
 
 #include "toolkit/error.hpp"
 
-namespace rgbd {
+namespace rgbd::internal {
 
 /// Returns `f()`; a cv::Exception or CGAL::Failure_exception it throws is rethrown as
 /// AlgorithmError "<what>: <OpenCV|CGAL> failed: <its message>" (`what` names the input and
@@ -30,4 +31,4 @@ decltype(auto) with_foreign_errors(const std::string& what, F&& f) {
     }
 }
 
-}  // namespace rgbd
+}  // namespace rgbd::internal
