@@ -135,6 +135,7 @@ const cli::ToolSpec kSpec{
     .example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply",
     .whole_stream = true,
+    .ranges = {{"max-prior-rotation-deg", Range::closed(0, 360), "degrees"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("merge",
                         "emit one merged view instead of one document per view, without "

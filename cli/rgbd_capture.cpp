@@ -580,5 +580,11 @@ int main(int argc, char** argv) {
             "bind", cli::value<std::string>("127.0.0.1", "ADDRESS"),
             "address the --serve page listens on (another address lets remote viewers in)");
     };
+    spec.ranges = {{"drift-window-s", Range::closed(1, 86400), "s"},
+                   {"duration-s", Range::closed(0, 1e7), "s"}};
+    spec.scopes = {{{"video"},
+                    {"fuse-on", "voxel-mm", "crop-radius-m", "no-clean", "draco-quantum-mm",
+                     "draco-color-bits", "draco-speed"}},
+                   {{"serve"}, {"bind"}}};
     return cli::run_tool(argc, argv, spec, cli::zmq_errors_as_io_errors(run_capture));
 }

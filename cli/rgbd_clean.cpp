@@ -209,6 +209,21 @@ const cli::ToolSpec kSpec{
         "rgbd-cloud cap/ | rgbd-clean --distance | rgbd-align | rgbd-clean --density | "
         "rgbd-mesh -o bust.ply",
     .reads_cloud_files = true,
+    .ranges = {{"radius-m", Range::open_closed(0, 100), "m"}},
+    // --distance and --statistical are the defaults (organised views / the others), so their
+    // options are refused only next to another mode; --density's and --radius's need theirs.
+    .scopes = {{{"density"},
+                {"beta", "reference", "consensus-ratio", "consensus-sigmas", "cluster-spacing",
+                 "min-cluster-fraction"}},
+               {{"radius"}, {"min-points", "radius-m", "radius-spacing"}},
+               {{"distance", "density", "radius"}, {"std-ratio"}, /*not_with=*/true},
+               {{"distance", "density"}, {"convention"}, /*not_with=*/true},
+               {{"statistical", "radius"}, {"noise-model", "theta-max-deg"}, /*not_with=*/true},
+               {{"radius"}, {"k"}, /*not_with=*/true},
+               {{"density", "statistical", "radius"},
+                {"c-min", "c-min-wide", "line-sigmas", "dense-min", "keep-knn", "keep-k",
+                 "n-speckle", "alpha", "no-pass-a", "knn-test", "high-recall"},
+                /*not_with=*/true}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("distance",
                         "adaptive distance-based removal per organised view (default when the "

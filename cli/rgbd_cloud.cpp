@@ -116,6 +116,9 @@ const cli::ToolSpec kSpec{
         "rgbd-cloud cap/ --frameset 0 | rgbd-clean --statistical | rgbd-align | rgbd-mesh -o "
         "bust.ply",
     .reads_stream = false,
+    .ranges = {{"z-min", Range::closed(0, 100), "m"},
+               {"z-max", Range::closed(0, 100), "m"},
+               {"crop-radius-m", Range::closed(0, 100), "m"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("frameset", cli::value<long long>(0, "N"),
                         "frame set to emit (multi-sensor captures)")(

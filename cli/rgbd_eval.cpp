@@ -588,6 +588,14 @@ const cli::ToolSpec kSpec{
     .writes_stream = false,
     .reads_stream = false,
     .writes_file = true,
+    .scopes = {{{"baseline"},
+                {"baseline-depths", "baseline-trim", "tsdf-voxel-mm", "observed-poisson-depth"}},
+               {{"observed"}, {"baseline-depths"}, /*not_with=*/true},
+               {{"observed"},
+                {"frameset", "frames", "observed-tau-mm", "observed-radius-m", "z-min", "z-max",
+                 "tsdf-voxel-mm", "observed-poisson-depth"}},
+               {{"report"}, {"report-size"}},
+               {{"gt-poses"}, {"keep-gauge"}}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("reference", cli::value<std::string>("MESH"),
                         "reference surface (.ply/.off/.obj), e.g. CAPTURE/gt/mesh.ply")(

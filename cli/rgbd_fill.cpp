@@ -184,6 +184,10 @@ const cli::ToolSpec kSpec{
         "rgbd-mesh -o bust.ply",
     .reads_cloud_files = true,
     .whole_stream = true,
+    .ranges = {{"spacing-m", Range::open_closed(0, 10), "m"},
+               {"max-ellipsoid-rms", Range::open_closed(0, 1000), "spacings"},
+               {"max-biharmonic-slope", Range::closed(0, 1000)},
+               {"max-fit-rms", Range::open_closed(0, 1000), "spacings"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("mechanism", cli::value<std::string>("interpolation", "NAME"),
                         "small-hole filling: one, four, three or interpolation (§11 M1-M4)")(

@@ -275,6 +275,7 @@ const cli::ToolSpec kSpec{
     .writes_stream = false,
     .reads_stream = false,
     .writes_file = true,
+    .ranges = {{"crop-radius-m", Range::closed(0, 100), "m"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("report", cli::value<std::string>("DIR"),
                         "report folder (default: MESH without extension + _report)")(

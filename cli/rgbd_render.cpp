@@ -150,6 +150,8 @@ const cli::ToolSpec kSpec{
     .writes_stream = false,
     .reads_stream = false,
     .writes_file = true,
+    .ranges = {{"azimuth", Range::closed(-360, 360), "degrees"}},
+    .scopes = {{{"scalar"}, {"scalar-min", "scalar-max", "reference"}}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("view", cli::value<std::string>("auto", "NAME"),
                         "auto, front, back, left, right or top")(

@@ -6,10 +6,13 @@
 #include <unistd.h>
 
 #include <boost/program_options.hpp>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -35,6 +38,34 @@ constexpr const char* kTool = "rgbd-synth";
 struct UsageError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
+
+/// The checks cli/common's driver makes for the tools (validation/ stays off cli/): a value as
+/// typed must not be negative for an unsigned option (Boost wraps --seed -1 to 2^64 - 1) nor a
+/// non-finite number; an option of a mode not chosen is an error, not ignored.
+void check_given(const po::parsed_options& parsed, const po::variables_map& vm,
+                 const std::string& rig, const std::string& target, const std::string& motion) {
+    for (const auto& o : parsed.options) {
+        if (o.string_key.empty() || !vm.count(o.string_key) || o.value.empty()) continue;
+        const boost::any& v = vm[o.string_key].value();
+        if (v.type() == typeid(std::uint64_t) && o.value.front().find('-') != std::string::npos)
+            throw UsageError("--" + o.string_key + " must be >= 0, got " + o.value.front());
+        if (const auto* d = boost::any_cast<double>(&v); d && !std::isfinite(*d))
+            throw UsageError("--" + o.string_key + " must be a finite number, got " +
+                             o.value.front());
+    }
+    const auto given = [&](const char* name) { return vm.count(name) && !vm[name].defaulted(); };
+    const auto only = [&](bool applies, std::initializer_list<const char*> names,
+                          const std::string& mode) {
+        for (const char* name : names)
+            if (!applies && given(name))
+                throw UsageError(std::string("--") + name + " applies only with " + mode);
+    };
+    only(rig == "turntable", {"axis-tilt-deg", "axis-shift-mm", "angle-noise-deg", "stand"},
+         "--rig turntable");
+    only(target == "charuco", {"board", "board-radius-m", "board-blur-px"}, "--target charuco");
+    only(motion != "none", {"motion-deg"}, "--motion turn or nod");
+    only(motion == "nod", {"motion-period-s"}, "--motion nod");
+}
 
 void print_help(const po::options_description& options) {
     std::cout
@@ -189,6 +220,8 @@ int main(int argc, char** argv) {
             }
             po::store(parsed, vm);
             po::notify(vm);
+            if (!vm.count("help") && !vm.count("version"))
+                check_given(parsed, vm, rig, target, motion_kind);
         } catch (const po::error& e) {
             throw UsageError(e.what());
         }

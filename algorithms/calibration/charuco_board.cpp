@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "algorithms/internal/foreign_errors.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::calibration {
@@ -55,6 +57,13 @@ std::vector<double> distortion_vector(const PinholeIntrinsics& k) {
     std::vector<double> d = k.distortion.coeffs;
     d.resize(5, 0.0);
     return d;
+}
+
+/// A pixel size for messages, one decimal ("5.6").
+std::string formatted_px(double px) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f", px);
+    return text;
 }
 
 Pose pose_from_rvec(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
@@ -135,10 +144,27 @@ cv::Mat board_image(const BoardSpec& board, double pixels_per_m) {
     const double w = board.width_m() * pixels_per_m, h = board.height_m() * pixels_per_m;
     RGBD_CHECK(w >= 10 && h >= 10 && w <= 20000 && h <= 20000,
                "board image must be 10..20000 pixels a side");
-    cv::Mat image;
-    make_board(board)->draw(
-        cv::Size(static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h))), image, 0, 1);
-    return image;
+    // OpenCV draws a marker of b x b bits plus a one-bit border into at least b + 2 pixels,
+    // and its pixel size comes out of a few truncations of marker_m * pixels_per_m: ask for
+    // two pixels more (a 6 x 32 board drawn 240 pixels high has 5.6-pixel markers, issue 39).
+    const std::string name = std::to_string(board.squares_x) + " x " +
+                             std::to_string(board.squares_y) + " board of " +
+                             format_number(board.square_m) + " m squares";
+    const int bits =
+        cv::aruco::getPredefinedDictionary(dictionaries().at(board.dictionary))->markerSize;
+    const double marker_px = board.marker_m * pixels_per_m;
+    if (!(marker_px >= bits + 4))
+        throw InputError("the " + name + ": markers of " + formatted_px(marker_px) +
+                         " pixels are too small to draw at " + format_number(pixels_per_m) +
+                         " pixels per metre (" + board.dictionary + " needs " +
+                         std::to_string(bits + 4) + ")");
+    return internal::with_foreign_errors("image of the " + name, [&] {
+        cv::Mat image;
+        make_board(board)->draw(
+            cv::Size(static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h))), image, 0,
+            1);
+        return image;
+    });
 }
 
 void DetectionOptions::check() const {
@@ -147,12 +173,11 @@ void DetectionOptions::check() const {
     check_range("detection: min_spread", min_spread, Range::closed(0, 1));
 }
 
-DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,
-                              const BoardSpec& board, const DetectionOptions& options) {
-    board.check();
-    options.check();
-    RGBD_CHECK(!image.empty() && (image.type() == CV_8UC3 || image.type() == CV_8UC1),
-               "board detection needs an 8-bit colour or grey image");
+namespace {
+
+/// detect_board after its checks; may throw OpenCV's exceptions.
+DetectionOutcome detect_checked(const cv::Mat& image, const PinholeIntrinsics& intrinsics,
+                                const BoardSpec& board, const DetectionOptions& options) {
     cv::Mat grey;
     if (image.channels() == 3)
         cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
@@ -230,6 +255,21 @@ DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& int
     obs.markers = out.markers;
     out.observation = std::move(obs);
     return out;
+}
+
+}  // namespace
+
+DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,
+                              const BoardSpec& board, const DetectionOptions& options) {
+    board.check();
+    options.check();
+    RGBD_CHECK(!image.empty() && (image.type() == CV_8UC3 || image.type() == CV_8UC1),
+               "board detection needs an 8-bit colour or grey image");
+    return internal::with_foreign_errors(
+        "detection of the " + std::to_string(board.squares_x) + " x " +
+            std::to_string(board.squares_y) + " board in a " + std::to_string(image.cols) + " x " +
+            std::to_string(image.rows) + " image",
+        [&] { return detect_checked(image, intrinsics, board, options); });
 }
 
 PlaneCheck check_board_plane(const cv::Mat& depth_m, const PinholeIntrinsics& intrinsics,

@@ -50,7 +50,9 @@ struct BoardSpec {
 /// The printable image of the board: CV_8UC1, white background, `pixels_per_m` pixels per
 /// metre, no margin. Pixel (c, r) covers board points [c, c + 1) x [r, r + 1) / pixels_per_m:
 /// board point (x, y) is at pixel coordinate (x, y) * pixels_per_m - 0.5 (pixel centres at
-/// integers). Throws InputError for a bad spec or an image over 20000 pixels a side.
+/// integers). Throws InputError for a bad spec, an image over 20000 pixels a side, or markers
+/// too small to draw at this resolution (under the dictionary's bits + 4 pixels a side);
+/// AlgorithmError if OpenCV fails anyway.
 cv::Mat board_image(const BoardSpec& board, double pixels_per_m);
 
 /// Options of detect_board.
@@ -82,7 +84,8 @@ struct DetectionOutcome {
 /// Detects the board in `image` (CV_8UC3 BGR or CV_8UC1) seen by a camera with `intrinsics`
 /// (distortion coefficients are used when present): ArUco markers, then the inner corners
 /// interpolated from them with sub-pixel refinement, then the board pose by PnP on the
-/// corners (iterative Levenberg-Marquardt). Thread-safe.
+/// corners (iterative Levenberg-Marquardt). Throws InputError for a bad spec or image,
+/// AlgorithmError naming the board and image size when OpenCV fails. Thread-safe.
 DetectionOutcome detect_board(const cv::Mat& image, const PinholeIntrinsics& intrinsics,
                               const BoardSpec& board, const DetectionOptions& options = {});
 

@@ -213,6 +213,8 @@ public:
         last_cell_ = {std::int64_t(span.x()) + 2, std::int64_t(span.y()) + 2,
                       std::int64_t(span.z()) + 2};
     }
+    /// Borrows `pts`: a temporary would be destroyed while the grid still points into it.
+    CellNeighbours(std::vector<Eigen::Vector3d>&&, double, std::int64_t) = delete;
     /// False when the grid could not be built (all points equal, an extent beyond 21 bits).
     bool ok() const { return ok_; }
     /// Side of a cell (m).
@@ -295,6 +297,8 @@ public:
         : pts_(pts),
           fine_(pts, 2.0, 8),
           coarse_(pts, 16.0, std::numeric_limits<std::int64_t>::max()) {}
+    /// Borrows `pts`: a temporary would be destroyed while the search still points into it.
+    explicit PointSearch(std::vector<Eigen::Vector3d>&&) = delete;
 
     /// As CellNeighbours::knn, but never 0 for a non-empty cloud. Thread-safe.
     std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,

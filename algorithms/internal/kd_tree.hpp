@@ -32,6 +32,8 @@ public:
           index_(3, adaptor_, nanoflann::KDTreeSingleIndexAdaptorParams(leaf_size)) {
         if (!points.empty()) index_.buildIndex();
     }
+    /// A temporary would be destroyed while the tree still points into it.
+    explicit KdTree(std::vector<Eigen::Vector3d>&&, int leaf_size = 16) = delete;
 
     std::size_t size() const { return adaptor_.points->size(); }
 

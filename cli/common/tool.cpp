@@ -384,7 +384,73 @@ std::optional<std::string> number_text(const boost::any& value) {
     if (const auto* u = boost::any_cast<unsigned long>(&value)) return std::to_string(*u);
     return std::nullopt;
 }
+
+/// A numeric option value as a double (integers exactly up to 2^53), or none.
+std::optional<double> number_of(const boost::any& value) {
+    if (const auto* d = boost::any_cast<double>(&value)) return *d;
+    if (const auto* f = boost::any_cast<float>(&value)) return *f;
+    if (const auto* i = boost::any_cast<int>(&value)) return *i;
+    if (const auto* l = boost::any_cast<long long>(&value)) return double(*l);
+    if (const auto* l = boost::any_cast<long>(&value)) return double(*l);
+    if (const auto* u = boost::any_cast<unsigned long>(&value)) return double(*u);
+    if (const auto* u = boost::any_cast<unsigned>(&value)) return *u;
+    return std::nullopt;
+}
+
+bool is_unsigned(const boost::any& value) {
+    return value.type() == typeid(unsigned long) || value.type() == typeid(unsigned) ||
+           value.type() == typeid(unsigned long long) || value.type() == typeid(unsigned short);
+}
+
+/// "--a", "--a or --b", "--a, --b or --c".
+std::string option_list(const std::vector<std::string>& names) {
+    std::string text;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+        if (i > 0) text += i + 1 == names.size() ? " or " : ", ";
+        text += "--" + names[i];
+    }
+    return text;
+}
+
+bool given(const po::variables_map& vm, const std::string& name) {
+    return vm.count(name) > 0 && !vm[name].defaulted();
+}
 }  // namespace
+
+void check_option_values(const ToolSpec& spec, const po::parsed_options& parsed,
+                         const po::variables_map& vm) {
+    // Every option: the text as typed, checked against the type it was stored as.
+    for (const po::option& o : parsed.options) {
+        if (o.string_key.empty() || o.string_key == "input" || !vm.count(o.string_key)) continue;
+        const boost::any& value = vm[o.string_key].value();
+        for (const std::string& token : o.value)
+            if (is_unsigned(value) && token.find('-') != std::string::npos)
+                throw UsageError("--" + o.string_key + " must be >= 0, got " + token);
+        if (const auto v = number_of(value); v && !std::isfinite(*v))
+            throw UsageError("--" + o.string_key + " must be a finite number, got " +
+                             (o.value.empty() ? format_number(*v) : o.value.back()));
+    }
+    for (const OptionScope& scope : spec.scopes) {
+        const auto mode = std::find_if(scope.modes.begin(), scope.modes.end(),
+                                       [&](const std::string& m) { return given(vm, m); });
+        if ((mode != scope.modes.end()) != scope.not_with) continue;
+        for (const std::string& name : scope.options)
+            if (given(vm, name))
+                throw UsageError("--" + name +
+                                 (scope.not_with
+                                      ? " does not apply with --" + *mode
+                                      : " applies only with " + option_list(scope.modes)));
+    }
+    for (const OptionRange& r : spec.ranges) {
+        if (!given(vm, r.option)) continue;
+        const auto v = number_of(vm[r.option].value());
+        if (!v) throw std::logic_error(spec.name + ": range of non-numeric option --" + r.option);
+        if (!r.range.contains(*v))
+            throw UsageError("--" + r.option + " must be in " + r.range.to_string() +
+                             (r.unit.empty() ? "" : " " + r.unit) + ", got " +
+                             number_text(vm[r.option].value()).value_or(format_number(*v)));
+    }
+}
 
 std::string option_named_by(const std::string& message, const po::variables_map& vm) {
     std::vector<GivenOption> given;
@@ -480,6 +546,7 @@ int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) 
             throw UsageError("--metrics - needs -o FILE (stdout carries the data)");
         if (vm["threads"].as<int>() < 0 || vm["threads"].as<int>() > 1024)
             throw UsageError("--threads must be between 0 and 1024");
+        check_option_values(spec, parsed, vm);
     } catch (const po::error& e) {
         return fail(2, e.what());
     } catch (const UsageError& e) {

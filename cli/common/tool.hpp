@@ -45,6 +45,27 @@ public:
 /// (not defaulted, not flags): the option a usage error is about, as " (--name)", or "".
 std::string option_named_by(const std::string& message, const po::variables_map& vm);
 
+/// The values a numeric option allows, checked by run_tool for a value given on the command
+/// line: {"voxel-mm", Range::closed(0, 1000), "mm"} -> "--voxel-mm must be in [0, 1000] mm,
+/// got 1e300". For the options whose library check leaves a side open (no upper end, a mode
+/// whose options struct is not checked when another mode runs).
+struct OptionRange {
+    std::string option;  ///< without dashes
+    Range range;
+    std::string unit = {};  ///< for the message ("mm", "degrees"); may be empty
+};
+
+/// Options that apply only in some modes: {{"density"}, {"beta", "reference"}}. Giving one of
+/// `options` without any of `modes` (flags or options, given on the command line) is a usage
+/// error "--beta applies only with --density", not a value the run ignores. With `not_with`,
+/// the options apply in every mode but these (the tool's default mode among them):
+/// {{"density"}, {"c-min"}, true} -> "--c-min does not apply with --density".
+struct OptionScope {
+    std::vector<std::string> modes;    ///< without dashes
+    std::vector<std::string> options;  ///< without dashes
+    bool not_with = false;
+};
+
 /// What a tool declares about itself: a tool declares it in its file's anonymous namespace with
 /// designated initializers (`const ToolSpec kSpec{.name = ..., .usage = ..., ...}`), in the
 /// order of the fields, next to its body `void run_<verb>(Context&)`; its main() is
@@ -64,8 +85,18 @@ struct ToolSpec {
     /// -o names a file the tool writes itself (a mesh, a picture, JSON): like a stream tool's,
     /// its folder must exist before the work starts. (Not for a folder the tool creates.)
     bool writes_file = false;
+    /// Ranges of options (checked before the tool's body runs). Every option is also checked
+    /// without a declaration here: a floating-point value must be finite, an unsigned one
+    /// must not be written negative (Boost would wrap -1 to 2^64 - 1).
+    std::vector<OptionRange> ranges = {};
+    std::vector<OptionScope> scopes = {};  ///< options of modes (checked before the body runs)
     std::function<void(po::options_description&)> add_options;  ///< tool-specific options
 };
+
+/// The checks of ToolSpec::ranges and ToolSpec::scopes and the ones every option gets, over the
+/// options of `parsed` stored in `vm`. Throws UsageError naming the option. (run_tool calls it.)
+void check_option_values(const ToolSpec& spec, const po::parsed_options& parsed,
+                         const po::variables_map& vm);
 
 /// An option value with the placeholder --help shows for it: `value<int>("N")`.
 template <typename T>

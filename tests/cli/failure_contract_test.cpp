@@ -233,3 +233,58 @@ TEST(FailureContract, BadOptionValuesAreUsageErrorsNamingTheOptionWithoutOutput)
         }
     }
 }
+
+namespace {
+
+struct Refused {
+    const char* command;  ///< run in temp_root() with $BIN = the tools' folder
+    const char* message;  ///< the error line must contain this
+};
+
+// Issue 39 item 8: values a tool used to accept (exit 0), and options it used to ignore in a
+// mode they do not apply to. The checks are declared once per tool (ToolSpec::ranges and
+// scopes) or made for every option by the driver (finite numbers, no negative unsigned);
+// rgbd-synth (validation/, its own driver) makes the same checks.
+const Refused kRefused[] = {
+    {"rgbd-clean small.ply --consensus-ratio nan -o out.ply",
+     "--consensus-ratio must be a finite number, got nan"},
+    {"rgbd-clean small.ply --beta 0.5 -o out.ply", "--beta applies only with --density"},
+    {"rgbd-clean small.ply --density --c-min 3 -o out.ply",
+     "--c-min does not apply with --density"},
+    {"rgbd-clean small.ply --radius-m 1 -o out.ply", "--radius-m applies only with --radius"},
+    {"rgbd-info small.ply --seed -1", "--seed must be >= 0, got -1"},
+    {"rgbd-cloud badcap --z-max 1e300 -o out.ply", "--z-max must be in [0, 100] m, got 1e300"},
+    {"rgbd-align small.ply --max-prior-rotation-deg 1e300 -o out.ply",
+     "--max-prior-rotation-deg must be in [0, 360] degrees"},
+    {"rgbd-render small.ply --azimuth inf -o out.png", "--azimuth must be a finite number"},
+    {"rgbd-render small.ply --scalar-min 0 -o out.png", "--scalar-min applies only with --scalar"},
+    {"rgbd-eval small.ply --reference small.ply --baseline-depths 8 -o out.json",
+     "--baseline-depths applies only with --baseline"},
+    {"rgbd-capture --rig badcap/rig.json --voxel-mm 2 -o out_capture",
+     "--voxel-mm applies only with --video"},
+    {"rgbd-synth garbage.off --board-blur-px 1 -o out_capture",
+     "--board-blur-px applies only with --target charuco"},
+    {"rgbd-synth garbage.off --seed -1 -o out_capture", "--seed must be >= 0, got -1"},
+};
+
+}  // namespace
+
+TEST(FailureContract, AbsurdValuesAndOptionsOfAnotherModeAreUsageErrors) {
+    make_inputs();
+    const std::set<std::string> before = entries();
+    const std::regex kCaptured("(out|err)[0-9]+\\.txt");
+    for (const Refused& c : kRefused) {
+        SCOPED_TRACE(c.command);
+        const Outcome r = run(std::string("$BIN/") + c.command);
+        EXPECT_EQ(r.code, 2) << r.err;
+        const std::string tool = std::string(c.command).substr(0, std::string(c.command).find(' '));
+        const std::string first = r.err.substr(0, r.err.find('\n'));
+        EXPECT_EQ(first.rfind(tool + ": error: " + c.message, 0), 0u) << r.err;
+        EXPECT_TRUE(r.out.empty()) << r.out.substr(0, 200);
+        for (const std::string& name : entries()) {
+            if (before.count(name) || std::regex_match(name, kCaptured)) continue;
+            ADD_FAILURE() << "left behind: " << name;
+            fs::remove_all(temp_root() / name);
+        }
+    }
+}

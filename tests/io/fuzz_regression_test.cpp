@@ -58,6 +58,10 @@ std::string read_file(const std::string& name, const std::string& bytes, bool me
 }  // namespace
 
 TEST(FuzzRegression, PlyElementWithoutPropertiesAndAHugeCountIsAnErrorNotAnEndlessLoop) {
+    // The reader used to loop 2^64 times over rows of nothing. A hang guard, not a speed
+    // check: the fixed reader answers in microseconds, the old one would run for centuries,
+    // so the limit is set far above any machine's load (speed belongs in validation/performance).
+    constexpr auto kHangGuard = std::chrono::seconds(60);
     for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
         SCOPED_TRACE(format);
         const auto t0 = std::chrono::steady_clock::now();
@@ -66,7 +70,7 @@ TEST(FuzzRegression, PlyElementWithoutPropertiesAndAHugeCountIsAnErrorNotAnEndle
                                             "element junk 18446744073709551615\nend_header\n");
         EXPECT_NE(err.find("fuzz.ply"), std::string::npos) << err;
         EXPECT_NE(err.find("no properties"), std::string::npos) << err;
-        EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));
+        EXPECT_LT(std::chrono::steady_clock::now() - t0, kHangGuard);
     }
 }
 

@@ -103,10 +103,20 @@ TEST(SynthPlace, ScalesToHeightAndCentres) {
 }
 
 TEST(SynthTexture, SolidTextureVariesWithHeightAndChecker) {
-    const TextureOptions t;
-    EXPECT_EQ(texture_color({0.01, 0.01, 0.01}), texture_color({0.01, 0.01, 0.01}));
-    EXPECT_FALSE(texture_color({0.01, 0.01, 0.01}) == texture_color({0.04, 0.01, 0.01}));
-    EXPECT_FALSE(texture_color({0.01, 0.01, 0.01}) == texture_color({0.01, 0.01, 0.13}));
+    // Expected colours worked out by hand from the documented formula with the default options
+    // (hue 360 z / 0.5 m, saturation 0.65, value 0.95, 3 cm cells, dark cells x 0.55) and
+    // checked against Python's colorsys.hsv_to_rgb, rounded to 8 bits.
+    // z = 1 cm: hue 7.2 deg, a bright cell (cells 0, 0, 0).
+    EXPECT_EQ(texture_color({0.01, 0.01, 0.01}), (Rgb{242, 104, 85}));
+    // One cell over in x: the same hue in a dark cell, value 0.95 x 0.55.
+    EXPECT_EQ(texture_color({0.04, 0.01, 0.01}), (Rgb{133, 57, 47}));
+    // z = 13 cm: hue 93.6 deg (green), a bright cell (cells 0, 0, 4).
+    EXPECT_EQ(texture_color({0.01, 0.01, 0.13}), (Rgb{154, 242, 85}));
+    // Non-default options: the hue offset turns the colour, a zero checker has no dark cells.
+    TextureOptions t;
+    t.hue_offset_deg = 120.0 - 7.2;  // hue 120 deg at z = 1 cm: pure green over grey
+    t.checker_size_m = 0;
+    EXPECT_EQ(texture_color({0.04, 0.01, 0.01}, t), (Rgb{85, 242, 85}));
     TextureOptions bad;
     bad.checker_dark = 2;
     EXPECT_THROW(bad.check(), InputError);

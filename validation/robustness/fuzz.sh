@@ -14,10 +14,14 @@ fi
 SECONDS_PER=${1:-60}
 cd "$(dirname "$0")/../.."
 BUILD=${2:-build-fuzz}
+LAUNCHER=()
+if command -v ccache >/dev/null; then
+  LAUNCHER=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
 if [ ! -f "$BUILD/CMakeCache.txt" ]; then
   cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DRGBD_FUZZ=ON \
-    -DRGBD_BUILD_TESTS=OFF >/dev/null
+    -DRGBD_BUILD_TESTS=OFF "${LAUNCHER[@]}" >/dev/null
 fi
 ninja -C "$BUILD" -j2 fuzz_all
 OUT="$BUILD/fuzz-out"

@@ -5,9 +5,10 @@ For every tool of BIN_DIR and every option its --help lists with a value, runs t
 small valid input with that option set to each of a few bad values (-1, nan, 1e300, a
 word) and checks the failure contract: a run that fails exits 1 (runtime) or 2 (usage),
 never by a signal, its first stderr line is "<tool>: error: ..." naming the option or the
-file, the only other stderr line is the usage hint, and it leaves no output file. Runs that
-succeed are listed for review (a value the tool accepts, such as 0 threads or a negative
-offset, may be valid). Prints one line per finding and a table; exits 1 on a contract breach.
+file, the only other stderr line is the usage hint, and it leaves no output file. A run that
+succeeds is a breach too (issue 39: a tool must not accept an absurd value, nor ignore an
+option of a mode not chosen), except the few in MEANINGFUL, where the value has a use (a
+signed angle of -1 degrees). Prints one line per finding and a table; exits 1 on a breach.
 
 Usage: option_sweep.py BIN_DIR [--tools rgbd-clean,rgbd-mesh] [--timeout 60] [--out FILE.md]
 The inputs (a 2-sensor rgbd-synth capture of an ellipsoid, its views, a mesh) are made in a
@@ -25,6 +26,14 @@ import tempfile
 import time
 
 BAD_VALUES = ["-1", "nan", "1e300", "bogus"]
+
+# (tool, option, value) runs whose exit 0 is right: the value is a valid setting.
+MEANINGFUL = {
+    ("rgbd-render", "azimuth", "-1"): "a signed angle around up",
+    ("rgbd-render", "elevation", "-1"): "a signed angle (-90..90, below the horizon)",
+    ("rgbd-fill", "min-rim-radial", "-1"): "a cosine in [-1, 1]: -1 fills every rim",
+    ("rgbd-fill", "top-min-up", "-1"): "a cosine in [-1, 1]: -1 takes any top",
+}
 
 # Options not swept: they name files or endpoints (their own contract cases live in
 # tests/cli/failure_contract_test.cpp), or only change where output goes.
@@ -156,6 +165,8 @@ def main():
                         problem = "killed by signal %d" % (-rc if rc < 0 else rc - 128)
                     elif rc == 0:
                         accepted.append((what, secs))
+                        if (tool, opt, value) not in MEANINGFUL:
+                            problem = "exit 0: the value was accepted (or the option ignored)"
                     elif rc not in (1, 2):
                         problem = "exit %d" % rc
                     elif not lines or not lines[0].startswith(tool + ": error: "):
@@ -179,7 +190,7 @@ def main():
         for what, rc, secs, line in rows:
             report.append("| `%s` | %s | %.1f | %s |" % (what, rc, secs,
                                                          line.replace("|", "\\|")[:150]))
-        text = "\n".join(report) + "\n\nAccepted (review): " + (
+        text = "\n".join(report) + "\n\nAccepted: " + (
             ", ".join("`%s`" % w for w, _ in accepted) or "none") + "\n\nBreaches: %d\n" % len(
             breaches) + "".join("- `%s`: %s\n" % b for b in breaches)
         if a.out:

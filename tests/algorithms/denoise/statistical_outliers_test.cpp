@@ -324,18 +324,5 @@ TEST(StatisticalOutliers, MatchesOpen3dExactly) {
     EXPECT_EQ(kept(cloud), open3d_kept(xyz, "remove_radius_outlier(16, 0.05)"));
 }
 
-TEST(Performance, Statistical200k) {
-    std::mt19937_64 rng(1);
-    std::uniform_real_distribution<double> uni(0.0, 1.0);
-    std::vector<Eigen::Vector3d> xyz;
-    for (int i = 0; i < 200000; ++i) xyz.emplace_back(uni(rng), uni(rng), 0.01 * uni(rng));
-    PointCloud cloud = make_cloud(xyz);
-    const Report report = remove_statistical_outliers(cloud, StatisticalOptions{});
-    RecordProperty("time_s", std::to_string(report["time_s"].get<double>()));
-    std::printf("statistical outlier removal, 200k points, k 20: %.3f s\n",
-                report["time_s"].get<double>());
-    EXPECT_LT(report["time_s"].get<double>(), 30.0);
-}
-
 }  // namespace
 }  // namespace rgbd::denoise

@@ -179,7 +179,9 @@ void rvl_and_network(const fs::path& out) {
 }
 
 /// Board files as rgbd-synth writes them (BoardSpec::to_json, indented): the default board,
-/// a portrait one with another dictionary, the smallest one, and one with only some keys.
+/// a portrait one with another dictionary, the smallest one, one with only some keys, and the
+/// input that aborted the target (issue 39: markers too small to draw at 240 pixels; also kept
+/// in tests/algorithms/calibration/board_file_regression_test.cpp).
 void calibration_board(const fs::path& out) {
     Corpus c(out, "fuzz_calibration_board");
     calibration::BoardSpec b;
@@ -194,6 +196,7 @@ void calibration_board(const fs::path& out) {
     b.dictionary = "DICT_ARUCO_ORIGINAL";
     c.add(b.to_json().dump());
     c.add(R"({"squares_x": 9, "square_m": 0.1})");
+    c.add(R"({"squares_x": 6, "squares_y": 32})");
 }
 
 }  // namespace
