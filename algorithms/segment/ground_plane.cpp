@@ -24,23 +24,8 @@ bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d
 bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
                   double cos_tilt, double inlier, int iterations, std::uint64_t seed, Plane& best,
                   std::size_t& best_score) {
-    best_score = 0;
-    if (points.size() < 3) return false;
-    std::uint64_t state = seed;
-    for (int it = 0; it < iterations; ++it) {
-        const auto& a = points[splitmix64_next(state) % points.size()];
-        const auto& b = points[splitmix64_next(state) % points.size()];
-        const auto& c = points[splitmix64_next(state) % points.size()];
-        Eigen::Vector3d n = (b - a).cross(c - a);
-        if (n.norm() < 1e-12) continue;
-        n.normalize();
-        if (n.dot(up) < 0) n = -n;
-        if (n.dot(up) < cos_tilt) continue;
-        const Plane p{n, -n.dot(a)};
-        std::size_t score = 0;
-        for (const auto& q : points) score += std::abs(p.height(q)) <= inlier;
-        if (score > best_score) best_score = score, best = p;
-    }
+    best_score =
+        internal::ransac_plane(points, up, cos_tilt, inlier, iterations, seed, best.n, best.d);
     return best_score >= 3;
 }
 

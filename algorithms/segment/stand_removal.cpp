@@ -90,27 +90,10 @@ std::optional<SupportPlane> find_support_plane(const std::vector<PointCloud>& vi
     // RANSAC: planes through 3 low points whose normal is within max_tilt of up; the score is
     // the number of low samples within inlier_m.
     const double cos_tilt = std::cos(options.max_tilt_deg * kDeg);
-    std::uint64_t state = options.seed;
     SupportPlane best;
-    std::size_t best_score = 0;
-    for (int it = 0; it < options.iterations; ++it) {
-        const auto& a = low[splitmix64_next(state) % low.size()];
-        const auto& b = low[splitmix64_next(state) % low.size()];
-        const auto& c = low[splitmix64_next(state) % low.size()];
-        Eigen::Vector3d n = (b - a).cross(c - a);
-        if (n.norm() < 1e-12) continue;
-        n.normalize();
-        if (n.dot(up) < 0) n = -n;
-        if (n.dot(up) < cos_tilt) continue;
-        const double d = -n.dot(a);
-        std::size_t score = 0;
-        for (const auto& p : low) score += std::abs(n.dot(p) + d) <= options.inlier_m;
-        if (score > best_score) {
-            best_score = score;
-            best.normal = n;
-            best.offset = d;
-        }
-    }
+    const std::size_t best_score =
+        internal::ransac_plane(low, up, cos_tilt, options.inlier_m, options.iterations,
+                               options.seed, best.normal, best.offset);
     if (best_score < 3) return std::nullopt;
     // Refine twice by least squares on the inliers of all points.
     for (int round = 0; round < 2; ++round) {
