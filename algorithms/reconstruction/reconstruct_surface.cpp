@@ -125,6 +125,7 @@ void ReconstructionOptions::check() const {
     RGBD_CHECK(max_points == 0 || max_points >= 100,
                "reconstruction: max_points must be 0 or >= 100");
     check_range("reconstruction: seen_through_max", seen_through_max, Range::closed(0, 1));
+    RGBD_CHECK(fair_max_edges >= 3, "reconstruction: fair_max_edges must be at least 3");
     check_range("reconstruction: ground_margin_m", ground_margin_m, Range::closed_open(0, 1), "m");
     RGBD_CHECK(!ground || ground->allFinite(), "reconstruction: the ground plane must be finite");
     check_range("reconstruction: sm_angle_deg", sm_angle_deg, Range::open_closed(0, 30));
@@ -551,9 +552,9 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                     return free->seen_empty(p, n) >= 0;
                 };
             }
-            steps["holes"] = internal::close_holes(mesh, options.up, 300, &added, options.ground,
-                                                   options.ground_margin_m, seen_empty,
-                                                   options.seen_through_max);
+            steps["holes"] = internal::close_holes(mesh, options.up, options.fair_max_edges, &added,
+                                                   options.ground, options.ground_margin_m,
+                                                   seen_empty, options.seen_through_max);
         }
         if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
