@@ -27,7 +27,7 @@ struct TopMap {
     std::vector<std::uint8_t> faces_up;  ///< per top point: normal . up >= top_min_up
     double px = 0, ou = 0, ov = 0;       ///< pixel size, origin of column 0 / row 0 (m)
     int rows = 0, cols = 0;
-    cv::Mat height;  ///< CV_32F, highest h per known column (-inf elsewhere)
+    cv::Mat height;  ///< CV_32F, highest h per column (-inf where none; read where known)
     cv::Mat rgb;     ///< CV_8UC3, colour of that point
     cv::Mat known;   ///< CV_8U, 255 where the column's top was seen
 
@@ -86,10 +86,8 @@ void build_height_map(TopMap& m, double spacing_m, const InpaintOptions& options
     int unseen_tops = 0;
     for (int r = 0; r < m.rows; ++r)
         for (int c = 0; c < m.cols; ++c)
-            if (!m.known.at<std::uint8_t>(r, c) && std::isfinite(m.height.at<float>(r, c))) {
-                m.height.at<float>(r, c) = -std::numeric_limits<float>::infinity();
-                ++unseen_tops;
-            }
+            unseen_tops +=
+                !m.known.at<std::uint8_t>(r, c) && std::isfinite(m.height.at<float>(r, c));
     info["columns_topped_facing_down"] = unseen_tops;
 }
 

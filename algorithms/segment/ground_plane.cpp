@@ -109,9 +109,10 @@ ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const P
     return fit;
 }
 
-double cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
-                        denoise::NoiseModel model, const SubjectOptions& o,
-                        std::vector<std::uint8_t>& removed) {
+GroundCut cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
+                           denoise::NoiseModel model, const SubjectOptions& o,
+                           std::vector<std::uint8_t>& removed) {
+    GroundCut result;
     std::vector<double> margins;
     for (std::size_t i = 0; i < xyz.size(); ++i) {
         const Eigen::Vector3d& q = xyz[i];
@@ -122,11 +123,13 @@ double cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroun
                      o.ground_sigmas * denoise::sigma_z_m(model, q.z(), theta) + fit.rms_m);
         const double h = fit.plane.height(q);
         if (h < margin) {
+            result.cut += removed[i] == 0;
             removed[i] = 1;
             if (h > -margin) margins.push_back(margin);
         }
     }
-    return margins.empty() ? o.ground_min_margin_m : rank_quantile(margins, 0.5);
+    result.margin_m = margins.empty() ? o.ground_min_margin_m : rank_quantile(margins, 0.5);
+    return result;
 }
 
 }  // namespace rgbd::segment::detail

@@ -61,12 +61,18 @@ struct ViewGroundFit {
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
                                 const SubjectOptions& options, std::uint64_t seed);
 
+/// What cut_above_ground did in one view.
+struct GroundCut {
+    double margin_m = 0;  ///< median margin of the cut points within a margin of the plane
+    std::size_t cut = 0;  ///< points it marked that were not marked before
+};
+
 /// Marks in `removed` the points of `xyz` (sensor frame) less than the noise margin above
 /// `fit.plane`: ground_sigmas x the sensor's sigma_z at the point's depth and incidence, plus
-/// the fit's RMS, at least ground_min_margin_m. Returns the median margin of the cut points
-/// within a margin of the plane (metres; ground_min_margin_m when none).
-double cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
-                        denoise::NoiseModel model, const SubjectOptions& options,
-                        std::vector<std::uint8_t>& removed);
+/// the fit's RMS, at least ground_min_margin_m. The margin reported is the median over the cut
+/// points within a margin of the plane (metres; ground_min_margin_m when none).
+GroundCut cut_above_ground(const std::vector<Eigen::Vector3d>& xyz, const ViewGroundFit& fit,
+                           denoise::NoiseModel model, const SubjectOptions& options,
+                           std::vector<std::uint8_t>& removed);
 
 }  // namespace rgbd::segment::detail

@@ -309,9 +309,10 @@ std::string plane_line(const ViewGround& g) {
     return s.str();
 }
 
-/// Step 1: finds the ground in the views (pooled_ground), refits and cuts it per view
-/// (cut_view_ground), writes each view's plane into its metadata and marks the cut points
-/// removed, unless the views' refits are not flat. Returns the report's "ground" section.
+/// Step 1: finds the ground in the views (detail::pooled_ground), refits it per view
+/// (detail::refit_view_ground) and, when the views see it flat and as the lowest large surface,
+/// cuts above each view's plane (detail::cut_above_ground), writes that plane into the view's
+/// metadata and marks the cut points removed. Returns the report's "ground" section.
 Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& views,
                      const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& options,
                      std::size_t total) {
@@ -380,17 +381,13 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     std::size_t removed = 0;
     for (std::size_t v = 0; v < views.size(); ++v) {
         const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        const std::size_t before =
-            static_cast<std::size_t>(std::count(vps[v].removed.begin(), vps[v].removed.end(), 1));
+        const detail::GroundCut cut =
+            detail::cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
         ViewGround g;
         g.normal = fits[v].plane.n;
         g.offset = fits[v].plane.d;
-        g.margin_m =
-            detail::cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
-        const std::size_t cut =
-            static_cast<std::size_t>(std::count(vps[v].removed.begin(), vps[v].removed.end(), 1)) -
-            before;
-        removed += cut;
+        g.margin_m = cut.margin_m;
+        removed += cut.cut;
         auto& comments = views[v].view.extra_comments;
         comments.erase(
             std::remove_if(comments.begin(), comments.end(),
@@ -398,7 +395,7 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
             comments.end());
         comments.push_back(plane_line(g));
         per_view.push_back({{"view", views[v].view.id},
-                            {"removed", cut},
+                            {"removed", cut.cut},
                             {"margin_m", g.margin_m},
                             {"rms_m", fits[v].rms_m}});
     }

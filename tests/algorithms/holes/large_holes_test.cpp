@@ -189,9 +189,7 @@ SurfacePoints standing_figure(
         s.color.push_back({150, 120, 100});
         normals.push_back(n);
     };
-    for (const auto& p :
-         sample(axes, kSpacing, [&](const auto&q, const auto&n) { return seen(q, n); }))
-        add(p, outward(axes, p));
+    for (const auto& p : sample(axes, kSpacing, seen)) add(p, outward(axes, p));
     const auto cylinder = [&](double radius, double z0, double z1, double step) {
         const int around = static_cast<int>(2 * M_PI * radius / step);
         for (double z = z0; z < z1; z += step)
