@@ -182,6 +182,8 @@ const BadValue kBadValues[] = {
     // Prose messages that quote the value ("got -1"): the driver names the option.
     {"rgbd-fill small.ply --inpaint-pixel -1 -o out.ply", "--inpaint-pixel"},
     {"rgbd-fill small.ply --max-fit-rms nan -o out.ply", "--max-fit-rms"},
+    {"rgbd-fill small.ply --top-min-up 2 -o out.ply", "--top-min-up"},
+    {"rgbd-fill small.ply --top-fit-radii -1 -o out.ply", "--top-fit-radii"},
     {"rgbd-render small.ply --width 5 -o out.png", "--width"},
     {"rgbd-render small.ply --point-size 1e300 -o out.png", "--point-size"},
     {"rgbd-eval small.ply --reference small.ply --invented-tau-mm -1 -o out.json",
