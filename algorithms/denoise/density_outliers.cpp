@@ -11,11 +11,12 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "algorithms/denoise/eps_components.hpp"
+#include "algorithms/denoise/density_clusters.hpp"
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
@@ -61,6 +62,538 @@ struct Camera {
     std::vector<float> depth;
 };
 
+/// The live points of all views, in the world frame, concatenated in view order.
+struct WorldPoints {
+    std::vector<detail::Gathered> gathered;       ///< each view's live points in its own frame
+    std::vector<Eigen::Matrix3d> frame_rotation;  ///< world_from_frame's rotation per view
+    std::vector<std::size_t> offset;  ///< view v's points: world[offset[v], offset[v + 1])
+    std::vector<Eigen::Vector3d> world;
+    std::vector<std::uint32_t> view_of;  ///< view index of every point of `world`
+    bool have_cameras = true;            ///< every non-empty view has intrinsics and a pose
+};
+
+/// Gathers all views in the world frame: each view's points in parallel (an error names the
+/// first offending view, as a sequential pass would), then placed at their offsets. InputError
+/// for a sensor-frame view without a pose among several views.
+WorldPoints gather_in_world(const std::vector<PointCloud>& views) {
+    WorldPoints all;
+    all.gathered.resize(views.size());
+    std::vector<std::exception_ptr> failed(views.size());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        try {
+            all.gathered[v] = detail::gather(views[v]);
+        } catch (...) {
+            failed[v] = std::current_exception();
+        }
+    });
+    all.frame_rotation.assign(views.size(), Eigen::Matrix3d::Identity());
+    std::vector<Pose> world_from_frame(views.size(), Pose::Identity());
+    all.offset.assign(views.size() + 1, 0);
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        if (failed[v]) std::rethrow_exception(failed[v]);
+        all.offset[v + 1] = all.offset[v] + all.gathered[v].xyz.size();
+        if (all.gathered[v].xyz.empty()) continue;
+        const PointCloud& view = views[v];
+        const bool posed = view.view.world_from_sensor.has_value();
+        if (!posed || !view.view.intrinsics) all.have_cameras = false;
+        if (view.view.frame == ViewFrame::kSensor) {
+            RGBD_CHECK(posed || views.size() == 1,
+                       detail::view_name(view) +
+                           ": --density merges views in the world frame and needs "
+                           "world_from_sensor (run rgbd-align first)");
+            if (posed) world_from_frame[v] = *view.view.world_from_sensor;
+        }
+        all.frame_rotation[v] = world_from_frame[v].linear();
+    }
+    all.world.resize(all.offset.back());
+    all.view_of.resize(all.offset.back());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        for (std::size_t a = 0; a < all.gathered[v].xyz.size(); ++a) {
+            all.world[all.offset[v] + a] = world_from_frame[v] * all.gathered[v].xyz[a];
+            all.view_of[all.offset[v] + a] = std::uint32_t(v);
+        }
+    });
+    return all;
+}
+
+/// The density reference to use: `requested`, or for kAuto the sensors when every view has a
+/// camera. InputError naming the view when the sensors reference lacks a view's camera.
+DensityReference choose_reference(const std::vector<PointCloud>& views, DensityReference requested,
+                                  bool have_cameras) {
+    DensityReference reference = requested;
+    if (reference == DensityReference::kAuto)
+        reference = have_cameras ? DensityReference::kSensors : DensityReference::kLocal;
+    if (reference == DensityReference::kSensors)
+        for (const auto& view : views)
+            RGBD_CHECK(view.empty() || (view.view.world_from_sensor && view.view.intrinsics),
+                       detail::view_name(view) +
+                           ": the sensors' density reference needs the view's intrinsics and "
+                           "world_from_sensor pose");
+    return reference;
+}
+
+/// The depth map of view v's points in its own camera (nearest return per pixel) over their
+/// bounding box; left empty (bw = bh = 0) when no point projects into the image.
+void build_depth_map(Camera& c, const PointCloud& view, const detail::Gathered& gathered) {
+    const Pose frame_to_sensor =
+        view.view.frame == ViewFrame::kWorld ? c.sensor_from_world : Pose::Identity();
+    struct Hit {
+        int col, row;
+        float z;
+    };
+    std::vector<Hit> hits;
+    hits.reserve(gathered.xyz.size());
+    int lo_x = std::numeric_limits<int>::max(), lo_y = lo_x, hi_x = -1, hi_y = -1;
+    for (const auto& p : gathered.xyz) {
+        const Eigen::Vector3d q = frame_to_sensor * p;
+        if (q.z() <= 0.0) continue;
+        const Eigen::Vector2d uv = c.intrinsics.project(q);
+        if (!c.intrinsics.contains(uv)) continue;
+        const int col = int(std::lround(uv.x())), row = int(std::lround(uv.y()));
+        hits.push_back({col, row, float(q.z())});
+        lo_x = std::min(lo_x, col);
+        hi_x = std::max(hi_x, col);
+        lo_y = std::min(lo_y, row);
+        hi_y = std::max(hi_y, row);
+    }
+    if (hits.empty()) return;  // bw = bh = 0: no return anywhere
+    c.x0 = lo_x;
+    c.y0 = lo_y;
+    c.bw = hi_x - lo_x + 1;
+    c.bh = hi_y - lo_y + 1;
+    c.depth.assign(std::size_t(c.bw) * std::size_t(c.bh), std::numeric_limits<float>::infinity());
+    for (const Hit& hit : hits) {
+        float& d = c.depth[std::size_t(hit.row - c.y0) * c.bw + std::size_t(hit.col - c.x0)];
+        d = std::min(d, hit.z);
+    }
+}
+
+/// The cameras of the views (sensors reference): pose, intrinsics and depth map of every view
+/// with points; inactive for an empty view.
+std::vector<Camera> view_cameras(const std::vector<PointCloud>& views, const WorldPoints& all) {
+    std::vector<Camera> cameras(views.size());
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        if (all.gathered[v].xyz.empty()) continue;
+        Camera& c = cameras[v];
+        c.intrinsics = *views[v].view.intrinsics;
+        c.sensor_from_world = views[v].view.world_from_sensor->inverse();
+        c.rotation = c.sensor_from_world.linear();
+        c.translation = c.sensor_from_world.translation();
+        c.undistorted = c.intrinsics.distortion.is_none();
+        c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
+        c.active = true;
+    }
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        if (cameras[v].active) build_depth_map(cameras[v], views[v], all.gathered[v]);
+    });
+    return cameras;
+}
+
+/// One view's spacing ŝ: the median robust spacing over the views with >= 10 points (the
+/// merged cloud's spacing shrinks with every interleaved view), or the merged cloud's when no
+/// view has that many. It scales the neighbourhood of the measured density and the link of the
+/// cluster pass.
+double one_view_spacing(const WorldPoints& all, std::uint64_t seed) {
+    // The views' own point sets (frame-independent spacing), in parallel.
+    std::vector<double> view_spacing(all.gathered.size(), -1.0);
+    tbb::parallel_for(std::size_t(0), all.gathered.size(), [&](std::size_t v) {
+        if (all.gathered[v].xyz.size() >= 10)
+            view_spacing[v] = sampling::robust_spacing(all.gathered[v].xyz, 2000, seed);
+    });
+    std::vector<double> spacings;
+    for (const double s : view_spacing)
+        if (s >= 0.0) spacings.push_back(s);
+    if (spacings.empty()) spacings.push_back(sampling::robust_spacing(all.world, 10000, seed));
+    return lower_median(spacings);
+}
+
+/// The sensors reference's neighbourhoods: the normals, the counting radius and its grid (kept
+/// for the consensus test; `gridded` false when the extent needed the kd-tree instead).
+struct Neighbourhoods {
+    std::vector<Eigen::Vector3d> normal;
+    double radius = 0.0;
+    internal::CellGrid grid;
+    bool gridded = false;
+};
+
+/// Calls finish(i, count, sum, outer) for every point i of `world` with the number of points
+/// within sqrt(r2) of it (itself included) and, unless `count_only`, the sum and the sum of
+/// outer products of their offsets; counted cell by cell on `grid` (side sqrt(r2)): 27 cells
+/// per point, no tree.
+template <class Finish>
+void count_on_grid(const internal::CellGrid& grid, const std::vector<Eigen::Vector3d>& world,
+                   double r2, bool count_only, const Finish& finish) {
+    const std::size_t n = world.size();
+    // Coordinates in cell order, one array per axis: a cell column (cx, cy, z - 1 .. z + 1) is
+    // one contiguous run, so 9 runs cover the 27 cells around a point.
+    std::vector<double> xs(n), ys(n), zs(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                              const Eigen::Vector3d& p = world[grid.point[a]];
+                              xs[a] = p.x();
+                              ys[a] = p.y();
+                              zs[a] = p.z();
+                          }
+                      });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, grid.cells(), 64),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            std::pair<std::uint32_t, std::uint32_t> runs[9];
+            for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
+                const std::uint64_t key = grid.keys[ca];
+                const std::uint64_t x = key >> 42, y = (key >> 21) & internal::kKeyMask,
+                                    z = key & internal::kKeyMask;
+                int nr = 0;
+                for (std::int64_t cx = std::int64_t(x) - 1; cx <= std::int64_t(x) + 1; ++cx)
+                    for (std::int64_t cy = std::int64_t(y) - 1; cy <= std::int64_t(y) + 1; ++cy) {
+                        const auto [c0, c1] =
+                            grid.column(cx, cy, std::int64_t(z) - 1, std::int64_t(z) + 1);
+                        if (c0 == c1) continue;
+                        runs[nr++] = {grid.start[c0], grid.start[c1]};
+                    }
+                for (std::uint32_t a = grid.start[ca]; a < grid.start[ca + 1]; ++a) {
+                    const double px = xs[a], py = ys[a], pz = zs[a];
+                    std::size_t count = 0;
+                    if (count_only) {  // count only: a branch-free, vectorisable loop
+                        for (int q = 0; q < nr; ++q)
+                            for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
+                                const double dx = xs[b] - px, dy = ys[b] - py, dz = zs[b] - pz;
+                                count += dx * dx + dy * dy + dz * dz <= r2;
+                            }
+                        finish(grid.point[a], count, Eigen::Vector3d::Zero(),
+                               Eigen::Matrix3d::Zero());
+                        continue;
+                    }
+                    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+                    for (int q = 0; q < nr; ++q)
+                        for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
+                            const Eigen::Vector3d d(xs[b] - px, ys[b] - py, zs[b] - pz);
+                            if (d.squaredNorm() > r2) continue;
+                            ++count;
+                            sum += d;
+                            outer += d * d.transpose();
+                        }
+                    finish(grid.point[a], count, sum, outer);
+                }
+            }
+        });
+}
+
+/// The same neighbourhoods as count_on_grid() from a kd-tree, for an extent too large for the
+/// grid (always with the moments).
+template <class Finish>
+void count_with_tree(const std::vector<Eigen::Vector3d>& world, double radius,
+                     const Finish& finish) {
+    const internal::KdTree tree(world);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, world.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<std::pair<std::uint32_t, double>> found;
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              tree.radius(world[i], radius, found, /*sorted=*/false);
+                              Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                              Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+                              for (const auto& f : found) {
+                                  const Eigen::Vector3d d = world[f.first] - world[i];
+                                  sum += d;
+                                  outer += d * d.transpose();
+                              }
+                              finish(i, found.size(), sum, outer);
+                          }
+                      });
+}
+
+/// Measured density, sensors reference: the points within r of p_i, r chosen so that a frontal
+/// surface seen by one sensor puts about k points there (pi r^2 = k ŝ^2): rho_i = (count - 1) /
+/// (pi r^2), into `measured`. Normals for the incidence term: the views' own (rgbd-align writes
+/// them, estimated per view) or the PCA of the same neighbourhood. Returns the neighbourhoods.
+void measure_sensor_density(const std::vector<PointCloud>& views, const WorldPoints& all, int k,
+                            double spacing, std::vector<double>& measured, Neighbourhoods& hood) {
+    const std::size_t n = all.world.size();
+    bool view_normals = true;
+    for (std::size_t v = 0; v < views.size(); ++v)
+        if (!all.gathered[v].xyz.empty() && !views[v].points.has_normal_map()) view_normals = false;
+    hood.normal.resize(n);
+    if (view_normals)
+        for (std::size_t v = 0, i = 0; v < views.size(); ++v) {
+            const Eigen::Matrix3d rot = all.frame_rotation[v];
+            for (PointSet::Index idx : all.gathered[v].ids)
+                hood.normal[i++] = rot * to_eigen(views[v].points.normal(idx));
+        }
+    hood.radius = std::sqrt(double(k) / std::numbers::pi) * spacing;
+    const double r2 = hood.radius * hood.radius, area = std::numbers::pi * r2;
+    // Density (and PCA normal) of point i from its neighbourhood's count and moments
+    // (offsets d = q - p_i, the point itself included).
+    const auto finish = [&](std::size_t i, std::size_t count, const Eigen::Vector3d& sum,
+                            const Eigen::Matrix3d& outer) {
+        measured[i] = double(count - 1) / area;
+        if (view_normals) return;
+        const Eigen::Vector3d mean = sum / double(count);
+        const Eigen::Matrix3d cov = outer / double(count) - mean * mean.transpose();
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+        eig.computeDirect(cov);
+        hood.normal[i] = eig.eigenvectors().col(0);
+    };
+    hood.gridded = hood.grid.build(all.world, hood.radius);
+    if (hood.gridded)
+        count_on_grid(hood.grid, all.world, r2, view_normals, finish);
+    else
+        count_with_tree(all.world, hood.radius, finish);
+}
+
+/// What camera c contributes to the expected density at world point p with unit normal `nrm`:
+/// cos(theta) / s_d^2, the samples per unit area of a surface at incidence theta (unclamped: a
+/// view that grazes the surface adds almost nothing); none when p lies outside c's image or
+/// behind c's surface (occluded: c could not have measured it).
+std::optional<double> camera_density(const Camera& c, const Eigen::Vector3d& p,
+                                     const Eigen::Vector3d& nrm, NoiseModel noise_model,
+                                     double tan_max) {
+    const Eigen::Vector3d q = c.rotation * p + c.translation;
+    if (q.z() <= 0.0) return std::nullopt;
+    const Eigen::Vector2d uv =
+        c.undistorted ? Eigen::Vector2d(c.intrinsics.fx * (q.x() / q.z()) + c.intrinsics.cx,
+                                        c.intrinsics.fy * (q.y() / q.z()) + c.intrinsics.cy)
+                      : c.intrinsics.project(q);
+    if (!c.intrinsics.contains(uv)) return std::nullopt;
+    // lround() of coordinates > -0.5.
+    const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
+    // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
+    const double tol = q.z() / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, q.z(), 0.0);
+    // The 3 x 3 window: a missing return is +inf (never NaN), which changes neither the minimum
+    // nor the "seen" test; pixels outside the map's box have no return either, so are skipped.
+    // The centre pixel first: a return there within tol shows the point (most points, for the
+    // views that face them), and then the rest of the window cannot change the outcome.
+    // Otherwise the whole window, branch-free.
+    bool seen = false;
+    double nearest = std::numeric_limits<double>::infinity();
+    if (row >= c.y0 && row < c.y0 + c.bh && col >= c.x0 && col < c.x0 + c.bw)
+        seen = std::abs(double(c.depth[std::size_t(row - c.y0) * c.bw + std::size_t(col - c.x0)]) -
+                        q.z()) <= tol;
+    if (!seen) {
+        const int r0 = std::max(row - 1, c.y0), r1 = std::min(row + 1, c.y0 + c.bh - 1);
+        const int c0 = std::max(col - 1, c.x0), c1 = std::min(col + 1, c.x0 + c.bw - 1);
+        for (int rr = r0; rr <= r1; ++rr) {
+            const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
+            for (int cc = c0; cc <= c1; ++cc) {
+                const double d = line[cc - c.x0];
+                nearest = std::min(nearest, d);
+                seen |= std::abs(d - q.z()) <= tol;
+            }
+        }
+    }
+    const bool any = nearest < std::numeric_limits<double>::infinity();
+    // Occluded: behind v's surface, so v could not have measured it.
+    if (any && !seen && q.z() > nearest + tol) return std::nullopt;
+    // Ray from camera v to the point, in the world frame.
+    const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
+    const double cos_theta = std::abs(nrm.dot(ray));
+    const double s_d = q.z() / c.focal;
+    return cos_theta / (s_d * s_d);
+}
+
+/// Expected density, sensors reference: what the sensors that see p_i should have produced
+/// there, the sum of camera_density() over the cameras, into `expected`.
+void expect_sensor_density(const std::vector<Camera>& cameras, const WorldPoints& all,
+                           const std::vector<Eigen::Vector3d>& normal, NoiseModel noise_model,
+                           double tan_max, std::vector<double>& expected) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, all.world.size(), 256),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const Eigen::Vector3d nrm = normal[i].normalized();
+                double sum = 0.0;
+                for (const Camera& c : cameras) {
+                    if (!c.active) continue;
+                    if (const auto add = camera_density(c, all.world[i], nrm, noise_model, tan_max))
+                        sum += *add;
+                }
+                expected[i] = sum;
+            }
+        });
+}
+
+/// Measured density, local reference: rho_i = k / (pi d_k^2) from the k nearest other points.
+void measure_local_density(const internal::KdTree& tree, const std::vector<Eigen::Vector3d>& world,
+                           std::size_t k, std::vector<double>& measured) {
+    detail::for_each_knn(
+        tree, world, k + 1, 256,
+        [&](std::size_t i, const std::uint32_t*, const double* sq, std::size_t found) {
+            const double dk2 = std::max(sq[found - 1], 1e-18);
+            measured[i] = double(found - 1) / (std::numbers::pi * dk2);
+        });
+}
+
+/// Expected density, local reference: the median measured density of the k_ref nearest points.
+void expect_local_density(const internal::KdTree& tree, const std::vector<Eigen::Vector3d>& world,
+                          const std::vector<double>& measured, std::size_t k_ref,
+                          std::vector<double>& expected) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, world.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<std::uint32_t> ids(k_ref + 1);
+                          std::vector<double> sq(k_ref + 1);
+                          std::vector<double> dens(k_ref + 1);
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              const std::size_t found =
+                                  tree.knn(world[i], k_ref + 1, ids.data(), sq.data());
+                              dens.resize(found);
+                              for (std::size_t j = 0; j < found; ++j) dens[j] = measured[ids[j]];
+                              expected[i] = lower_median(dens);
+                          }
+                      });
+}
+
+/// The density test: flags (outlier[i] = 1) every point whose measured density is below beta
+/// times its expected one; returns how many.
+std::size_t flag_sparse(const std::vector<double>& measured, const std::vector<double>& expected,
+                        double beta, std::vector<std::uint8_t>& outlier) {
+    std::size_t removed = 0;
+    for (std::size_t i = 0; i < measured.size(); ++i)
+        if (measured[i] < beta * expected[i]) {
+            outlier[i] = 1;
+            ++removed;
+        }
+    return removed;
+}
+
+/// Consensus candidates: the points not yet flagged with less than consensus_ratio of their
+/// expected density that their own view sees at an incidence steeper than theta_max.
+std::vector<std::uint32_t> consensus_candidates(const WorldPoints& all,
+                                                const std::vector<Camera>& cameras,
+                                                const std::vector<Eigen::Vector3d>& normal,
+                                                const std::vector<double>& measured,
+                                                const std::vector<double>& expected,
+                                                const std::vector<std::uint8_t>& outlier,
+                                                double consensus_ratio, double theta_max) {
+    const double cos_max = std::cos(theta_max);
+    std::vector<std::uint32_t> candidates;
+    for (std::size_t i = 0; i < all.world.size(); ++i) {
+        if (outlier[i] || !(measured[i] < consensus_ratio * expected[i])) continue;
+        const Camera& c = cameras[all.view_of[i]];
+        const Eigen::Vector3d q = c.rotation * all.world[i] + c.translation;
+        const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
+        if (std::abs(normal[i].normalized().dot(ray)) < cos_max)
+            candidates.push_back(std::uint32_t(i));
+    }
+    return candidates;
+}
+
+/// Fewest other views' points around a consensus candidate that can judge it.
+constexpr std::size_t kMinSupport = 6;
+
+/// Whether point p (of the view whose noise is sigma at p) lies more than `sigmas` sigma off
+/// the plane of `near` (at least kMinSupport offsets of the other views' points around p): a
+/// PCA plane, trimmed twice to 3 sigma (stopping when too few would remain). `inlier` is a
+/// reused buffer.
+bool off_plane(const std::vector<Eigen::Vector3d>& near, double sigma, double sigmas,
+               std::vector<std::uint8_t>& inlier) {
+    inlier.assign(near.size(), 1);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::UnitZ();
+    for (int it = 0; it < 3; ++it) {
+        std::size_t m = 0;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+        for (std::size_t j = 0; j < near.size(); ++j)
+            if (inlier[j]) {
+                ++m;
+                sum += near[j];
+                outer += near[j] * near[j].transpose();
+            }
+        mean = sum / double(m);
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+        eig.computeDirect(outer / double(m) - mean * mean.transpose());
+        nrm = eig.eigenvectors().col(0);
+        // Trim to 3 sigma_z of the plane; stop when too few would remain.
+        std::size_t kept = 0;
+        for (const auto& d : near) kept += std::abs(nrm.dot(d - mean)) < 3.0 * sigma;
+        if (kept < kMinSupport) break;
+        for (std::size_t j = 0; j < near.size(); ++j)
+            inlier[j] = std::abs(nrm.dot(near[j] - mean)) < 3.0 * sigma;
+    }
+    // p is the origin of the offsets: its distance to the plane is |n . mean|.
+    return std::abs(nrm.dot(mean)) > sigmas * sigma;
+}
+
+/// The consensus test over `candidates`: 1 for each candidate that lies more than
+/// consensus_sigmas sigma_z (its own view's noise at its depth) off the plane of the OTHER
+/// views' points within consensus_radius r (off_plane()). Neighbours from the counting grid,
+/// or a kd-tree when the grid could not hold the extent.
+std::vector<std::uint8_t> off_other_views(const WorldPoints& all,
+                                          const std::vector<Camera>& cameras,
+                                          const Neighbourhoods& hood,
+                                          const std::vector<std::uint32_t>& candidates,
+                                          const DensityOptions& options) {
+    const double reach = options.consensus_radius * hood.radius, reach2 = reach * reach;
+    std::unique_ptr<internal::KdTree> tree;  // only when the grid could not hold the extent
+    if (!hood.gridded && !candidates.empty()) tree = std::make_unique<internal::KdTree>(all.world);
+    std::vector<std::uint8_t> off(candidates.size(), 0);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, candidates.size(), 16),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            // Offsets of the other views' neighbours and their inlier flags, reused.
+            std::vector<Eigen::Vector3d> near;
+            std::vector<std::uint8_t> inlier;
+            std::vector<std::pair<std::uint32_t, double>> found;
+            near.reserve(512);
+            inlier.reserve(512);
+            for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                const std::uint32_t i = candidates[a];
+                const Eigen::Vector3d& p = all.world[i];
+                near.clear();
+                const auto take = [&](std::uint32_t j) {
+                    if (all.view_of[j] == all.view_of[i]) return;
+                    const Eigen::Vector3d d = all.world[j] - p;
+                    if (d.squaredNorm() <= reach2) near.push_back(d);
+                };
+                if (hood.gridded) {
+                    // reach <= 2 r: the cells at most 2 apart on every axis.
+                    const auto cell = hood.grid.cell_of(p);
+                    for (std::int64_t cx = cell.x() - 2; cx <= cell.x() + 2; ++cx)
+                        for (std::int64_t cy = cell.y() - 2; cy <= cell.y() + 2; ++cy) {
+                            const auto [c0, c1] =
+                                hood.grid.column(cx, cy, cell.z() - 2, cell.z() + 2);
+                            for (std::uint32_t b = hood.grid.start[c0]; b < hood.grid.start[c1];
+                                 ++b)
+                                take(hood.grid.point[b]);
+                        }
+                } else {
+                    tree->radius(p, reach, found, /*sorted=*/false);
+                    for (const auto& f : found) take(f.first);
+                }
+                if (near.size() < kMinSupport) continue;
+                const Camera& c = cameras[all.view_of[i]];
+                const double sigma =
+                    sigma_z_m(options.noise_model, (c.rotation * p + c.translation).z(), 0.0);
+                off[a] = off_plane(near, sigma, options.consensus_sigmas, inlier);
+            }
+        });
+    return off;
+}
+
+/// Marks or deletes the flagged points of every view (the views are independent point sets: in
+/// parallel) and records the per-view counts ("views") and the total in `report`.
+void apply_to_views(std::vector<PointCloud>& views, const WorldPoints& all,
+                    const std::vector<std::uint8_t>& outlier, bool mark, Report& report) {
+    std::vector<std::size_t> first(views.size() + 1, 0), removed(views.size(), 0);
+    for (std::size_t v = 0; v < views.size(); ++v)
+        first[v + 1] = first[v] + all.gathered[v].xyz.size();
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const std::vector<std::uint8_t> flags(outlier.begin() + std::ptrdiff_t(first[v]),
+                                              outlier.begin() + std::ptrdiff_t(first[v + 1]));
+        removed[v] = detail::apply(views[v], all.gathered[v], flags, mark);
+    });
+    std::size_t total = 0;
+    Report per_view = Report::array();
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        total += removed[v];
+        per_view.push_back({{"view", views[v].view.id},
+                            {"input_points", first[v + 1] - first[v]},
+                            {mark ? "marked" : "removed", removed[v]}});
+    }
+    report["views"] = per_view;
+    detail::record_removed(report, total, mark);
+}
+
 }  // namespace
 
 Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOptions& options,
@@ -71,57 +604,13 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["method"] = "density";
     report["mark"] = options.mark;
 
-    // Gather all views in the world frame: each view's points in parallel (an error names the
-    // first offending view, as a sequential pass would), then placed at their offsets.
-    std::vector<detail::Gathered> gathered(views.size());
-    std::vector<std::exception_ptr> failed(views.size());
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        try {
-            gathered[v] = detail::gather(views[v]);
-        } catch (...) {
-            failed[v] = std::current_exception();
-        }
-    });
-    std::vector<Eigen::Matrix3d> frame_rotation(views.size(), Eigen::Matrix3d::Identity());
-    std::vector<Pose> world_from_frame(views.size(), Pose::Identity());
-    std::vector<std::size_t> offset(views.size() + 1, 0);
-    bool have_cameras = true;
-    for (std::size_t v = 0; v < views.size(); ++v) {
-        if (failed[v]) std::rethrow_exception(failed[v]);
-        offset[v + 1] = offset[v] + gathered[v].xyz.size();
-        if (gathered[v].xyz.empty()) continue;
-        const PointCloud& view = views[v];
-        const bool posed = view.view.world_from_sensor.has_value();
-        if (!posed || !view.view.intrinsics) have_cameras = false;
-        if (view.view.frame == ViewFrame::kSensor) {
-            RGBD_CHECK(posed || views.size() == 1,
-                       detail::view_name(view) +
-                           ": --density merges views in the world frame and needs "
-                           "world_from_sensor (run rgbd-align first)");
-            if (posed) world_from_frame[v] = *view.view.world_from_sensor;
-        }
-        frame_rotation[v] = world_from_frame[v].linear();
-    }
-    std::vector<Eigen::Vector3d> world(offset.back());
-    std::vector<std::uint32_t> view_of(offset.back());  ///< view index of every point of `world`
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        for (std::size_t a = 0; a < gathered[v].xyz.size(); ++a) {
-            world[offset[v] + a] = world_from_frame[v] * gathered[v].xyz[a];
-            view_of[offset[v] + a] = std::uint32_t(v);
-        }
-    });
+    const WorldPoints all = gather_in_world(views);
+    const std::vector<Eigen::Vector3d>& world = all.world;
     const std::size_t n = world.size();
     report["input_points"] = n;
-    DensityReference reference = options.reference;
-    if (reference == DensityReference::kAuto)
-        reference = have_cameras ? DensityReference::kSensors : DensityReference::kLocal;
-    if (reference == DensityReference::kSensors)
-        for (const auto& view : views)
-            RGBD_CHECK(view.empty() || (view.view.world_from_sensor && view.view.intrinsics),
-                       detail::view_name(view) +
-                           ": the sensors' density reference needs the view's intrinsics and "
-                           "world_from_sensor pose");
-    report["reference"] = reference == DensityReference::kSensors ? "sensors" : "local";
+    const DensityReference reference = choose_reference(views, options.reference, all.have_cameras);
+    const bool sensors = reference == DensityReference::kSensors;
+    report["reference"] = sensors ? "sensors" : "local";
     const std::size_t k = std::min<std::size_t>(std::size_t(options.k), n > 0 ? n - 1 : 0);
     if (n < 3 || k < 2) return detail::nothing_removed(std::move(report), watch);
     Report stages;
@@ -134,298 +623,37 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     stage("gather");
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
     const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
-    const double tan_max = std::tan(theta_max);
 
-    // Depth maps of the views (sensors reference only).
     std::vector<Camera> cameras;
-    if (reference == DensityReference::kSensors) {
-        cameras.resize(views.size());
-        for (std::size_t v = 0; v < views.size(); ++v) {
-            if (gathered[v].xyz.empty()) continue;
-            Camera& c = cameras[v];
-            c.intrinsics = *views[v].view.intrinsics;
-            c.sensor_from_world = views[v].view.world_from_sensor->inverse();
-            c.rotation = c.sensor_from_world.linear();
-            c.translation = c.sensor_from_world.translation();
-            c.undistorted = c.intrinsics.distortion.is_none();
-            c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
-            c.active = true;
-        }
-        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-            Camera& c = cameras[v];
-            if (!c.active) return;
-            const Pose frame_to_sensor =
-                views[v].view.frame == ViewFrame::kWorld ? c.sensor_from_world : Pose::Identity();
-            struct Hit {
-                int col, row;
-                float z;
-            };
-            std::vector<Hit> hits;
-            hits.reserve(gathered[v].xyz.size());
-            int lo_x = std::numeric_limits<int>::max(), lo_y = lo_x, hi_x = -1, hi_y = -1;
-            for (const auto& p : gathered[v].xyz) {
-                const Eigen::Vector3d q = frame_to_sensor * p;
-                if (q.z() <= 0.0) continue;
-                const Eigen::Vector2d uv = c.intrinsics.project(q);
-                if (!c.intrinsics.contains(uv)) continue;
-                const int col = int(std::lround(uv.x())), row = int(std::lround(uv.y()));
-                hits.push_back({col, row, float(q.z())});
-                lo_x = std::min(lo_x, col);
-                hi_x = std::max(hi_x, col);
-                lo_y = std::min(lo_y, row);
-                hi_y = std::max(hi_y, row);
-            }
-            if (hits.empty()) return;  // bw = bh = 0: no return anywhere
-            c.x0 = lo_x;
-            c.y0 = lo_y;
-            c.bw = hi_x - lo_x + 1;
-            c.bh = hi_y - lo_y + 1;
-            c.depth.assign(std::size_t(c.bw) * std::size_t(c.bh),
-                           std::numeric_limits<float>::infinity());
-            for (const Hit& hit : hits) {
-                float& d =
-                    c.depth[std::size_t(hit.row - c.y0) * c.bw + std::size_t(hit.col - c.x0)];
-                d = std::min(d, hit.z);
-            }
-        });
-    }
-
+    if (sensors) cameras = view_cameras(views, all);
     stage("depth_maps");
-    // One view's spacing ŝ (median over the views with >= 10 points): the merged cloud's
-    // spacing shrinks with every interleaved view. It scales the neighbourhood of the measured
-    // density and the link of the cluster pass.
-    // The views' own point sets (frame-independent spacing), in parallel.
-    std::vector<double> view_spacing(gathered.size(), -1.0);
-    tbb::parallel_for(std::size_t(0), gathered.size(), [&](std::size_t v) {
-        if (gathered[v].xyz.size() >= 10)
-            view_spacing[v] = sampling::robust_spacing(gathered[v].xyz, 2000, options.seed);
-    });
-    std::vector<double> spacings;
-    for (const double s : view_spacing)
-        if (s >= 0.0) spacings.push_back(s);
-    if (spacings.empty()) spacings.push_back(sampling::robust_spacing(world, 10000, options.seed));
-    const double spacing = lower_median(spacings);
+    const double spacing = one_view_spacing(all, options.seed);
     report["spacing_m"] = spacing;
     stage("spacing");
 
+    // Measured and expected density of every point.
     std::vector<double> measured(n), expected(n, 0.0);
-    // Sensors reference: the normals, the counting radius and its grid (kept for the consensus
-    // test; `gridded` false when the extent needed the kd-tree instead).
-    std::vector<Eigen::Vector3d> normal;
-    double radius = 0.0;
-    internal::CellGrid grid;
-    bool gridded = false;
-    if (reference == DensityReference::kSensors) {
-        // Measured density: the points within r of p_i, r chosen so that a frontal surface seen
-        // by one sensor puts about k points there (pi r^2 = k ŝ^2): rho_i = (count - 1) /
-        // (pi r^2). Counted cell by cell on a grid of side r (27 cells per point, no tree).
-        // Normals for the incidence term: the views' own (rgbd-align writes them, estimated
-        // per view) or the PCA of the same neighbourhood.
-        bool view_normals = true;
-        for (std::size_t v = 0; v < views.size(); ++v)
-            if (!gathered[v].xyz.empty() && !views[v].points.has_normal_map()) view_normals = false;
-        normal.resize(n);
-        if (view_normals)
-            for (std::size_t v = 0, i = 0; v < views.size(); ++v) {
-                const Eigen::Matrix3d rot = frame_rotation[v];
-                for (PointSet::Index idx : gathered[v].ids)
-                    normal[i++] = rot * to_eigen(views[v].points.normal(idx));
-            }
-        radius = std::sqrt(double(options.k) / std::numbers::pi) * spacing;
-        const double r2 = radius * radius, area = std::numbers::pi * r2;
-        report["radius_m"] = radius;
-        // Density (and PCA normal) of point i from its neighbourhood's count and moments
-        // (offsets d = q - p_i, the point itself included).
-        const auto finish = [&](std::size_t i, std::size_t count, const Eigen::Vector3d& sum,
-                                const Eigen::Matrix3d& outer) {
-            measured[i] = double(count - 1) / area;
-            if (view_normals) return;
-            const Eigen::Vector3d mean = sum / double(count);
-            const Eigen::Matrix3d cov = outer / double(count) - mean * mean.transpose();
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-            eig.computeDirect(cov);
-            normal[i] = eig.eigenvectors().col(0);
-        };
-        gridded = grid.build(world, radius);
-        if (gridded) {
-            // Coordinates in cell order, one array per axis: a cell column (cx, cy, z - 1 ..
-            // z + 1) is one contiguous run, so 9 runs cover the 27 cells around a point.
-            std::vector<double> xs(n), ys(n), zs(n);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                                      const Eigen::Vector3d& p = world[grid.point[a]];
-                                      xs[a] = p.x();
-                                      ys[a] = p.y();
-                                      zs[a] = p.z();
-                                  }
-                              });
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, grid.cells(), 64),
-                [&](const tbb::blocked_range<std::size_t>& r) {
-                    std::pair<std::uint32_t, std::uint32_t> runs[9];
-                    for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
-                        const std::uint64_t key = grid.keys[ca];
-                        const std::uint64_t x = key >> 42, y = (key >> 21) & internal::kKeyMask,
-                                            z = key & internal::kKeyMask;
-                        int nr = 0;
-                        for (std::int64_t cx = std::int64_t(x) - 1; cx <= std::int64_t(x) + 1; ++cx)
-                            for (std::int64_t cy = std::int64_t(y) - 1; cy <= std::int64_t(y) + 1;
-                                 ++cy) {
-                                const auto [c0, c1] =
-                                    grid.column(cx, cy, std::int64_t(z) - 1, std::int64_t(z) + 1);
-                                if (c0 == c1) continue;
-                                runs[nr++] = {grid.start[c0], grid.start[c1]};
-                            }
-                        for (std::uint32_t a = grid.start[ca]; a < grid.start[ca + 1]; ++a) {
-                            const double px = xs[a], py = ys[a], pz = zs[a];
-                            std::size_t count = 0;
-                            if (view_normals) {  // count only: a branch-free, vectorisable loop
-                                for (int q = 0; q < nr; ++q)
-                                    for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
-                                        const double dx = xs[b] - px, dy = ys[b] - py,
-                                                     dz = zs[b] - pz;
-                                        count += dx * dx + dy * dy + dz * dz <= r2;
-                                    }
-                                finish(grid.point[a], count, Eigen::Vector3d::Zero(),
-                                       Eigen::Matrix3d::Zero());
-                                continue;
-                            }
-                            Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-                            Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-                            for (int q = 0; q < nr; ++q)
-                                for (std::uint32_t b = runs[q].first; b < runs[q].second; ++b) {
-                                    const Eigen::Vector3d d(xs[b] - px, ys[b] - py, zs[b] - pz);
-                                    if (d.squaredNorm() > r2) continue;
-                                    ++count;
-                                    sum += d;
-                                    outer += d * d.transpose();
-                                }
-                            finish(grid.point[a], count, sum, outer);
-                        }
-                    }
-                });
-        } else {  // extent too large for the grid: the same neighbourhoods from a kd-tree
-            const internal::KdTree tree(world);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  std::vector<std::pair<std::uint32_t, double>> found;
-                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                      tree.radius(world[i], radius, found, /*sorted=*/false);
-                                      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-                                      Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-                                      for (const auto& f : found) {
-                                          const Eigen::Vector3d d = world[f.first] - world[i];
-                                          sum += d;
-                                          outer += d * d.transpose();
-                                      }
-                                      finish(i, found.size(), sum, outer);
-                                  }
-                              });
-        }
+    Neighbourhoods hood;
+    if (sensors) {
+        measure_sensor_density(views, all, options.k, spacing, measured, hood);
+        report["radius_m"] = hood.radius;
         stage("measured");
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
-        // Expected density: what the sensors that see p_i should have produced there.
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, n, 256),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                    const Eigen::Vector3d nrm = normal[i].normalized();
-                    double sum = 0.0;
-                    for (const Camera& c : cameras) {
-                        if (!c.active) continue;
-                        const Eigen::Vector3d q = c.rotation * world[i] + c.translation;
-                        if (q.z() <= 0.0) continue;
-                        const Eigen::Vector2d uv =
-                            c.undistorted ? Eigen::Vector2d(
-                                                c.intrinsics.fx * (q.x() / q.z()) + c.intrinsics.cx,
-                                                c.intrinsics.fy * (q.y() / q.z()) + c.intrinsics.cy)
-                                          : c.intrinsics.project(q);
-                        if (!c.intrinsics.contains(uv)) continue;
-                        // lround() of coordinates > -0.5.
-                        const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
-                        // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
-                        const double tol = q.z() / c.focal * tan_max +
-                                           3.0 * sigma_z_m(options.noise_model, q.z(), 0.0);
-                        // The 3 x 3 window: a missing return is +inf (never NaN), which changes
-                        // neither the minimum nor the "seen" test; pixels outside the map's box
-                        // have no return either, so are skipped. The centre pixel first: a
-                        // return there within tol shows the point (most points, for the views
-                        // that face them), and then the rest of the window cannot change the
-                        // outcome. Otherwise the whole window, branch-free.
-                        bool seen = false;
-                        double nearest = std::numeric_limits<double>::infinity();
-                        if (row >= c.y0 && row < c.y0 + c.bh && col >= c.x0 && col < c.x0 + c.bw)
-                            seen = std::abs(double(c.depth[std::size_t(row - c.y0) * c.bw +
-                                                           std::size_t(col - c.x0)]) -
-                                            q.z()) <= tol;
-                        if (!seen) {
-                            const int r0 = std::max(row - 1, c.y0),
-                                      r1 = std::min(row + 1, c.y0 + c.bh - 1);
-                            const int c0 = std::max(col - 1, c.x0),
-                                      c1 = std::min(col + 1, c.x0 + c.bw - 1);
-                            for (int rr = r0; rr <= r1; ++rr) {
-                                const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
-                                for (int cc = c0; cc <= c1; ++cc) {
-                                    const double d = line[cc - c.x0];
-                                    nearest = std::min(nearest, d);
-                                    seen |= std::abs(d - q.z()) <= tol;
-                                }
-                            }
-                        }
-                        const bool any = nearest < std::numeric_limits<double>::infinity();
-                        // Occluded: behind v's surface, so v could not have measured it.
-                        if (any && !seen && q.z() > nearest + tol) continue;
-                        // Ray from camera v to the point, in the world frame.
-                        const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
-                        // Samples per unit area of a surface at incidence theta: cos(theta) /
-                        // s_d^2, unclamped (a view that grazes the surface adds almost nothing).
-                        const double cos_theta = std::abs(nrm.dot(ray));
-                        const double s_d = q.z() / c.focal;
-                        sum += cos_theta / (s_d * s_d);
-                    }
-                    expected[i] = sum;
-                }
-            });
+        expect_sensor_density(cameras, all, hood.normal, options.noise_model, std::tan(theta_max),
+                              expected);
     } else {
-        // Local reference (no cameras): measured rho_i = k / (pi d_k^2) from the k nearest
-        // other points, expected = the median measured density of the k_ref nearest.
         const internal::KdTree tree(world);
-        detail::for_each_knn(
-            tree, world, k + 1, 256,
-            [&](std::size_t i, const std::uint32_t*, const double* sq, std::size_t found) {
-                const double dk2 = std::max(sq[found - 1], 1e-18);
-                measured[i] = double(found - 1) / (std::numbers::pi * dk2);
-            });
+        measure_local_density(tree, world, k, measured);
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
         const std::size_t k_ref = std::min<std::size_t>(std::size_t(options.k_ref), n - 1);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              std::vector<std::uint32_t> ids(k_ref + 1);
-                              std::vector<double> sq(k_ref + 1);
-                              std::vector<double> dens(k_ref + 1);
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                  const std::size_t found =
-                                      tree.knn(world[i], k_ref + 1, ids.data(), sq.data());
-                                  dens.resize(found);
-                                  for (std::size_t j = 0; j < found; ++j)
-                                      dens[j] = measured[ids[j]];
-                                  expected[i] = lower_median(dens);
-                              }
-                          });
+        expect_local_density(tree, world, measured, k_ref, expected);
     }
     stage("expected");
     if (!report_progress(progress, 0.5)) return detail::cancelled(report, watch);
 
-    const double beta = reference == DensityReference::kSensors ? options.beta : options.beta_local;
     std::vector<std::uint8_t> outlier(n, 0);
-    std::size_t density_removed = 0;
-    for (std::size_t i = 0; i < n; ++i)
-        if (measured[i] < beta * expected[i]) {
-            outlier[i] = 1;
-            ++density_removed;
-        }
-    report["density"] = density_removed;
+    report["density"] =
+        flag_sparse(measured, expected, sensors ? options.beta : options.beta_local, outlier);
 
     // Consensus test (sensors reference): a flying pixel 7-10 mm off the surface still finds
     // part of the surface inside its counting sphere (ratio ~ 1 - (d / r)^2 for a plane), so
@@ -437,86 +665,12 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     // twice to 3 sigma_z). Each cue alone flags hundreds of surface points (silhouettes,
     // creases, misaligned patches); together they veto each other's false positives.
     std::size_t consensus_removed = 0;
-    if (reference == DensityReference::kSensors && options.consensus_ratio > 0.0) {
-        const double cos_max = std::cos(theta_max);
-        std::vector<std::uint32_t> candidates;
-        for (std::size_t i = 0; i < n; ++i) {
-            if (outlier[i] || !(measured[i] < options.consensus_ratio * expected[i])) continue;
-            const Camera& c = cameras[view_of[i]];
-            const Eigen::Vector3d q = c.rotation * world[i] + c.translation;
-            const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
-            if (std::abs(normal[i].normalized().dot(ray)) < cos_max)
-                candidates.push_back(std::uint32_t(i));
-        }
-        const double reach = options.consensus_radius * radius, reach2 = reach * reach;
-        std::unique_ptr<internal::KdTree> tree;  // only when the grid could not hold the extent
-        if (!gridded && !candidates.empty()) tree = std::make_unique<internal::KdTree>(world);
-        std::vector<std::uint8_t> off(candidates.size(), 0);
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, candidates.size(), 16),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                // Offsets of the other views' neighbours and their inlier flags, reused.
-                std::vector<Eigen::Vector3d> near;
-                std::vector<std::uint8_t> inlier;
-                std::vector<std::pair<std::uint32_t, double>> found;
-                near.reserve(512);
-                inlier.reserve(512);
-                for (std::size_t a = r.begin(); a != r.end(); ++a) {
-                    const std::uint32_t i = candidates[a];
-                    const Eigen::Vector3d& p = world[i];
-                    near.clear();
-                    const auto take = [&](std::uint32_t j) {
-                        if (view_of[j] == view_of[i]) return;
-                        const Eigen::Vector3d d = world[j] - p;
-                        if (d.squaredNorm() <= reach2) near.push_back(d);
-                    };
-                    if (gridded) {
-                        // reach <= 2 r: the cells at most 2 apart on every axis.
-                        const auto cell = grid.cell_of(p);
-                        for (std::int64_t cx = cell.x() - 2; cx <= cell.x() + 2; ++cx)
-                            for (std::int64_t cy = cell.y() - 2; cy <= cell.y() + 2; ++cy) {
-                                const auto [c0, c1] =
-                                    grid.column(cx, cy, cell.z() - 2, cell.z() + 2);
-                                for (std::uint32_t b = grid.start[c0]; b < grid.start[c1]; ++b)
-                                    take(grid.point[b]);
-                            }
-                    } else {
-                        tree->radius(p, reach, found, /*sorted=*/false);
-                        for (const auto& f : found) take(f.first);
-                    }
-                    constexpr std::size_t kMinSupport = 6;
-                    if (near.size() < kMinSupport) continue;
-                    const Camera& c = cameras[view_of[i]];
-                    const double sigma =
-                        sigma_z_m(options.noise_model, (c.rotation * p + c.translation).z(), 0.0);
-                    inlier.assign(near.size(), 1);
-                    Eigen::Vector3d mean = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::UnitZ();
-                    for (int it = 0; it < 3; ++it) {
-                        std::size_t m = 0;
-                        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-                        Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-                        for (std::size_t j = 0; j < near.size(); ++j)
-                            if (inlier[j]) {
-                                ++m;
-                                sum += near[j];
-                                outer += near[j] * near[j].transpose();
-                            }
-                        mean = sum / double(m);
-                        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-                        eig.computeDirect(outer / double(m) - mean * mean.transpose());
-                        nrm = eig.eigenvectors().col(0);
-                        // Trim to 3 sigma_z of the plane; stop when too few would remain.
-                        std::size_t kept = 0;
-                        for (const auto& d : near)
-                            kept += std::abs(nrm.dot(d - mean)) < 3.0 * sigma;
-                        if (kept < kMinSupport) break;
-                        for (std::size_t j = 0; j < near.size(); ++j)
-                            inlier[j] = std::abs(nrm.dot(near[j] - mean)) < 3.0 * sigma;
-                    }
-                    // p is the origin of the offsets: its distance to the plane is |n . mean|.
-                    off[a] = std::abs(nrm.dot(mean)) > options.consensus_sigmas * sigma;
-                }
-            });
+    if (sensors && options.consensus_ratio > 0.0) {
+        const std::vector<std::uint32_t> candidates =
+            consensus_candidates(all, cameras, hood.normal, measured, expected, outlier,
+                                 options.consensus_ratio, theta_max);
+        const std::vector<std::uint8_t> off =
+            off_other_views(all, cameras, hood, candidates, options);
         for (std::size_t a = 0; a < candidates.size(); ++a)
             if (off[a]) {
                 outlier[candidates[a]] = 1;
@@ -527,87 +681,15 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["consensus"] = consensus_removed;
     stage("consensus");
 
-    // Cluster pass over the survivors.
-    std::size_t cluster_removed = 0, clusters = 0;
-    if (options.cluster_spacing > 0.0) {
-        std::vector<std::uint32_t> alive;
-        for (std::size_t i = 0; i < n; ++i)
-            if (!outlier[i]) alive.push_back(static_cast<std::uint32_t>(i));
-        const std::size_t m = alive.size();
-        if (m >= 2) {
-            std::vector<Eigen::Vector3d> pts(m);
-            for (std::size_t a = 0; a < m; ++a) pts[a] = world[alive[a]];
-            const double eps = options.cluster_spacing * spacing;
-            report["cluster_eps_m"] = eps;
-            // Component label of every survivor; equal labels = one component.
-            std::vector<std::uint32_t> label;
-            if (!detail::eps_components(pts, eps, label)) {
-                // Grid too fine for the extent: radius search per point instead.
-                const internal::KdTree alive_tree(pts);
-                constexpr std::size_t kBlock = 1024;
-                const std::size_t blocks = (m + kBlock - 1) / kBlock;
-                std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edges(blocks);
-                tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
-                    std::vector<std::pair<std::uint32_t, double>> found;
-                    for (std::size_t a = b * kBlock; a < std::min(m, (b + 1) * kBlock); ++a) {
-                        alive_tree.radius(pts[a], eps, found, /*sorted=*/false);
-                        for (const auto& f : found)
-                            if (f.first > a) edges[b].emplace_back(std::uint32_t(a), f.first);
-                    }
-                });
-                detail::DisjointSets sets(m);
-                for (const auto& block : edges)
-                    for (const auto& e : block) sets.unite(e.first, e.second);
-                label.resize(m);
-                for (std::size_t a = 0; a < m; ++a) label[a] = sets.find(std::uint32_t(a));
-            }
-            // Per component: size and first member (the tie-break of the largest).
-            constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-            std::vector<std::uint32_t> size(m, 0), first(m, kNone);
-            for (std::size_t a = 0; a < m; ++a) {
-                ++size[label[a]];
-                if (first[label[a]] == kNone) first[label[a]] = std::uint32_t(a);
-            }
-            std::uint32_t largest = label[0];
-            for (std::size_t c = 0; c < m; ++c) {
-                if (size[c] == 0) continue;
-                ++clusters;
-                if (size[c] > size[largest] ||
-                    (size[c] == size[largest] && first[c] < first[largest]))
-                    largest = std::uint32_t(c);
-            }
-            const double keep = options.min_cluster_fraction * double(m);
-            for (std::size_t a = 0; a < m; ++a) {
-                const std::uint32_t root = label[a];
-                if (root != largest && double(size[root]) < keep) {
-                    outlier[alive[a]] = 1;
-                    ++cluster_removed;
-                }
-            }
-        }
-    }
-    report["cluster"] = cluster_removed;
-    report["clusters"] = clusters;
-
+    detail::ClusterCount clusters;
+    if (options.cluster_spacing > 0.0)
+        clusters = detail::flag_small_clusters(world, options.cluster_spacing * spacing,
+                                               options.min_cluster_fraction, outlier, report);
+    report["cluster"] = clusters.removed;
+    report["clusters"] = clusters.clusters;
     stage("cluster");
-    // Apply per view (the views are independent point sets: in parallel).
-    std::vector<std::size_t> first(views.size() + 1, 0), removed(views.size(), 0);
-    for (std::size_t v = 0; v < views.size(); ++v) first[v + 1] = first[v] + gathered[v].xyz.size();
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const std::vector<std::uint8_t> flags(outlier.begin() + std::ptrdiff_t(first[v]),
-                                              outlier.begin() + std::ptrdiff_t(first[v + 1]));
-        removed[v] = detail::apply(views[v], gathered[v], flags, options.mark);
-    });
-    std::size_t total = 0;
-    Report per_view = Report::array();
-    for (std::size_t v = 0; v < views.size(); ++v) {
-        total += removed[v];
-        per_view.push_back({{"view", views[v].view.id},
-                            {"input_points", first[v + 1] - first[v]},
-                            {options.mark ? "marked" : "removed", removed[v]}});
-    }
-    report["views"] = per_view;
-    detail::record_removed(report, total, options.mark);
+
+    apply_to_views(views, all, outlier, options.mark, report);
     stage("apply");
     report["stages_s"] = stages;
     return detail::finished(std::move(report), watch, progress);
