@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -87,19 +88,18 @@ Rgb bilinear(const cv::Mat& image, double u, double v) {
     return {to8(acc[0]), to8(acc[1]), to8(acc[2])};
 }
 
-}  // namespace
-
-Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOptions& options,
-                     const Progress& progress) {
-    Stopwatch watch;
-    options.check();
-    const std::string name = view_name(cloud, frame);
+/// The checked depth intrinsics of the view (the view's own, else the frame's depth camera's).
+/// InputError naming the view when the view is not organised (grid, pixel property), the
+/// frame has no 8-bit BGR colour image matching its intrinsics, an intrinsics is invalid, the
+/// grid differs from the depth intrinsics, a world-frame view has no pose or color_from_depth
+/// is not finite.
+const PinholeIntrinsics& checked_depth_intrinsics(const PointCloud& cloud, const RgbdFrame& frame,
+                                                  const std::string& name) {
     RGBD_CHECK(cloud.view.has_grid(),
                name +
                    ": the view has no pixel grid (rgbd:grid); super-resolution needs an "
                    "organised view as written by rgbd-cloud");
-    const auto pixel_map = cloud.pixel_map();
-    RGBD_CHECK(pixel_map.has_value(), name + ": the view has no pixel property");
+    RGBD_CHECK(cloud.pixel_map().has_value(), name + ": the view has no pixel property");
     RGBD_CHECK(!frame.color.empty(), name + ": the frame has no colour image");
     RGBD_CHECK(frame.color.type() == CV_8UC3, name + ": colour image must be CV_8UC3 BGR");
     const PinholeIntrinsics& kc = frame.color_intrinsics;
@@ -117,37 +117,55 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
                    std::to_string(kc.width) + "x" + std::to_string(kc.height));
     RGBD_CHECK(cloud.view.grid_width == kd.width && cloud.view.grid_height == kd.height,
                name + ": the view grid differs from the depth intrinsics' size");
-    const bool world = cloud.view.frame == ViewFrame::kWorld;
-    RGBD_CHECK(!world || cloud.view.world_from_sensor.has_value(),
+    RGBD_CHECK(cloud.view.frame != ViewFrame::kWorld || cloud.view.world_from_sensor.has_value(),
                name + ": the view is in the world frame but has no world_from_sensor pose");
     RGBD_CHECK(frame.color_from_depth.matrix().allFinite(),
                name + ": color_from_depth is not finite");
-    if (cloud.points.has_garbage()) cloud.points.collect_garbage();
+    return kd;
+}
 
-    const int width = cloud.view.grid_width, height = cloud.view.grid_height;
+/// The view's measured points on the depth grid, in the sensor frame.
+struct GridPoints {
+    int width = 0, height = 0;
+    std::vector<std::int32_t> grid;    ///< point index per depth pixel (-1 = no point)
+    std::vector<Eigen::Vector3d> xyz;  ///< sensor-frame position
+    std::vector<Eigen::Vector2d> uvc;  ///< colour-image projection
+    std::vector<Rgb> rgb;              ///< the point's colour (its own, or the colour image's)
+    std::vector<std::uint8_t> usable;  ///< 1 = on the grid, seen by the colour camera
+
+    /// Point index at depth pixel (col, row); -1 outside the grid or without a point.
+    std::int32_t at(int col, int row) const {
+        if (col < 0 || row < 0 || col >= width || row >= height) return -1;
+        return grid[static_cast<std::size_t>(row) * width + col];
+    }
+};
+
+/// Per-point data of the view: the first non-synthetic point of every depth pixel goes on the
+/// grid; its sensor-frame position, colour-image projection and colour (the view's own when
+/// `has_colors`, else bilinear from the colour image) are taken when the colour camera sees it.
+GridPoints grid_points(const PointCloud& cloud, const RgbdFrame& frame,
+                       const Pose& sensor_from_view, bool has_colors) {
+    const PinholeIntrinsics& kc = frame.color_intrinsics;
     const std::size_t n = cloud.size();
-    const Pose sensor_from_view =
-        world ? Pose(cloud.view.world_from_sensor->inverse()) : Pose(Pose::Identity());
-
-    // Per-point data: sensor-frame position, colour, colour-image projection; dense grid of
-    // point indices (-1 = no point).
+    const auto pixel_map = cloud.pixel_map();
     const auto synthetic = cloud.flag(prop::kSynthetic);
     const auto uncoloured_map = cloud.flag("uncoloured");
-    const auto confidence_map = cloud.float_map(prop::kConfidence);
-    const bool has_colors = cloud.has_colors();
     std::optional<PointCloud::ColorMaps> colors;
     if (has_colors) colors = cloud.colors();
-    std::vector<std::int32_t> grid(static_cast<std::size_t>(width) * height, -1);
-    std::vector<Eigen::Vector3d> xyz(n);
-    std::vector<Eigen::Vector2d> uvc(n);
-    std::vector<Rgb> rgb(n);
-    std::vector<std::uint8_t> usable(n, 0);  // 1 = on the grid, seen by the colour camera
+    GridPoints g;
+    g.width = cloud.view.grid_width;
+    g.height = cloud.view.grid_height;
+    g.grid.assign(static_cast<std::size_t>(g.width) * g.height, -1);
+    g.xyz.resize(n);
+    g.uvc.resize(n);
+    g.rgb.resize(n);
+    g.usable.assign(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
         const PointSet::Index idx(i);
         if (synthetic && (*synthetic)[idx]) continue;
         const std::uint32_t pix = (*pixel_map)[idx];
-        if (pix >= grid.size()) continue;
-        if (grid[pix] < 0) grid[pix] = static_cast<std::int32_t>(i);
+        if (pix >= g.grid.size()) continue;
+        if (g.grid[pix] < 0) g.grid[pix] = static_cast<std::int32_t>(i);
     }
     const Pose& c_from_d = frame.color_from_depth;
     tbb::parallel_for(
@@ -155,233 +173,318 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const PointSet::Index idx(i);
                 const std::uint32_t pix = (*pixel_map)[idx];
-                if (pix >= grid.size() || grid[pix] != static_cast<std::int32_t>(i)) continue;
-                xyz[i] = sensor_from_view * to_eigen(cloud.points.point(idx));
-                const Eigen::Vector3d pc = c_from_d * xyz[i];
-                if (!(xyz[i].z() > 0.0) || !(pc.z() > 0.0)) continue;
-                uvc[i] = kc.project(pc);
-                if (!std::isfinite(uvc[i].x()) || !std::isfinite(uvc[i].y()) ||
-                    !kc.contains(uvc[i]))
+                if (pix >= g.grid.size() || g.grid[pix] != static_cast<std::int32_t>(i)) continue;
+                g.xyz[i] = sensor_from_view * to_eigen(cloud.points.point(idx));
+                const Eigen::Vector3d pc = c_from_d * g.xyz[i];
+                if (!(g.xyz[i].z() > 0.0) || !(pc.z() > 0.0)) continue;
+                g.uvc[i] = kc.project(pc);
+                if (!std::isfinite(g.uvc[i].x()) || !std::isfinite(g.uvc[i].y()) ||
+                    !kc.contains(g.uvc[i]))
                     continue;
                 if (uncoloured_map && (*uncoloured_map)[idx]) continue;
-                rgb[i] =
-                    has_colors ? colors->get(idx) : bilinear(frame.color, uvc[i].x(), uvc[i].y());
-                usable[i] = 1;
+                g.rgb[i] = has_colors ? colors->get(idx)
+                                      : bilinear(frame.color, g.uvc[i].x(), g.uvc[i].y());
+                g.usable[i] = 1;
             }
         });
-    const double time_prepare_s = watch.seconds();
-    if (!report_progress(progress, 0.2)) throw AlgorithmError(name + ": upsample cancelled");
+    return g;
+}
 
-    // Geometry of the colour camera in the depth frame and the colour-pixel steps.
-    const Eigen::Matrix3d r_dc = c_from_d.linear().transpose();
-    const Eigen::Vector3d origin = -(r_dc * c_from_d.translation());
-    const bool distorted = !kc.distortion.is_none();
-    const double rho_u = kc.fx / kd.fx, rho_v = kc.fy / kd.fy;
-    const double rho = 0.5 * (rho_u + rho_v);
-    const double step_u = rho_u / 3.0, step_v = rho_v / 3.0;
-    const bool integer_steps = step_u >= 0.75 && step_v >= 0.75;
-    const int istep_u = static_cast<int>(std::lround(step_u));
-    const int istep_v = static_cast<int>(std::lround(step_v));
-    const double tan_theta = std::tan(options.theta_max_deg * M_PI / 180.0);
+/// Geometry of the colour camera in the depth frame, the colour-pixel steps and the gates.
+struct ColourGeometry {
+    Eigen::Matrix3d r_dc;    ///< depth_from_color rotation
+    Eigen::Vector3d origin;  ///< colour camera centre in the depth frame
+    bool distorted = false;
+    double rho_u = 0, rho_v = 0, rho = 0;  ///< colour / depth focal lengths
+    double step_u = 0, step_v = 0;         ///< colour-pixel steps of a child, rho / 3
+    bool integer_steps = false;            ///< steps of whole colour pixels
+    int istep_u = 0, istep_v = 0;
+    double tan_theta = 0, cos2_grazing = 0, max_offset2 = 0;
+    /// Undistorted colour ray through pixel (u, v), in the depth frame: ray0 + u ray_du + v ray_dv.
+    Eigen::Vector3d ray_du, ray_dv, ray0;
+};
+
+/// The colour camera's geometry relative to depth camera `kd` and the options' gates.
+ColourGeometry colour_geometry(const RgbdFrame& frame, const PinholeIntrinsics& kd,
+                               const UpsampleOptions& options) {
+    const PinholeIntrinsics& kc = frame.color_intrinsics;
+    const Pose& c_from_d = frame.color_from_depth;
+    ColourGeometry g;
+    g.r_dc = c_from_d.linear().transpose();
+    g.origin = -(g.r_dc * c_from_d.translation());
+    g.distorted = !kc.distortion.is_none();
+    g.rho_u = kc.fx / kd.fx;
+    g.rho_v = kc.fy / kd.fy;
+    g.rho = 0.5 * (g.rho_u + g.rho_v);
+    g.step_u = g.rho_u / 3.0;
+    g.step_v = g.rho_v / 3.0;
+    g.integer_steps = g.step_u >= 0.75 && g.step_v >= 0.75;
+    g.istep_u = static_cast<int>(std::lround(g.step_u));
+    g.istep_v = static_cast<int>(std::lround(g.step_v));
+    g.tan_theta = std::tan(options.theta_max_deg * M_PI / 180.0);
     const double cos_grazing = std::cos(options.grazing_max_deg * M_PI / 180.0);
-    const double cos2_grazing = cos_grazing * cos_grazing;
-    const double max_offset2 = options.max_offset_factor * options.max_offset_factor;
-    // Undistorted colour ray through pixel (u, v), in the depth frame: ray0 + u ray_du + v ray_dv.
-    const Eigen::Vector3d ray_du = r_dc.col(0) / kc.fx, ray_dv = r_dc.col(1) / kc.fy;
-    const Eigen::Vector3d ray0 = r_dc.col(2) - kc.cx * ray_du - kc.cy * ray_dv;
-    const bool midpoints = options.method == UpsampleMethod::kMidpoints;
-    const int k_children = midpoints ? options.neighbors / 2 : options.neighbors;
+    g.cos2_grazing = cos_grazing * cos_grazing;
+    g.max_offset2 = options.max_offset_factor * options.max_offset_factor;
+    g.ray_du = g.r_dc.col(0) / kc.fx;
+    g.ray_dv = g.r_dc.col(1) / kc.fy;
+    g.ray0 = g.r_dc.col(2) - kc.cx * g.ray_du - kc.cy * g.ray_dv;
+    return g;
+}
 
-    // Kernel look-up tables: spatial on the squared colour-pixel distance (1/8 px^2 steps),
-    // range on the mean absolute RGB difference (integer levels).
-    const double sigma_s = options.sigma_spatial * rho;
-    constexpr int kSpatialBins = 4096;
-    constexpr double kSpatialStep = 8.0;  // bins per px^2
-    std::array<float, kSpatialBins> spatial_lut;
+constexpr int kSpatialBins = 4096;
+constexpr double kSpatialStep = 8.0;  // bins per px^2
+
+/// Kernel look-up tables of the joint bilateral weight: spatial on the squared colour-pixel
+/// distance (1/8 px^2 steps, sigma_s colour pixels), range on the mean absolute RGB difference
+/// (integer levels).
+struct Kernels {
+    std::array<float, kSpatialBins> spatial;
+    std::array<float, 256> range;
+};
+
+/// The look-up tables for spatial sigma `sigma_s` (colour pixels) and colour sigma `sigma_color`.
+Kernels bilateral_kernels(double sigma_s, double sigma_color) {
+    Kernels k;
     for (int b = 0; b < kSpatialBins; ++b)
-        spatial_lut[b] =
+        k.spatial[b] =
             static_cast<float>(std::exp(-(b / kSpatialStep) / (2.0 * sigma_s * sigma_s)));
-    std::array<float, 256> range_lut;
     for (int b = 0; b < 256; ++b)
-        range_lut[b] = static_cast<float>(
-            std::exp(-(b * b) / (2.0 * options.sigma_color * options.sigma_color)));
+        k.range[b] = static_cast<float>(std::exp(-(b * b) / (2.0 * sigma_color * sigma_color)));
+    return k;
+}
 
-    // Children per row (capacity reserved up front: no allocation in the inner loop).
-    std::vector<std::vector<Child>> row_children(height);
-    std::vector<Counters> row_counts(height);
-    std::vector<std::uint32_t> row_points(height, 0);
-    for (std::size_t pix = 0; pix < grid.size(); ++pix)
-        if (grid[pix] >= 0) ++row_points[pix / width];
+/// The children of the view's depth points, row by row (docs/algorithms.md §5): reads the grid
+/// points, the colour image and the geometry, shared by all rows.
+class ChildMaker {
+public:
+    ChildMaker(const GridPoints& g, const RgbdFrame& frame, const PinholeIntrinsics& kd,
+               const ColourGeometry& geo, const Kernels& kernels, const UpsampleOptions& options,
+               const std::optional<PointCloud::FloatMap>& confidence_map)
+        : g_(g),
+          frame_(frame),
+          kc_(frame.color_intrinsics),
+          kd_(kd),
+          geo_(geo),
+          kernels_(kernels),
+          options_(options),
+          confidence_map_(confidence_map),
+          midpoints_(options.method == UpsampleMethod::kMidpoints),
+          k_children_(midpoints_ ? options.neighbors / 2 : options.neighbors) {}
 
-    auto at = [&](int col, int row) -> std::int32_t {
-        if (col < 0 || row < 0 || col >= width || row >= height) return -1;
-        return grid[static_cast<std::size_t>(row) * width + col];
-    };
+    /// New points per depth point at most.
+    int children_per_point() const { return k_children_; }
 
-    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
-        for (int row = r.begin(); row != r.end(); ++row) {
-            std::vector<Child>& out = row_children[row];
-            out.reserve(static_cast<std::size_t>(row_points[row]) * k_children);
-            Counters& count = row_counts[row];
-            for (int col = 0; col < width; ++col) {
-                const std::int32_t ip = at(col, row);
-                if (ip < 0 || !usable[ip]) {
-                    if (ip >= 0) ++count.uncoloured;
-                    continue;
-                }
-                const Eigen::Vector3d& xp = xyz[ip];
-                const double z = xp.z();
-                const double s_d = z / kd.fx;
-                const double dz_max = s_d * tan_theta + options.sigma_factor * default_sigma_z(z);
-                // Gate: every existing 8-neighbour on the same surface and coloured.
-                bool gated = false;
-                for (int k = 0; k < 8 && !gated; ++k) {
-                    const std::int32_t j = at(col + kDu[k], row + kDv[k]);
-                    if (j < 0) continue;
-                    gated = !usable[j] || std::abs(xyz[j].z() - z) > dz_max;
-                }
-                if (gated) {
-                    ++count.gated;
-                    continue;
-                }
-                ++count.parents;
-                const float parent_conf =
-                    confidence_map ? (*confidence_map)[PointSet::Index(ip)] : 1.0f;
+    /// Appends the children of the depth points of `row` to `out` and counts the outcomes.
+    void row(int row, std::vector<Child>& out, Counters& count) const {
+        for (int col = 0; col < g_.width; ++col) {
+            const std::int32_t ip = g_.at(col, row);
+            if (ip < 0 || !g_.usable[ip]) {
+                if (ip >= 0) ++count.uncoloured;
+                continue;
+            }
+            const Eigen::Vector3d& xp = g_.xyz[ip];
+            const double z = xp.z();
+            const double s_d = z / kd_.fx;
+            const double dz_max = s_d * geo_.tan_theta + options_.sigma_factor * default_sigma_z(z);
+            if (at_discontinuity(col, row, z, dz_max)) {
+                ++count.gated;
+                continue;
+            }
+            ++count.parents;
+            const float parent_conf = confidence(ip);
+            Eigen::Vector3d normal;
+            const double nn = grid_normal(col, row, xp, normal);
+            if (midpoints_) {
+                midpoint_children(col, row, ip, z, dz_max, normal, parent_conf, out, count);
+                continue;
+            }
+            if (!(nn > 0.0)) {
+                ++count.no_normal;
+                continue;
+            }
+            colour_pixel_children(col, row, ip, s_d, normal, parent_conf, out, count);
+        }
+    }
 
-                // Normal from the grid: central differences, one-sided at borders.
-                auto diff = [&](int du, int dv, Eigen::Vector3d& d) {
-                    const std::int32_t a = at(col + du, row + dv), b = at(col - du, row - dv);
-                    if (a >= 0 && b >= 0)
-                        d = xyz[a] - xyz[b];
-                    else if (a >= 0)
-                        d = xyz[a] - xp;
-                    else if (b >= 0)
-                        d = xp - xyz[b];
-                    else
-                        return false;
-                    return true;
-                };
-                Eigen::Vector3d dx, dy, normal = Eigen::Vector3d::Zero();
-                if (diff(1, 0, dx) && diff(0, 1, dy)) normal = dx.cross(dy);
-                const double nn = normal.norm();
-                if (nn > 0.0) {
-                    normal /= nn;
-                    if (normal.dot(xp) > 0.0) normal = -normal;
-                }
+private:
+    /// The point's confidence (1 without a confidence property).
+    float confidence(std::int32_t i) const {
+        return confidence_map_ ? (*confidence_map_)[PointSet::Index(i)] : 1.0f;
+    }
 
-                if (midpoints) {  // Algorithm B: midpoints of grid edges on the same surface.
-                    for (int k = 0; k < k_children; ++k) {
-                        const std::int32_t j = at(col + kMu[k], row + kMv[k]);
-                        if (j < 0 || !usable[j] || std::abs(xyz[j].z() - z) > dz_max) continue;
-                        const Eigen::Vector3d m = 0.5 * (xp + xyz[j]);
-                        const Eigen::Vector2d q = kc.project(c_from_d * m);
-                        if (!kc.contains(q)) {
-                            ++count.outside;
-                            continue;
-                        }
-                        const float conf_j =
-                            confidence_map ? (*confidence_map)[PointSet::Index(j)] : 1.0f;
-                        out.push_back({m, normal, bilinear(frame.color, q.x(), q.y()),
-                                       0.8f * std::min(parent_conf, conf_j),
-                                       static_cast<std::uint32_t>(ip)});
-                    }
-                    continue;
-                }
-                if (!(nn > 0.0)) {
-                    ++count.no_normal;
-                    continue;
-                }
+    /// The gate: true unless every existing 8-neighbour of (col, row) is coloured and within
+    /// dz_max of depth z (on the same surface).
+    bool at_discontinuity(int col, int row, double z, double dz_max) const {
+        bool gated = false;
+        for (int k = 0; k < 8 && !gated; ++k) {
+            const std::int32_t j = g_.at(col + kDu[k], row + kDv[k]);
+            if (j < 0) continue;
+            gated = !g_.usable[j] || std::abs(g_.xyz[j].z() - z) > dz_max;
+        }
+        return gated;
+    }
 
-                // Algorithm A: colour pixels around the parent's colour pixel. The 3x3 depth
-                // neighbourhood (all usable: the gate passed) is gathered once per parent:
-                // colour-image position, colour and the offset of its plane along the normal.
-                std::array<Sample, 9> nb;
-                int m = 0;
-                for (int dv = -1; dv <= 1; ++dv)
-                    for (int du = -1; du <= 1; ++du) {
-                        const std::int32_t j = at(col + du, row + dv);
-                        if (j < 0) continue;
-                        nb[m++] = {uvc[j].x(),
-                                   uvc[j].y(),
-                                   normal.dot(xyz[j] - origin),
-                                   {rgb[j].r, rgb[j].g, rgb[j].b},
-                                   j};
-                    }
-                const double h_parent = normal.dot(xp - origin);
-                const Eigen::Vector2d& q0 = uvc[ip];
-                const double c0u = std::round(q0.x()), c0v = std::round(q0.y());
-                for (int k = 0; k < k_children; ++k) {
-                    const double qu =
-                        integer_steps ? c0u + kDu[k] * istep_u : q0.x() + kDu[k] * step_u;
-                    const double qv =
-                        integer_steps ? c0v + kDv[k] * istep_v : q0.y() + kDv[k] * step_v;
-                    if (qu < 0.0 || qv < 0.0 || qu > kc.width - 1 || qv > kc.height - 1) {
-                        ++count.outside;
-                        continue;
-                    }
-                    // Ownership first: the colour pixel belongs to the nearest projection.
-                    const double d2p =
-                        (q0.x() - qu) * (q0.x() - qu) + (q0.y() - qv) * (q0.y() - qv);
-                    double d2s[9];
-                    bool owned = true;
-                    for (int a = 0; a < m; ++a) {
-                        const double eu = nb[a].u - qu, ev = nb[a].v - qv;
-                        d2s[a] = eu * eu + ev * ev;
-                        if (nb[a].index != ip &&
-                            (d2s[a] < d2p || (d2s[a] == d2p && nb[a].index < ip))) {
-                            owned = false;
-                            break;
-                        }
-                    }
-                    if (!owned) {
-                        ++count.owned;
-                        continue;
-                    }
-                    // Ray of the colour pixel, in the depth frame.
-                    const Eigen::Vector3d ray =
-                        distorted ? Eigen::Vector3d(r_dc * kc.unproject(qu, qv, 1.0))
-                                  : Eigen::Vector3d(ray0 + qu * ray_du + qv * ray_dv);
-                    const double nr = normal.dot(ray);
-                    if (nr * nr < cos2_grazing * ray.squaredNorm()) {
-                        ++count.grazing;
-                        continue;
-                    }
-                    const Rgb cq = integer_steps ? bgr_at(frame.color, static_cast<int>(qu),
-                                                          static_cast<int>(qv))
-                                                 : bilinear(frame.color, qu, qv);
-                    // Joint bilateral average of the plane offsets over the 3x3 samples.
-                    double wsum = 0.0, wssum = 0.0, hsum = 0.0;
-                    for (int a = 0; a < m; ++a) {
-                        const int sb =
-                            std::min(kSpatialBins - 1, static_cast<int>(d2s[a] * kSpatialStep));
-                        const int dc = (std::abs(int(cq.r) - nb[a].rgb[0]) +
-                                        std::abs(int(cq.g) - nb[a].rgb[1]) +
-                                        std::abs(int(cq.b) - nb[a].rgb[2]) + 1) /
-                                       3;
-                        const double ws = spatial_lut[sb];
-                        const double w = ws * range_lut[std::min(dc, 255)];
-                        hsum += w * nb[a].h;
-                        wsum += w;
-                        wssum += ws;
-                    }
-                    // Colour unlike every sample: fall back to the parent's plane.
-                    const double t = wsum > 1e-12 ? hsum / (wsum * nr) : h_parent / nr;
-                    const Eigen::Vector3d y = origin + t * ray;
-                    if (!(t > 0.0) || (y - xp).squaredNorm() > max_offset2 * s_d * s_d) {
-                        ++count.offset;
-                        continue;
-                    }
-                    const double colour_weight = std::min(1.0, (wsum > 1e-12 ? wsum : 1.0) / wssum);
-                    out.push_back({y, normal, cq, static_cast<float>(parent_conf * colour_weight),
-                                   static_cast<std::uint32_t>(ip)});
-                }
+    /// The unit normal at (col, row) (point xp) from the grid, facing the camera: the cross
+    /// product of central differences, one-sided at borders; zero when a direction has no
+    /// neighbour. Returns the cross product's norm (0: no normal).
+    double grid_normal(int col, int row, const Eigen::Vector3d& xp, Eigen::Vector3d& normal) const {
+        auto diff = [&](int du, int dv, Eigen::Vector3d& d) {
+            const std::int32_t a = g_.at(col + du, row + dv), b = g_.at(col - du, row - dv);
+            if (a >= 0 && b >= 0)
+                d = g_.xyz[a] - g_.xyz[b];
+            else if (a >= 0)
+                d = g_.xyz[a] - xp;
+            else if (b >= 0)
+                d = xp - g_.xyz[b];
+            else
+                return false;
+            return true;
+        };
+        Eigen::Vector3d dx, dy;
+        normal = Eigen::Vector3d::Zero();
+        if (diff(1, 0, dx) && diff(0, 1, dy)) normal = dx.cross(dy);
+        const double nn = normal.norm();
+        if (nn > 0.0) {
+            normal /= nn;
+            if (normal.dot(xp) > 0.0) normal = -normal;
+        }
+        return nn;
+    }
+
+    /// Algorithm B: midpoints of the grid edges from parent ip at (col, row) (depth z) to its
+    /// E, S (+ SE, SW) neighbours on the same surface, coloured bilinearly.
+    void midpoint_children(int col, int row, std::int32_t ip, double z, double dz_max,
+                           const Eigen::Vector3d& normal, float parent_conf,
+                           std::vector<Child>& out, Counters& count) const {
+        const Eigen::Vector3d& xp = g_.xyz[ip];
+        for (int k = 0; k < k_children_; ++k) {
+            const std::int32_t j = g_.at(col + kMu[k], row + kMv[k]);
+            if (j < 0 || !g_.usable[j] || std::abs(g_.xyz[j].z() - z) > dz_max) continue;
+            const Eigen::Vector3d m = 0.5 * (xp + g_.xyz[j]);
+            const Eigen::Vector2d q = kc_.project(frame_.color_from_depth * m);
+            if (!kc_.contains(q)) {
+                ++count.outside;
+                continue;
+            }
+            out.push_back({m, normal, bilinear(frame_.color, q.x(), q.y()),
+                           0.8f * std::min(parent_conf, confidence(j)),
+                           static_cast<std::uint32_t>(ip)});
+        }
+    }
+
+    /// Algorithm A: new points at the colour pixels around parent ip's colour pixel. The 3x3
+    /// depth neighbourhood (all usable: the gate passed) is gathered once per parent: its
+    /// colour-image position, colour and the offset of its plane along the normal.
+    void colour_pixel_children(int col, int row, std::int32_t ip, double s_d,
+                               const Eigen::Vector3d& normal, float parent_conf,
+                               std::vector<Child>& out, Counters& count) const {
+        std::array<Sample, 9> nb;
+        int m = 0;
+        for (int dv = -1; dv <= 1; ++dv)
+            for (int du = -1; du <= 1; ++du) {
+                const std::int32_t j = g_.at(col + du, row + dv);
+                if (j < 0) continue;
+                nb[m++] = {g_.uvc[j].x(),
+                           g_.uvc[j].y(),
+                           normal.dot(g_.xyz[j] - geo_.origin),
+                           {g_.rgb[j].r, g_.rgb[j].g, g_.rgb[j].b},
+                           j};
+            }
+        const Eigen::Vector2d& q0 = g_.uvc[ip];
+        const double c0u = std::round(q0.x()), c0v = std::round(q0.y());
+        for (int k = 0; k < k_children_; ++k) {
+            const double qu =
+                geo_.integer_steps ? c0u + kDu[k] * geo_.istep_u : q0.x() + kDu[k] * geo_.step_u;
+            const double qv =
+                geo_.integer_steps ? c0v + kDv[k] * geo_.istep_v : q0.y() + kDv[k] * geo_.step_v;
+            colour_pixel_child(qu, qv, ip, s_d, normal, parent_conf, nb, m, out, count);
+        }
+    }
+
+    /// One child of Algorithm A at colour pixel (qu, qv), unless rejected (and counted): outside
+    /// the image, owned by a nearer neighbour's projection, seen at a grazing angle, or placed
+    /// behind the camera or farther than max_offset_factor pixel footprints s_d from its parent.
+    /// Its depth is the joint bilateral average of the plane offsets of the m samples `nb`.
+    void colour_pixel_child(double qu, double qv, std::int32_t ip, double s_d,
+                            const Eigen::Vector3d& normal, float parent_conf,
+                            const std::array<Sample, 9>& nb, int m, std::vector<Child>& out,
+                            Counters& count) const {
+        const Eigen::Vector3d& xp = g_.xyz[ip];
+        const Eigen::Vector2d& q0 = g_.uvc[ip];
+        if (qu < 0.0 || qv < 0.0 || qu > kc_.width - 1 || qv > kc_.height - 1) {
+            ++count.outside;
+            return;
+        }
+        // Ownership first: the colour pixel belongs to the nearest projection.
+        const double d2p = (q0.x() - qu) * (q0.x() - qu) + (q0.y() - qv) * (q0.y() - qv);
+        double d2s[9];
+        for (int a = 0; a < m; ++a) {
+            const double eu = nb[a].u - qu, ev = nb[a].v - qv;
+            d2s[a] = eu * eu + ev * ev;
+            if (nb[a].index != ip && (d2s[a] < d2p || (d2s[a] == d2p && nb[a].index < ip))) {
+                ++count.owned;
+                return;
             }
         }
-    });
-    const double time_children_s = watch.seconds() - time_prepare_s;
-    if (!report_progress(progress, 0.8)) throw AlgorithmError(name + ": upsample cancelled");
+        // Ray of the colour pixel, in the depth frame.
+        const Eigen::Vector3d ray =
+            geo_.distorted ? Eigen::Vector3d(geo_.r_dc * kc_.unproject(qu, qv, 1.0))
+                           : Eigen::Vector3d(geo_.ray0 + qu * geo_.ray_du + qv * geo_.ray_dv);
+        const double nr = normal.dot(ray);
+        if (nr * nr < geo_.cos2_grazing * ray.squaredNorm()) {
+            ++count.grazing;
+            return;
+        }
+        const Rgb cq = geo_.integer_steps
+                           ? bgr_at(frame_.color, static_cast<int>(qu), static_cast<int>(qv))
+                           : bilinear(frame_.color, qu, qv);
+        // Joint bilateral average of the plane offsets over the 3x3 samples.
+        double wsum = 0.0, wssum = 0.0, hsum = 0.0;
+        for (int a = 0; a < m; ++a) {
+            const int sb = std::min(kSpatialBins - 1, static_cast<int>(d2s[a] * kSpatialStep));
+            const int dc =
+                (std::abs(int(cq.r) - nb[a].rgb[0]) + std::abs(int(cq.g) - nb[a].rgb[1]) +
+                 std::abs(int(cq.b) - nb[a].rgb[2]) + 1) /
+                3;
+            const double ws = kernels_.spatial[sb];
+            const double w = ws * kernels_.range[std::min(dc, 255)];
+            hsum += w * nb[a].h;
+            wsum += w;
+            wssum += ws;
+        }
+        // Colour unlike every sample: fall back to the parent's plane.
+        const double h_parent = normal.dot(xp - geo_.origin);
+        const double t = wsum > 1e-12 ? hsum / (wsum * nr) : h_parent / nr;
+        const Eigen::Vector3d y = geo_.origin + t * ray;
+        if (!(t > 0.0) || (y - xp).squaredNorm() > geo_.max_offset2 * s_d * s_d) {
+            ++count.offset;
+            return;
+        }
+        const double colour_weight = std::min(1.0, (wsum > 1e-12 ? wsum : 1.0) / wssum);
+        out.push_back({y, normal, cq, static_cast<float>(parent_conf * colour_weight),
+                       static_cast<std::uint32_t>(ip)});
+    }
 
-    // Append in row order (deterministic).
+    const GridPoints& g_;
+    const RgbdFrame& frame_;
+    const PinholeIntrinsics& kc_;
+    const PinholeIntrinsics& kd_;
+    const ColourGeometry& geo_;
+    const Kernels& kernels_;
+    const UpsampleOptions& options_;
+    const std::optional<PointCloud::FloatMap>& confidence_map_;
+    const bool midpoints_;
+    const int k_children_;
+};
+
+/// Appends the children to the cloud in row order (deterministic), in the view's frame: colour,
+/// synthetic flag, confidence, the parent's pixel and view id, and a normal facing the parent's
+/// when the cloud has normals. A cloud without colours first gets the grid points' colours.
+/// Returns the number added.
+std::size_t append_children(PointCloud& cloud, const std::vector<std::vector<Child>>& row_children,
+                            const GridPoints& g, bool has_colors, const Pose& view_from_sensor) {
+    const std::size_t n = cloud.size();
+    const int height = g.height;
     std::vector<std::size_t> row_offset(height + 1, n);
     for (int row = 0; row < height; ++row)
         row_offset[row + 1] = row_offset[row] + row_children[row].size();
@@ -389,7 +492,7 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
     auto new_colors = cloud.add_colors();
     if (!has_colors) {
         for (std::size_t i = 0; i < n; ++i)
-            if (usable[i]) new_colors.set(PointSet::Index(i), rgb[i]);
+            if (g.usable[i]) new_colors.set(PointSet::Index(i), g.rgb[i]);
     }
     auto flag = cloud.add_flag(prop::kSynthetic);
     auto confidence = cloud.add_float(prop::kConfidence, 1.0f);
@@ -397,7 +500,6 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
     const auto view_ids = cloud.view_map();
     const bool normals = cloud.points.has_normal_map();
     cloud.points.resize(n + added);
-    const Pose view_from_sensor = world ? *cloud.view.world_from_sensor : Pose(Pose::Identity());
     tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
         for (int row = r.begin(); row != r.end(); ++row) {
             std::size_t o = row_offset[row];
@@ -418,7 +520,11 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
             }
         }
     });
+    return added;
+}
 
+/// The sum of the rows' counters.
+Counters sum_counts(const std::vector<Counters>& row_counts) {
     Counters total;
     for (const Counters& c : row_counts) {
         total.parents += c.parents;
@@ -430,11 +536,59 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
         total.grazing += c.grazing;
         total.offset += c.offset;
     }
+    return total;
+}
+
+}  // namespace
+
+Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOptions& options,
+                     const Progress& progress) {
+    Stopwatch watch;
+    options.check();
+    const std::string name = view_name(cloud, frame);
+    const PinholeIntrinsics& kd = checked_depth_intrinsics(cloud, frame, name);
+    const bool world = cloud.view.frame == ViewFrame::kWorld;
+    if (cloud.points.has_garbage()) cloud.points.collect_garbage();
+
+    const int height = cloud.view.grid_height;
+    const std::size_t n = cloud.size();
+    const Pose sensor_from_view =
+        world ? Pose(cloud.view.world_from_sensor->inverse()) : Pose(Pose::Identity());
+    const auto confidence_map = cloud.float_map(prop::kConfidence);
+    const bool has_colors = cloud.has_colors();
+    const GridPoints g = grid_points(cloud, frame, sensor_from_view, has_colors);
+    const double time_prepare_s = watch.seconds();
+    if (!report_progress(progress, 0.2)) throw AlgorithmError(name + ": upsample cancelled");
+
+    const ColourGeometry geo = colour_geometry(frame, kd, options);
+    const Kernels kernels = bilateral_kernels(options.sigma_spatial * geo.rho, options.sigma_color);
+    const ChildMaker maker(g, frame, kd, geo, kernels, options, confidence_map);
+
+    // Children per row (capacity reserved up front: no allocation in the inner loop).
+    std::vector<std::vector<Child>> row_children(height);
+    std::vector<Counters> row_counts(height);
+    std::vector<std::uint32_t> row_points(height, 0);
+    for (std::size_t pix = 0; pix < g.grid.size(); ++pix)
+        if (g.grid[pix] >= 0) ++row_points[pix / g.width];
+    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
+        for (int row = r.begin(); row != r.end(); ++row) {
+            row_children[row].reserve(static_cast<std::size_t>(row_points[row]) *
+                                      maker.children_per_point());
+            maker.row(row, row_children[row], row_counts[row]);
+        }
+    });
+    const double time_children_s = watch.seconds() - time_prepare_s;
+    if (!report_progress(progress, 0.8)) throw AlgorithmError(name + ": upsample cancelled");
+
+    const Pose view_from_sensor = world ? *cloud.view.world_from_sensor : Pose(Pose::Identity());
+    const std::size_t added = append_children(cloud, row_children, g, has_colors, view_from_sensor);
+
+    const Counters total = sum_counts(row_counts);
     Report report;
-    report["method"] = midpoints ? "midpoints" : "colour_pixels";
+    report["method"] = options.method == UpsampleMethod::kMidpoints ? "midpoints" : "colour_pixels";
     report["neighbors"] = options.neighbors;
-    report["rho"] = rho;
-    report["colour_steps"] = integer_steps ? "pixels" : "sub_pixel";
+    report["rho"] = geo.rho;
+    report["colour_steps"] = geo.integer_steps ? "pixels" : "sub_pixel";
     report["points_before"] = n;
     report["points_after"] = cloud.size();
     report["added"] = added;
