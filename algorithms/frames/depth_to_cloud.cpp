@@ -8,7 +8,10 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "algorithms/internal/kd_tree.hpp"
@@ -90,28 +93,31 @@ void atomic_min(float& slot, float value) {
 /// Per-point state of the colour mapping.
 enum ColourState : std::uint8_t { kColoured = 0, kHidden = 1, kOutside = 2 };
 
-}  // namespace
-
-PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, Report* report) {
-    Stopwatch watch;
-    options.check();
-    const std::string name = frame_name(frame);
-    check_frame(frame, options.use_mask, name);
-
-    const int width = frame.depth.cols;
-    const int height = frame.depth.rows;
-    const PinholeIntrinsics& kd = frame.depth_intrinsics;
-
-    // Resolve the depth window.
+/// The depth window [z_min, z_max] in metres: the options' limits, else the sensor's range
+/// (0 and +inf when unknown). InputError naming the frame when it is empty.
+std::pair<double, double> depth_window(const RgbdFrame& frame, const CloudOptions& options,
+                                       const std::string& name) {
     double z_min = options.z_min_m > 0.0 ? options.z_min_m : frame.range_min_m;
     double z_max = options.z_max_m > 0.0 ? options.z_max_m : frame.range_max_m;
     if (!(z_min > 0.0)) z_min = 0.0;
     if (!(z_max > 0.0)) z_max = std::numeric_limits<double>::infinity();
     RGBD_CHECK(z_max > z_min, name + ": depth window is empty (z_max <= z_min)");
-    const bool use_mask = options.use_mask && !frame.mask.empty();
+    return {z_min, z_max};
+}
 
-    // Pass 1: classify every pixel, count valid pixels per row.
-    std::vector<std::uint8_t> state(static_cast<std::size_t>(width) * height);
+/// Every depth pixel's PixelState, row-major, and where each row's valid pixels start in the
+/// output (row_offset[height] = the number of points).
+struct PixelClasses {
+    std::vector<std::uint8_t> state;
+    std::vector<std::size_t> row_offset;
+};
+
+/// Pass 1: classifies every pixel (no return, outside the depth window [z_min, z_max], masked
+/// out when `use_mask`, valid) and counts the valid pixels per row.
+PixelClasses classify_pixels(const RgbdFrame& frame, double z_min, double z_max, bool use_mask) {
+    const int width = frame.depth.cols, height = frame.depth.rows;
+    PixelClasses pc;
+    pc.state.resize(static_cast<std::size_t>(width) * height);
     std::vector<std::uint32_t> row_valid(height, 0);
     tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
         for (int row = r.begin(); row != r.end(); ++row) {
@@ -127,176 +133,220 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
                     s = kOutsideWindow;
                 else if (mask && mask[col] == 0)
                     s = kMasked;
-                state[static_cast<std::size_t>(row) * width + col] = s;
+                pc.state[static_cast<std::size_t>(row) * width + col] = s;
                 count += s == kValid;
             }
             row_valid[row] = count;
         }
     });
-    std::vector<std::size_t> row_offset(height + 1, 0);
-    for (int row = 0; row < height; ++row) row_offset[row + 1] = row_offset[row] + row_valid[row];
-    const std::size_t n = row_offset[height];
+    pc.row_offset.assign(height + 1, 0);
+    for (int row = 0; row < height; ++row)
+        pc.row_offset[row + 1] = pc.row_offset[row] + row_valid[row];
+    return pc;
+}
 
-    // Pass 2: back-project; project into the colour camera.
+/// The points of the valid pixels, in row-major pixel order, and their view in the colour camera
+/// (colour members empty without a colour image).
+struct Points {
+    std::vector<Eigen::Vector3d> xyz;  ///< depth-camera frame
+    std::vector<std::uint32_t> pixel;  ///< row * width + col
+    std::vector<Eigen::Vector2d> uv;   ///< colour-image position
+    std::vector<double> zc;            ///< depth in the colour camera
+    std::vector<std::uint8_t> cstate;  ///< ColourState
+};
+
+/// Pass 2: back-projects the valid pixels with the depth intrinsics and projects them into the
+/// colour camera (kOutside when behind it or outside its image).
+Points back_project(const RgbdFrame& frame, const PixelClasses& pc) {
+    const int width = frame.depth.cols, height = frame.depth.rows;
+    const std::size_t n = pc.row_offset[height];
     const bool has_color = !frame.color.empty();
+    const PinholeIntrinsics& kd = frame.depth_intrinsics;
     const PinholeIntrinsics& kc = frame.color_intrinsics;
-    std::vector<Eigen::Vector3d> xyz(n);
-    std::vector<std::uint32_t> pixel(n);
-    std::vector<Eigen::Vector2d> uv(has_color ? n : 0);
-    std::vector<double> zc(has_color ? n : 0);
-    std::vector<std::uint8_t> cstate(has_color ? n : 0, kColoured);
+    Points pts;
+    pts.xyz.resize(n);
+    pts.pixel.resize(n);
+    pts.uv.resize(has_color ? n : 0);
+    pts.zc.resize(has_color ? n : 0);
+    pts.cstate.assign(has_color ? n : 0, kColoured);
     const Pose& c_from_d = frame.color_from_depth;
     tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
         for (int row = r.begin(); row != r.end(); ++row) {
             const float* depth = frame.depth.ptr<float>(row);
-            std::size_t out = row_offset[row];
+            std::size_t out = pc.row_offset[row];
             for (int col = 0; col < width; ++col) {
                 const std::size_t pix = static_cast<std::size_t>(row) * width + col;
-                if (state[pix] != kValid) continue;
+                if (pc.state[pix] != kValid) continue;
                 const Eigen::Vector3d p = kd.unproject(col, row, depth[col]);
-                xyz[out] = p;
-                pixel[out] = static_cast<std::uint32_t>(pix);
+                pts.xyz[out] = p;
+                pts.pixel[out] = static_cast<std::uint32_t>(pix);
                 if (has_color) {
-                    const Eigen::Vector3d pc = c_from_d * p;
-                    zc[out] = pc.z();
-                    if (pc.z() <= 0.0) {
-                        cstate[out] = kOutside;
+                    const Eigen::Vector3d q = c_from_d * p;
+                    pts.zc[out] = q.z();
+                    if (q.z() <= 0.0) {
+                        pts.cstate[out] = kOutside;
                     } else {
-                        uv[out] = kc.project(pc);
-                        if (!std::isfinite(uv[out].x()) || !std::isfinite(uv[out].y()) ||
-                            !kc.contains(uv[out]))
-                            cstate[out] = kOutside;
+                        pts.uv[out] = kc.project(q);
+                        if (!std::isfinite(pts.uv[out].x()) || !std::isfinite(pts.uv[out].y()) ||
+                            !kc.contains(pts.uv[out]))
+                            pts.cstate[out] = kOutside;
                     }
                 }
                 ++out;
             }
         }
     });
+    return pts;
+}
 
-    // Pass 3: z-buffer in colour space, one splat of the depth-pixel footprint per point.
-    const int cw = has_color ? kc.width : 0;
-    const int ch = has_color ? kc.height : 0;
-    std::vector<float> zbuffer;
-    const bool zbuffered = has_color && options.visibility_test;
-    if (zbuffered) {
-        zbuffer.assign(static_cast<std::size_t>(cw) * ch, std::numeric_limits<float>::infinity());
-        const double ratio_u = kc.fx / kd.fx * options.splat_scale * 0.5;
-        const double ratio_v = kc.fy / kd.fy * options.splat_scale * 0.5;
-        const double max_half = options.max_splat_radius_px;
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                  if (cstate[i] != kColoured) continue;
-                                  const double scale = xyz[i].z() / zc[i];
-                                  const double hu = std::clamp(ratio_u * scale, 0.5, max_half);
-                                  const double hv = std::clamp(ratio_v * scale, 0.5, max_half);
-                                  const int u0 = std::max(0, int(std::ceil(uv[i].x() - hu)));
-                                  const int u1 = std::min(cw - 1, int(std::floor(uv[i].x() + hu)));
-                                  const int v0 = std::max(0, int(std::ceil(uv[i].y() - hv)));
-                                  const int v1 = std::min(ch - 1, int(std::floor(uv[i].y() + hv)));
-                                  const float z = static_cast<float>(zc[i]);
-                                  for (int v = v0; v <= v1; ++v)
-                                      for (int u = u0; u <= u1; ++u)
-                                          atomic_min(zbuffer[static_cast<std::size_t>(v) * cw + u],
-                                                     z);
-                              }
-                          });
+/// Pass 3: z-buffer in colour space (row-major, +inf where nothing lands), one splat of the
+/// depth-pixel footprint (splat_scale, at most max_splat_radius_px) per point the colour
+/// camera sees.
+std::vector<float> colour_zbuffer(const RgbdFrame& frame, const Points& pts,
+                                  const CloudOptions& options) {
+    const PinholeIntrinsics& kd = frame.depth_intrinsics;
+    const PinholeIntrinsics& kc = frame.color_intrinsics;
+    const int cw = kc.width, ch = kc.height;
+    std::vector<float> zbuffer(static_cast<std::size_t>(cw) * ch,
+                               std::numeric_limits<float>::infinity());
+    const double ratio_u = kc.fx / kd.fx * options.splat_scale * 0.5;
+    const double ratio_v = kc.fy / kd.fy * options.splat_scale * 0.5;
+    const double max_half = options.max_splat_radius_px;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pts.xyz.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              if (pts.cstate[i] != kColoured) continue;
+                              const double scale = pts.xyz[i].z() / pts.zc[i];
+                              const double hu = std::clamp(ratio_u * scale, 0.5, max_half);
+                              const double hv = std::clamp(ratio_v * scale, 0.5, max_half);
+                              const Eigen::Vector2d& q = pts.uv[i];
+                              const int u0 = std::max(0, int(std::ceil(q.x() - hu)));
+                              const int u1 = std::min(cw - 1, int(std::floor(q.x() + hu)));
+                              const int v0 = std::max(0, int(std::ceil(q.y() - hv)));
+                              const int v1 = std::min(ch - 1, int(std::floor(q.y() + hv)));
+                              const float z = static_cast<float>(pts.zc[i]);
+                              for (int v = v0; v <= v1; ++v)
+                                  for (int u = u0; u <= u1; ++u)
+                                      atomic_min(zbuffer[static_cast<std::size_t>(v) * cw + u], z);
+                          }
+                      });
+    return zbuffer;
+}
+
+/// The colour of point i (at colour-image position (u, v), depth zc in the colour camera):
+/// depth-aware bilinear sample, the taps whose z-buffer shows a different surface (beyond tol;
+/// every tap without `zbuffer`) left out, so colour does not bleed across edges; the rounded
+/// tap when no tap has weight. Returns false (point hidden) when the rounded tap's z-buffer
+/// lies more than tol in front of it.
+bool sample_colour(const cv::Mat& color, const std::vector<float>* zbuffer, double u, double v,
+                   double zc, double tol, Rgb& rgb) {
+    const int cw = color.cols, ch = color.rows;
+    auto consistent = [&](int tu, int tv) {
+        if (!zbuffer) return true;
+        const double b = (*zbuffer)[static_cast<std::size_t>(tv) * cw + tu];
+        return std::abs(zc - b) <= tol;
+    };
+    const int ru = std::clamp(int(std::lround(u)), 0, cw - 1);
+    const int rv = std::clamp(int(std::lround(v)), 0, ch - 1);
+    if (zbuffer && zc - (*zbuffer)[static_cast<std::size_t>(rv) * cw + ru] > tol) return false;
+    const int x0 = int(std::floor(u)), y0 = int(std::floor(v));
+    const double ax = u - x0, ay = v - y0;
+    double acc[3] = {0, 0, 0};
+    double wsum = 0.0;
+    for (int dy = 0; dy < 2; ++dy) {
+        for (int dx = 0; dx < 2; ++dx) {
+            const double w = (dx ? ax : 1.0 - ax) * (dy ? ay : 1.0 - ay);
+            if (w <= 0.0) continue;
+            const int tu = std::clamp(x0 + dx, 0, cw - 1);
+            const int tv = std::clamp(y0 + dy, 0, ch - 1);
+            if (!consistent(tu, tv)) continue;
+            const cv::Vec3b bgr = color.at<cv::Vec3b>(tv, tu);
+            acc[0] += w * bgr[2];
+            acc[1] += w * bgr[1];
+            acc[2] += w * bgr[0];
+            wsum += w;
+        }
     }
-
-    // Pass 4: visibility test and depth-aware bilinear colour sample (taps that show a
-    // different surface than the point are left out, so colour does not bleed across edges).
-    std::vector<Rgb> rgb(has_color ? n : 0);
-    if (has_color) {
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, n, 1024),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                    if (cstate[i] != kColoured) continue;
-                    const double u = uv[i].x(), v = uv[i].y();
-                    const double tol = options.sigma_factor * default_sigma_z(xyz[i].z()) +
-                                       options.occlusion_margin_m;
-                    auto consistent = [&](int tu, int tv) {
-                        if (!zbuffered) return true;
-                        const double b = zbuffer[static_cast<std::size_t>(tv) * cw + tu];
-                        return std::abs(zc[i] - b) <= tol;
-                    };
-                    const int ru = std::clamp(int(std::lround(u)), 0, cw - 1);
-                    const int rv = std::clamp(int(std::lround(v)), 0, ch - 1);
-                    if (zbuffered &&
-                        zc[i] - zbuffer[static_cast<std::size_t>(rv) * cw + ru] > tol) {
-                        cstate[i] = kHidden;
-                        continue;
-                    }
-                    const int x0 = int(std::floor(u)), y0 = int(std::floor(v));
-                    const double ax = u - x0, ay = v - y0;
-                    double acc[3] = {0, 0, 0};
-                    double wsum = 0.0;
-                    for (int dy = 0; dy < 2; ++dy) {
-                        for (int dx = 0; dx < 2; ++dx) {
-                            const double w = (dx ? ax : 1.0 - ax) * (dy ? ay : 1.0 - ay);
-                            if (w <= 0.0) continue;
-                            const int tu = std::clamp(x0 + dx, 0, cw - 1);
-                            const int tv = std::clamp(y0 + dy, 0, ch - 1);
-                            if (!consistent(tu, tv)) continue;
-                            const cv::Vec3b bgr = frame.color.at<cv::Vec3b>(tv, tu);
-                            acc[0] += w * bgr[2];
-                            acc[1] += w * bgr[1];
-                            acc[2] += w * bgr[0];
-                            wsum += w;
-                        }
-                    }
-                    if (wsum <= 0.0) {  // only when the rounded tap has zero weight: use it
-                        const cv::Vec3b bgr = frame.color.at<cv::Vec3b>(rv, ru);
-                        rgb[i] = {bgr[2], bgr[1], bgr[0]};
-                        continue;
-                    }
-                    auto to8 = [&](double c) {
-                        return static_cast<std::uint8_t>(std::clamp(c / wsum + 0.5, 0.0, 255.0));
-                    };
-                    rgb[i] = {to8(acc[0]), to8(acc[1]), to8(acc[2])};
-                }
-            });
+    if (wsum <= 0.0) {  // only when the rounded tap has zero weight: use it
+        const cv::Vec3b bgr = color.at<cv::Vec3b>(rv, ru);
+        rgb = {bgr[2], bgr[1], bgr[0]};
+        return true;
     }
+    auto to8 = [&](double c) {
+        return static_cast<std::uint8_t>(std::clamp(c / wsum + 0.5, 0.0, 255.0));
+    };
+    rgb = {to8(acc[0]), to8(acc[1]), to8(acc[2])};
+    return true;
+}
 
-    // Pass 5: uncoloured points take the colour of the nearest coloured point (3D distance,
-    // so a background point never takes the colour of the foreground across an edge).
-    std::size_t hidden = 0, outside = 0;
-    if (has_color) {
-        std::vector<Eigen::Vector3d> coloured_xyz;
-        std::vector<std::uint32_t> coloured_id;
-        for (std::size_t i = 0; i < n; ++i) {
-            hidden += cstate[i] == kHidden;
-            outside += cstate[i] == kOutside;
-            if (cstate[i] == kColoured) {
-                coloured_xyz.push_back(xyz[i]);
-                coloured_id.push_back(static_cast<std::uint32_t>(i));
+/// Pass 4: visibility test and colour sample (sample_colour()) of every point the colour
+/// camera sees; a point hidden behind another surface (tolerance sigma_factor sigma_z +
+/// occlusion_margin_m) becomes kHidden. No `zbuffer`: no visibility test.
+std::vector<Rgb> sample_colours(const RgbdFrame& frame, const std::vector<float>* zbuffer,
+                                const CloudOptions& options, Points& pts) {
+    const std::size_t n = pts.xyz.size();
+    std::vector<Rgb> rgb(n);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                if (pts.cstate[i] != kColoured) continue;
+                const double tol = options.sigma_factor * default_sigma_z(pts.xyz[i].z()) +
+                                   options.occlusion_margin_m;
+                if (!sample_colour(frame.color, zbuffer, pts.uv[i].x(), pts.uv[i].y(), pts.zc[i],
+                                   tol, rgb[i]))
+                    pts.cstate[i] = kHidden;
             }
-        }
-        if (hidden + outside > 0) {
-            const internal::KdTree tree(coloured_xyz);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                      if (cstate[i] == kColoured) continue;
-                                      std::uint32_t nearest = 0;
-                                      double sq = 0.0;
-                                      rgb[i] = tree.nearest(xyz[i], nearest, sq)
-                                                   ? rgb[coloured_id[nearest]]
-                                                   : options.fallback_color;
-                                  }
-                              });
+        });
+    return rgb;
+}
+
+/// Pass 5: uncoloured points take the colour of the nearest coloured point (3D distance, so a
+/// background point never takes the colour of the foreground across an edge), or `fallback`
+/// when none is coloured. Returns the numbers of hidden and outside points.
+std::pair<std::size_t, std::size_t> colour_uncoloured(const Points& pts, const Rgb& fallback,
+                                                      std::vector<Rgb>& rgb) {
+    const std::size_t n = pts.xyz.size();
+    std::size_t hidden = 0, outside = 0;
+    std::vector<Eigen::Vector3d> coloured_xyz;
+    std::vector<std::uint32_t> coloured_id;
+    for (std::size_t i = 0; i < n; ++i) {
+        hidden += pts.cstate[i] == kHidden;
+        outside += pts.cstate[i] == kOutside;
+        if (pts.cstate[i] == kColoured) {
+            coloured_xyz.push_back(pts.xyz[i]);
+            coloured_id.push_back(static_cast<std::uint32_t>(i));
         }
     }
+    if (hidden + outside == 0) return {hidden, outside};
+    const internal::KdTree tree(coloured_xyz);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                if (pts.cstate[i] == kColoured) continue;
+                std::uint32_t nearest = 0;
+                double sq = 0.0;
+                rgb[i] =
+                    tree.nearest(pts.xyz[i], nearest, sq) ? rgb[coloured_id[nearest]] : fallback;
+            }
+        });
+    return {hidden, outside};
+}
 
-    // Output cloud, row-major pixel order.
+/// The output cloud, row-major pixel order, in the sensor frame with the frame's metadata:
+/// pixel, confidence (the frame's, clamped to [0, 1], 0 where not finite; else 1) and, with a
+/// colour image, colour and the uncoloured flag.
+PointCloud organised_cloud(const RgbdFrame& frame, const Points& pts, const std::vector<Rgb>& rgb) {
+    const int width = frame.depth.cols;
+    const std::size_t n = pts.xyz.size();
+    const bool has_color = !frame.color.empty();
     PointCloud cloud;
     cloud.view.frame = ViewFrame::kSensor;
     cloud.view.sensor = frame.sensor_id;
     cloud.view.time_ns = frame.timestamp_ns;
-    cloud.view.intrinsics = kd;
+    cloud.view.intrinsics = frame.depth_intrinsics;
     if (frame.has_pose) cloud.view.world_from_sensor = frame.world_from_sensor;
     cloud.view.grid_width = width;
-    cloud.view.grid_height = height;
+    cloud.view.grid_height = frame.depth.rows;
     cloud.view.source = frame.source;
     cloud.points.resize(n);
     auto pixel_map = cloud.add_pixel_map();
@@ -312,23 +362,51 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
         tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const PointSet::Index idx(i);
-                cloud.points.point(idx) = to_point(xyz[i]);
-                pixel_map[idx] = pixel[i];
+                cloud.points.point(idx) = to_point(pts.xyz[i]);
+                pixel_map[idx] = pts.pixel[i];
                 if (has_confidence) {
-                    const float c =
-                        frame.confidence.at<float>(int(pixel[i] / width), int(pixel[i] % width));
+                    const float c = frame.confidence.at<float>(int(pts.pixel[i] / width),
+                                                               int(pts.pixel[i] % width));
                     confidence[idx] = std::isfinite(c) ? std::clamp(c, 0.0f, 1.0f) : 0.0f;
                 }
                 if (has_color) {
                     colors->set(idx, rgb[i]);
-                    (*uncoloured)[idx] = cstate[i] != kColoured ? 1 : 0;
+                    (*uncoloured)[idx] = pts.cstate[i] != kColoured ? 1 : 0;
                 }
             }
         });
+    return cloud;
+}
+
+}  // namespace
+
+PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, Report* report) {
+    Stopwatch watch;
+    options.check();
+    const std::string name = frame_name(frame);
+    check_frame(frame, options.use_mask, name);
+
+    const auto [z_min, z_max] = depth_window(frame, options, name);
+    const bool use_mask = options.use_mask && !frame.mask.empty();
+    const PixelClasses classes = classify_pixels(frame, z_min, z_max, use_mask);
+    Points pts = back_project(frame, classes);
+    const std::size_t n = pts.xyz.size();
+
+    // Colour: visibility in the colour camera, colour sample, the rest from their neighbours.
+    const bool has_color = !frame.color.empty();
+    std::vector<Rgb> rgb;
+    std::size_t hidden = 0, outside = 0;
+    if (has_color) {
+        std::vector<float> zbuffer;
+        if (options.visibility_test) zbuffer = colour_zbuffer(frame, pts, options);
+        rgb = sample_colours(frame, options.visibility_test ? &zbuffer : nullptr, options, pts);
+        std::tie(hidden, outside) = colour_uncoloured(pts, options.fallback_color, rgb);
+    }
+    PointCloud cloud = organised_cloud(frame, pts, rgb);
 
     if (report) {
         std::size_t invalid = 0, window = 0, masked = 0;
-        for (std::uint8_t s : state) {
+        for (std::uint8_t s : classes.state) {
             invalid += s == kInvalid;
             window += s == kOutsideWindow;
             masked += s == kMasked;
@@ -337,7 +415,7 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
         rep["z_min_m"] = z_min;
         rep["z_max_m"] = std::isfinite(z_max) ? nlohmann::json(z_max) : nlohmann::json(nullptr);
         rep["mask_used"] = use_mask;
-        rep["pixels"] = state.size();
+        rep["pixels"] = classes.state.size();
         rep["points"] = n;
         rep["invalid_depth"] = invalid;
         rep["removed_depth_window"] = window;
