@@ -36,6 +36,247 @@ private:
     Progress progress_;
 };
 
+/// Appends a row to the stages table.
+void add_stage(ReconstructResult& result, const std::string& name, double seconds, std::size_t in,
+               std::size_t out, Report extra = Report::object()) {
+    result.stages.push_back({name, seconds, in, out, std::move(extra)});
+}
+
+/// Hands the views after stage number `index` to the front end, if it asked for them.
+void views_after(const ReconstructHooks& hooks, int index, const std::string& stage,
+                 const std::vector<PointCloud>& views) {
+    if (hooks.views_after) hooks.views_after(index, stage, views);
+}
+
+/// The views of stages 1-3 and what the stages table needs of them.
+struct CloudViews {
+    std::vector<PointCloud> views;
+    double clean_time = 0, upsample_time = 0, extract_time = 0;
+    std::size_t cloud_points = 0, extracted_points = 0, clean_points = 0, upsample_views = 0;
+};
+
+/// 1a. One coloured cloud per frame (its report in view_reports), without extraction; the
+/// frames stay loaded in `loaded` for the super-resolution.
+void load_views(const io::Capture& capture, const std::vector<FrameRef>& frames,
+                const ReconstructOptions& options, const std::optional<Eigen::Vector3d>& centre,
+                const Progress& progress, CloudViews& cv, std::vector<RgbdFrame>& loaded,
+                std::vector<Report>& view_reports) {
+    for (const auto& [id, position] : frames) {
+        Report v;
+        loaded.push_back(io::load_frame(capture, id, position));
+        cv.views.push_back(view_from_frame(loaded.back(), static_cast<int>(cv.views.size()),
+                                           options.cloud, centre, /*extraction=*/{0.0}, v));
+        cv.cloud_points += cv.views.back().size();
+        view_reports.push_back(std::move(v));
+        report_progress(progress, 0.5 * cv.views.size() / frames.size());
+    }
+}
+
+/// 1b. The object extraction over all views (report["extraction"], its note a warning); the
+/// points it removed go to result.removed. InputError prefixed with the capture's root.
+void extract_subject(const std::optional<Eigen::Vector3d>& centre,
+                     const ReconstructOptions& options, const ReconstructHooks& hooks,
+                     const std::string& root, CloudViews& cv, ReconstructResult& result) {
+    Report& report = result.report;
+    Stopwatch extract_watch;
+    try {
+        report["extraction"] =
+            extract_stage(cv.views, centre, options.extraction, {}, &result.removed);
+    } catch (const InputError& e) {
+        throw InputError(root + ": " + e.what());
+    }
+    if (report["extraction"].contains("note") && hooks.warn)
+        hooks.warn(report["extraction"]["note"].get<std::string>());
+    cv.extract_time = extract_watch.seconds();
+    cv.extracted_points = count_points(cv.views);
+}
+
+/// 2. distance-based cleaning and 3. super-resolution of one view (where the colour camera has
+/// more pixels than the depth one), reported in `v`. InputError naming the capture, view and
+/// sensor when fewer than 100 points are left after cleaning.
+void clean_and_upsample(PointCloud& cloud, const RgbdFrame& frame,
+                        const ReconstructOptions& options, const std::string& root, Report& v,
+                        CloudViews& cv) {
+    const auto& skip = options.skip;
+    const std::string& id = frame.sensor_id;
+    v["points"] = cloud.size();
+    // The noise model: the option, else the one the view's sensor names (the stream's
+    // metadata, as rgbd-clean --noise-model auto reads it down the pipe).
+    denoise::DistanceOptions distance_options = options.distance;
+    distance_options.noise_model =
+        options.noise_model ? *options.noise_model
+                            : view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
+    if (!skip.count("distance")) {
+        Stopwatch clean_watch;
+        v["distance"] = denoise::remove_distance_outliers(cloud, distance_options);
+        cv.clean_time += clean_watch.seconds();
+    }
+    cv.clean_points += cloud.size();
+    v["points_after_cleaning"] = cloud.size();
+    if (cloud.size() < 100)
+        throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
+                         ") has only " + std::to_string(cloud.size()) + " points of the subject");
+    // Super-resolution where the colour camera has more pixels than the depth one.
+    const bool finer_colour = !frame.color.empty() && static_cast<double>(frame.color.total()) >
+                                                          static_cast<double>(frame.depth.total());
+    if (!skip.count("upsample") && finer_colour && cloud.view.has_grid()) {
+        Stopwatch upsample_watch;
+        v["upsample"] = upsample::upsample_view(cloud, frame, options.upsample);
+        cv.upsample_time += upsample_watch.seconds();
+        ++cv.upsample_views;
+    }
+}
+
+/// Stages 1-3 (the "clouds" progress stage): clouds, then the object extraction over all of
+/// them, then distance-based cleaning and super-resolution, one view at a time; each view's
+/// report goes to report["views"].
+CloudViews cloud_views(const io::Capture& capture, const std::vector<FrameRef>& frames,
+                       const ReconstructOptions& options, const ReconstructHooks& hooks,
+                       ReconstructResult& result) {
+    const std::string root = capture.root.string();
+    Report& report = result.report;
+    CloudViews cv;
+    std::vector<RgbdFrame> loaded;
+    std::vector<Report> view_reports;
+    report["views"] = Report::array();
+    StageScope scope(hooks, "clouds");
+    const auto centre = object_centre(capture, frames);
+    load_views(capture, frames, options, centre, scope.progress(), cv, loaded, view_reports);
+    extract_subject(centre, options, hooks, root, cv, result);
+    for (std::size_t i = 0; i < cv.views.size(); ++i) {
+        clean_and_upsample(cv.views[i], loaded[i], options, root, view_reports[i], cv);
+        report["views"].push_back(view_reports[i]);
+        report_progress(scope.progress(), 0.5 + 0.5 * (i + 1.0) / frames.size());
+    }
+    return cv;
+}
+
+/// The stages table's rows of stages 1-3 (`seconds`: their wall-clock time, of which the
+/// clouds' row gets what cleaning, upsampling and extraction did not take).
+void add_cloud_stages(const CloudViews& cv, double seconds, const ReconstructOptions& options,
+                      const ReconstructHooks& hooks, ReconstructResult& result) {
+    const auto& skip = options.skip;
+    const std::size_t upsampled_points = count_points(cv.views);
+    add_stage(result, "clouds", seconds - cv.clean_time - cv.upsample_time - cv.extract_time, 0,
+              cv.cloud_points, {{"views", cv.views.size()}});
+    if (options.extraction.enabled)
+        add_stage(result, "extract", cv.extract_time, cv.cloud_points, cv.extracted_points);
+    if (!skip.count("distance"))
+        add_stage(result, "distance", cv.clean_time, cv.extracted_points, cv.clean_points);
+    if (!skip.count("upsample")) {
+        add_stage(result, "upsample", cv.upsample_time, cv.clean_points, upsampled_points,
+                  {{"views", cv.upsample_views}});
+        if (cv.upsample_views == 0 && hooks.info)
+            hooks.info("upsample: no view has a colour camera finer than its depth camera");
+    }
+}
+
+/// 4. alignment (report["align"]); a warning for every view whose verdict is not PASS.
+void register_views(std::vector<PointCloud>& views, const ReconstructOptions& options,
+                    const ReconstructHooks& hooks, ReconstructResult& result) {
+    Report& report = result.report;
+    Stopwatch watch;
+    const std::size_t in = count_points(views);
+    {
+        StageScope scope(hooks, "align");
+        report["align"] = align_stage(views, options.align, scope.progress());
+    }
+    const double align_time = watch.seconds();
+    views_after(hooks, 2, "align", views);
+    add_stage(result, "align", align_time, in, count_points(views));
+    for (const auto& v : report["align"]["views"])
+        if (v["verdict"] != "PASS" && hooks.warn)
+            hooks.warn("view " + std::to_string(v["view"].get<int>()) + " (" +
+                       v["sensor"].get<std::string>() + "): registration " +
+                       v["verdict"].get<std::string>());
+}
+
+/// 4b. the stand the object stands on (turntable captures: one sensor, many views), when it
+/// applies (report["stand"], its note an info); its plane travels in the views' metadata to
+/// the mesh stage, as through rgbd-align's pipe.
+void remove_stand(std::vector<PointCloud>& views, const ReconstructOptions& options,
+                  const ReconstructHooks& hooks, ReconstructResult& result) {
+    if (!stand_applies(views, options.stand)) return;
+    Report& report = result.report;
+    Stopwatch watch;
+    const std::size_t in = count_points(views);
+    {
+        StageScope scope(hooks, "stand");
+        report["stand"] =
+            stand_stage(views, options.stand, options.stand_options, scope.progress());
+    }
+    if (report["stand"].contains("note") && hooks.info)
+        hooks.info(report["stand"]["note"].get<std::string>());
+    add_stage(result, "stand", watch.seconds(), in, count_points(views));
+}
+
+/// The views (stops) used, with their registration verdicts from `align_views`.
+Report views_used(const std::vector<PointCloud>& views, const Report& align_views) {
+    Report used = Report::array();
+    for (std::size_t i = 0; i < views.size(); ++i) {
+        Report u = {{"view", views[i].view.id}, {"sensor", views[i].view.sensor}};
+        if (views[i].view.frame_index) u["frame_index"] = *views[i].view.frame_index;
+        if (i < align_views.size() && align_views[i].contains("verdict"))
+            u["verdict"] = align_views[i]["verdict"];
+        used.push_back(std::move(u));
+    }
+    return used;
+}
+
+/// 5. density-based cleaning over the aligned views (report["density"]).
+void clean_by_density(std::vector<PointCloud>& views, const denoise::DensityOptions& options,
+                      const ReconstructHooks& hooks, ReconstructResult& result) {
+    Stopwatch watch;
+    const std::size_t in = count_points(views);
+    {
+        StageScope scope(hooks, "density");
+        result.report["density"] =
+            denoise::remove_density_outliers(views, options, scope.progress());
+    }
+    add_stage(result, "density", watch.seconds(), in, count_points(views));
+    views_after(hooks, 3, "density", views);
+}
+
+/// 6. hole filling: one more view with the added points (report["fill"], its note a warning).
+void fill_holes(std::vector<PointCloud>& views, const ReconstructOptions& options,
+                const ReconstructHooks& hooks, ReconstructResult& result) {
+    Stopwatch watch;
+    const std::size_t in = count_points(views);
+    std::vector<PointCloud*> pointers;
+    for (auto& v : views) pointers.push_back(&v);
+    Report fill_report;
+    std::optional<PointCloud> added;
+    {
+        StageScope scope(hooks, "fill");
+        added = fill_stage(pointers, options.fill, fill_report, scope.progress());
+    }
+    if (fill_report.contains("note") && hooks.warn)
+        hooks.warn(fill_report["note"].get<std::string>());
+    const std::size_t count = added ? added->size() : 0;
+    if (added) views.push_back(std::move(*added));
+    result.report["fill"] = fill_report;
+    add_stage(result, "fill", watch.seconds(), in, in + count, {{"points_added", count}});
+    views_after(hooks, 4, "fill", views);
+}
+
+/// 7. merge + mesh (report["mesh"]), consuming the views, then the mesh's quality
+/// (report["mesh_quality"]: slivers, folds, spikes, surface far from every input point, grey
+/// fill colours) against result.input.
+void mesh_views(std::vector<PointCloud>&& views, const ReconstructOptions& options,
+                const ReconstructHooks& hooks, ReconstructResult& result) {
+    Stopwatch watch;
+    const std::size_t mesh_in = count_points(views);
+    {
+        StageScope scope(hooks, "mesh");
+        Report mesh_report;
+        result.mesh = mesh_stage(std::move(views), options.mesh, mesh_report, scope.progress());
+        result.report["mesh"] = mesh_report;
+    }
+    add_stage(result, "mesh", watch.seconds(), mesh_in, result.mesh.number_of_vertices(),
+              {{"faces", result.mesh.number_of_faces()}});
+    result.report["mesh_quality"] = evaluation::mesh_quality(result.mesh, &result.input.vertices);
+}
+
 }  // namespace
 
 const std::vector<std::string>& optional_stages() {
@@ -106,164 +347,31 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
                               const ReconstructOptions& options, const ReconstructHooks& hooks) {
     options.check();
     const auto& skip = options.skip;
-    const std::string root = capture.root.string();
     ReconstructResult result;
     Report& report = result.report;
-    auto add_stage = [&](const std::string& name, double seconds, std::size_t in, std::size_t out,
-                         Report extra = Report::object()) {
-        result.stages.push_back({name, seconds, in, out, std::move(extra)});
-    };
-    auto views_after = [&](int index, const std::string& stage,
-                           const std::vector<PointCloud>& views) {
-        if (hooks.views_after) hooks.views_after(index, stage, views);
-    };
-    // The noise model: the option, else the one each view's sensor names (the stream's
-    // metadata, as rgbd-clean --noise-model auto reads it down the pipe).
-    denoise::DistanceOptions distance_options = options.distance;
-    denoise::DensityOptions density_options = options.density;
-    density_options.seed = options.seed;
 
     // 1. clouds, then the object extraction over all of them, then 2. distance-based cleaning
     // and 3. super-resolution, one view at a time.
     Stopwatch watch;
-    double clean_time = 0, upsample_time = 0, extract_time = 0;
-    std::size_t cloud_points = 0, extracted_points = 0, clean_points = 0, upsample_views = 0;
-    std::vector<PointCloud> views;
-    std::vector<RgbdFrame> loaded;
-    std::vector<Report> view_reports;
-    report["views"] = Report::array();
-    {
-        StageScope scope(hooks, "clouds");
-        const auto centre = object_centre(capture, frames);
-        for (const auto& [id, position] : frames) {
-            Report v;
-            loaded.push_back(io::load_frame(capture, id, position));
-            views.push_back(view_from_frame(loaded.back(), static_cast<int>(views.size()),
-                                            options.cloud, centre, /*extraction=*/{0.0}, v));
-            cloud_points += views.back().size();
-            view_reports.push_back(std::move(v));
-            report_progress(scope.progress(), 0.5 * views.size() / frames.size());
-        }
-        Stopwatch extract_watch;
-        try {
-            report["extraction"] =
-                extract_stage(views, centre, options.extraction, {}, &result.removed);
-        } catch (const InputError& e) {
-            throw InputError(root + ": " + e.what());
-        }
-        if (report["extraction"].contains("note") && hooks.warn)
-            hooks.warn(report["extraction"]["note"].get<std::string>());
-        extract_time = extract_watch.seconds();
-        extracted_points = count_points(views);
-        for (std::size_t i = 0; i < views.size(); ++i) {
-            PointCloud& cloud = views[i];
-            const RgbdFrame& frame = loaded[i];
-            Report& v = view_reports[i];
-            const std::string& id = frame.sensor_id;
-            v["points"] = cloud.size();
-            distance_options.noise_model =
-                options.noise_model
-                    ? *options.noise_model
-                    : view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
-            if (!skip.count("distance")) {
-                Stopwatch clean_watch;
-                v["distance"] = denoise::remove_distance_outliers(cloud, distance_options);
-                clean_time += clean_watch.seconds();
-            }
-            clean_points += cloud.size();
-            v["points_after_cleaning"] = cloud.size();
-            if (cloud.size() < 100)
-                throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
-                                 ") has only " + std::to_string(cloud.size()) +
-                                 " points of the subject");
-            // Super-resolution where the colour camera has more pixels than the depth one.
-            const bool finer_colour =
-                !frame.color.empty() &&
-                static_cast<double>(frame.color.total()) > static_cast<double>(frame.depth.total());
-            if (!skip.count("upsample") && finer_colour && cloud.view.has_grid()) {
-                Stopwatch upsample_watch;
-                v["upsample"] = upsample::upsample_view(cloud, frame, options.upsample);
-                upsample_time += upsample_watch.seconds();
-                ++upsample_views;
-            }
-            report["views"].push_back(v);
-            report_progress(scope.progress(), 0.5 + 0.5 * (i + 1.0) / frames.size());
-        }
-    }
-    loaded.clear();
-    const std::size_t upsampled_points = count_points(views);
-    add_stage("clouds", watch.seconds() - clean_time - upsample_time - extract_time, 0,
-              cloud_points, {{"views", views.size()}});
-    if (options.extraction.enabled)
-        add_stage("extract", extract_time, cloud_points, extracted_points);
-    if (!skip.count("distance")) add_stage("distance", clean_time, extracted_points, clean_points);
-    if (!skip.count("upsample")) {
-        add_stage("upsample", upsample_time, clean_points, upsampled_points,
-                  {{"views", upsample_views}});
-        if (upsample_views == 0 && hooks.info)
-            hooks.info("upsample: no view has a colour camera finer than its depth camera");
-    }
+    CloudViews cv = cloud_views(capture, frames, options, hooks, result);
+    add_cloud_stages(cv, watch.seconds(), options, hooks, result);
+    std::vector<PointCloud>& views = cv.views;
+    // The density cleaning's noise model: the option, else the stream's.
+    denoise::DensityOptions density_options = options.density;
+    density_options.seed = options.seed;
     density_options.noise_model =
         options.noise_model ? *options.noise_model : stream_noise_model(views);
     report["noise_model"] = denoise::to_string(density_options.noise_model);
     if (hooks.info) hooks.info("clouds: " + std::to_string(views.size()) + " views");
-    views_after(1, "views", views);
+    views_after(hooks, 1, "views", views);
 
-    // 4. alignment.
-    watch = Stopwatch();
-    {
-        StageScope scope(hooks, "align");
-        report["align"] = align_stage(views, options.align, scope.progress());
-    }
-    const double align_time = watch.seconds();
-    views_after(2, "align", views);
-    add_stage("align", align_time, upsampled_points, count_points(views));
-    for (const auto& v : report["align"]["views"])
-        if (v["verdict"] != "PASS" && hooks.warn)
-            hooks.warn("view " + std::to_string(v["view"].get<int>()) + " (" +
-                       v["sensor"].get<std::string>() + "): registration " +
-                       v["verdict"].get<std::string>());
-
-    // 4b. the stand the object stands on (turntable captures: one sensor, many views); its
-    // plane travels in the views' metadata to the mesh stage, as through rgbd-align's pipe.
-    if (stand_applies(views, options.stand)) {
-        watch = Stopwatch();
-        const std::size_t in = count_points(views);
-        {
-            StageScope scope(hooks, "stand");
-            report["stand"] =
-                stand_stage(views, options.stand, options.stand_options, scope.progress());
-        }
-        if (report["stand"].contains("note") && hooks.info)
-            hooks.info(report["stand"]["note"].get<std::string>());
-        add_stage("stand", watch.seconds(), in, count_points(views));
-    }
-    // The views (stops) used, with their registration verdicts.
-    {
-        Report used = Report::array();
-        const Report& align_views = report["align"]["views"];
-        for (std::size_t i = 0; i < views.size(); ++i) {
-            Report u = {{"view", views[i].view.id}, {"sensor", views[i].view.sensor}};
-            if (views[i].view.frame_index) u["frame_index"] = *views[i].view.frame_index;
-            if (i < align_views.size() && align_views[i].contains("verdict"))
-                u["verdict"] = align_views[i]["verdict"];
-            used.push_back(std::move(u));
-        }
-        report["views_used"] = used;
-    }
+    // 4. alignment, 4b. the stand, and the views used.
+    register_views(views, options, hooks, result);
+    remove_stand(views, options, hooks, result);
+    report["views_used"] = views_used(views, report["align"]["views"]);
 
     // 5. density-based cleaning over the aligned views.
-    if (!skip.count("density")) {
-        watch = Stopwatch();
-        const std::size_t in = count_points(views);
-        {
-            StageScope scope(hooks, "density");
-            report["density"] =
-                denoise::remove_density_outliers(views, density_options, scope.progress());
-        }
-        add_stage("density", watch.seconds(), in, count_points(views));
-        views_after(3, "density", views);
-    }
+    if (!skip.count("density")) clean_by_density(views, density_options, hooks, result);
 
     // The aligned poses for the pose evaluation, before the views are consumed.
     for (const auto& v : views) {
@@ -272,26 +380,8 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
         result.poses.push_back(std::move(p));
     }
 
-    // 6. hole filling: one more view with the added points.
-    if (!skip.count("fill")) {
-        watch = Stopwatch();
-        const std::size_t in = count_points(views);
-        std::vector<PointCloud*> pointers;
-        for (auto& v : views) pointers.push_back(&v);
-        Report fill_report;
-        std::optional<PointCloud> added;
-        {
-            StageScope scope(hooks, "fill");
-            added = fill_stage(pointers, options.fill, fill_report, scope.progress());
-        }
-        if (fill_report.contains("note") && hooks.warn)
-            hooks.warn(fill_report["note"].get<std::string>());
-        const std::size_t count = added ? added->size() : 0;
-        if (added) views.push_back(std::move(*added));
-        report["fill"] = fill_report;
-        add_stage("fill", watch.seconds(), in, in + count, {{"points_added", count}});
-        views_after(4, "fill", views);
-    }
+    // 6. hole filling.
+    if (!skip.count("fill")) fill_holes(views, options, hooks, result);
 
     // The object's walls carried down to the stand's plane (cut margin_m above it), so that the
     // closed mesh's flat base lies where the object stood.
@@ -302,18 +392,7 @@ ReconstructResult reconstruct(const io::Capture& capture, const std::vector<Fram
     result.input = render::from_views(views);
 
     // 7. merge + mesh.
-    watch = Stopwatch();
-    const std::size_t mesh_in = count_points(views);
-    {
-        StageScope scope(hooks, "mesh");
-        Report mesh_report;
-        result.mesh = mesh_stage(std::move(views), options.mesh, mesh_report, scope.progress());
-        report["mesh"] = mesh_report;
-    }
-    add_stage("mesh", watch.seconds(), mesh_in, result.mesh.number_of_vertices(),
-              {{"faces", result.mesh.number_of_faces()}});
-    // Slivers, folds, spikes, surface far from every input point, grey fill colours.
-    report["mesh_quality"] = evaluation::mesh_quality(result.mesh, &result.input.vertices);
+    mesh_views(std::move(views), options, hooks, result);
     report["counts"] = {{"views", result.poses.size()},
                         {"mesh_vertices", result.mesh.number_of_vertices()},
                         {"mesh_faces", result.mesh.number_of_faces()}};
