@@ -2,6 +2,8 @@
 // PointCloud, Mesh, the capture folder's rig and frame lists) with numpy accessors, the readers
 // and writers of io/, and the toolkit's errors as Python exceptions. The stages are in
 // bindings_stages.cpp. A thin layer: every computation is a call into the toolkit's libraries.
+#include "python/bindings.hpp"
+
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -16,7 +18,6 @@
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
 #include "pipeline/stages.hpp"
-#include "python/bindings.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::python {
@@ -62,8 +63,7 @@ Progress ProgressBridge::stage(const std::string& name) {
         py::gil_scoped_acquire gil;
         if (*self->error_) return false;
         try {
-            py::object result =
-                py::reinterpret_borrow<py::object>(callback)(name, fraction);
+            py::object result = py::reinterpret_borrow<py::object>(callback)(name, fraction);
             return result.is_none() || result.cast<bool>();
         } catch (...) {
             self->fail();
@@ -88,10 +88,9 @@ std::vector<PointCloud*> views_of(const py::handle& sequence, const char* functi
     for (std::size_t i = 0; i < list.size(); ++i) {
         py::object item = list[i];
         if (!py::isinstance<PointCloud>(item))
-            throw py::type_error(std::string(function) + "(): views[" + std::to_string(i) +
-                                 "] is a " +
-                                 std::string(py::str(py::type::of(item).attr("__name__"))) +
-                                 ", not a PointCloud");
+            throw py::type_error(
+                std::string(function) + "(): views[" + std::to_string(i) + "] is a " +
+                std::string(py::str(py::type::of(item).attr("__name__"))) + ", not a PointCloud");
         views.push_back(item.cast<PointCloud*>());
     }
     return views;
@@ -138,8 +137,8 @@ void check_rows3(const py::array& a, const std::string& what, long long rows = -
 void check_finite(const Doubles& a, const std::string& what) {
     const double* data = a.data();
     for (py::ssize_t i = 0; i < a.size(); ++i)
-        RGBD_CHECK(std::isfinite(data[i]), what + ": row " + std::to_string(i / 3) +
-                                               " is not finite (NaN or infinity)");
+        RGBD_CHECK(std::isfinite(data[i]),
+                   what + ": row " + std::to_string(i / 3) + " is not finite (NaN or infinity)");
 }
 
 /// An integer colour array as uint8, refusing values outside 0..255 (a float array in [0, 1]
@@ -265,8 +264,8 @@ void set_colors(PointCloud& cloud, const py::object& input) {
     }
 }
 
-PointCloud make_cloud(const py::array& points, const py::object& normals,
-                      const py::object& colors, const py::object& pose) {
+PointCloud make_cloud(const py::array& points, const py::object& normals, const py::object& colors,
+                      const py::object& pose) {
     check_rows3(points, "points");
     PointCloud cloud;
     cloud.points.resize(static_cast<std::size_t>(points.shape(0)));
@@ -385,11 +384,11 @@ Mesh make_mesh(const py::array& vertices, const py::array& faces, const py::obje
     const Doubles v = Doubles::ensure(vertices);
     check_finite(v, "vertices");
     check_rows3(faces, "faces");
-    RGBD_CHECK(py::dtype::of<std::int64_t>().kind() == faces.dtype().kind() ||
-                   faces.dtype().kind() == 'u',
-               "faces must be an integer array");
-    const auto f = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(
-        faces);
+    RGBD_CHECK(
+        py::dtype::of<std::int64_t>().kind() == faces.dtype().kind() || faces.dtype().kind() == 'u',
+        "faces must be an integer array");
+    const auto f =
+        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(faces);
     Mesh mesh;
     const auto n = static_cast<std::int64_t>(v.shape(0));
     for (std::int64_t i = 0; i < n; ++i)
@@ -403,9 +402,9 @@ Mesh make_mesh(const py::array& vertices, const py::array& faces, const py::obje
                                                     " of " + std::to_string(n));
             corner[k] = Mesh::Vertex_index(static_cast<std::uint32_t>(index));
         }
-        RGBD_CHECK(mesh.add_face(corner[0], corner[1], corner[2]) != Mesh::null_face(),
-                   "faces: row " + std::to_string(i) +
-                       " cannot be added (degenerate or non-manifold)");
+        RGBD_CHECK(
+            mesh.add_face(corner[0], corner[1], corner[2]) != Mesh::null_face(),
+            "faces: row " + std::to_string(i) + " cannot be added (degenerate or non-manifold)");
     }
     if (!colors.is_none()) {
         const Bytes c = colours_of(colors.cast<py::array>(), n);
@@ -430,8 +429,7 @@ void write_views(const py::handle& views, const std::filesystem::path& path) {
     std::ostringstream out;
     for (const PointCloud* cloud : clouds) io::write_points(out, *cloud);
     const std::string bytes = out.str();
-    io::write_bytes_atomic(path, reinterpret_cast<const std::uint8_t*>(bytes.data()),
-                           bytes.size());
+    io::write_bytes_atomic(path, reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
 }
 
 void save_mesh(const Mesh& mesh, const std::filesystem::path& path) {
@@ -475,13 +473,14 @@ PYBIND11_MODULE(_rgbd_toolkit, m) {
                            "colours, and the view's metadata (id, sensor, frame, pose). The "
                            "array properties return copies (the stages modify views in place, "
                            "so a view into their storage would dangle); assign to set them.")
-        .def(py::init(&make_cloud), "points"_a, "normals"_a = py::none(),
-             "colors"_a = py::none(), "pose"_a = py::none(),
+        .def(py::init(&make_cloud), "points"_a, "normals"_a = py::none(), "colors"_a = py::none(),
+             "pose"_a = py::none(),
              "A view from an N x 3 point array, optional N x 3 normals, N x 3 uint8 RGB colours "
              "and a 4 x 4 world_from_sensor pose. Raises ValueError for wrong shapes or NaN.")
         .def("__len__", &PointCloud::size)
         .def("__repr__", &cloud_repr)
-        .def("copy", [](const PointCloud& c) { return PointCloud(c); }, "A deep copy.")
+        .def(
+            "copy", [](const PointCloud& c) { return PointCloud(c); }, "A deep copy.")
         .def_property("points", &cloud_points, &set_points, "N x 3 float64 (a copy)")
         .def_property("normals", &cloud_normals, &set_normals, "N x 3 float64 or None (a copy)")
         .def_property("colors", &cloud_colors, &set_colors, "N x 3 uint8 RGB or None (a copy)")

@@ -36,10 +36,9 @@ public:
         try {
             field = kwargs_[name].template cast<T>();
         } catch (const py::cast_error&) {
-            throw py::type_error(function_ + "(): option '" + name + "' has the wrong type (" +
-                                 std::string(py::str(py::type::of(kwargs_[name]).attr(
-                                     "__name__"))) +
-                                 ")");
+            throw py::type_error(
+                function_ + "(): option '" + name + "' has the wrong type (" +
+                std::string(py::str(py::type::of(kwargs_[name]).attr("__name__"))) + ")");
         }
         return true;
     }

@@ -249,10 +249,10 @@ py::object upsample(const py::handle& views_arg, const py::object& capture_arg,
                                      std::to_string(*cloud->view.frame_index) + " of sensor '" +
                                      sensor + "' is not in capture " + capture.root.string());
             const io::FrameRecord& record = capture.frames.at(sensor)[*position];
-            RGBD_CHECK(!record.color.empty(),
-                       view_label(*cloud) + ": frame " + std::to_string(record.index) +
-                           " of sensor '" + sensor + "' has no colour image in capture " +
-                           capture.root.string());
+            RGBD_CHECK(!record.color.empty(), view_label(*cloud) + ": frame " +
+                                                  std::to_string(record.index) + " of sensor '" +
+                                                  sensor + "' has no colour image in capture " +
+                                                  capture.root.string());
             const RgbdFrame frame = io::load_frame(capture, sensor, *position);
             Report report = upsample::upsample_view(*cloud, frame, options, progress);
             report["view"] = cloud->view.id;
@@ -308,8 +308,8 @@ py::object align(const py::handle& views_arg, const py::kwargs& kwargs) {
         Report out;
         out["align"] = pipeline::align_stage(all, options, bridge.stage("align"));
         if (pipeline::stand_applies(all, stand))
-            out["stand"] = pipeline::stand_stage(all, stand, segment::StandOptions{},
-                                                 bridge.stage("stand"));
+            out["stand"] =
+                pipeline::stand_stage(all, stand, segment::StandOptions{}, bridge.stage("stand"));
         return out;
     });
     return to_python(report);
@@ -416,8 +416,8 @@ reconstruction::ReconstructionOptions mesh_options(Options& o, bool watertight) 
     o.get("max_points", max_points);
     o.get("target_faces", target_faces);
     RGBD_CHECK(max_points >= 0, "max_points must be >= 0, got " + std::to_string(max_points));
-    RGBD_CHECK(target_faces >= 0, "target_faces must be 0 (keep) or >= 4, got " +
-                                      std::to_string(target_faces));
+    RGBD_CHECK(target_faces >= 0,
+               "target_faces must be 0 (keep) or >= 4, got " + std::to_string(target_faces));
     options.max_points = static_cast<std::size_t>(max_points);
     options.target_faces = static_cast<std::size_t>(target_faces);
     options.watertight = watertight;
@@ -521,8 +521,7 @@ std::set<std::string> skip_option(const py::object& value) {
     std::string valid;
     for (const auto& s : pipeline::optional_stages()) valid += (valid.empty() ? "" : ", ") + s;
     for (const auto& s : skip)
-        RGBD_CHECK(std::find(pipeline::optional_stages().begin(),
-                             pipeline::optional_stages().end(),
+        RGBD_CHECK(std::find(pipeline::optional_stages().begin(), pipeline::optional_stages().end(),
                              s) != pipeline::optional_stages().end(),
                    "skip: unknown stage '" + s + "' (valid: " + valid + ")");
     return skip;
