@@ -27,7 +27,9 @@ def sphere_cloud(n=6000, radius=0.2, seed=1):
     normals = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], 1)
     colors = np.zeros((n, 3), dtype=np.uint8)
     colors[:, 0] = (128 + 127 * normals[:, 2]).astype(np.uint8)
-    return rt.PointCloud(radius * normals, normals, colors)
+    cloud = rt.PointCloud(radius * normals, normals, colors)
+    cloud.frame = "world"
+    return cloud
 
 
 class PointClouds(unittest.TestCase):
