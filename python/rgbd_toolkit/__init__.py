@@ -68,7 +68,7 @@ def _mesh_to_open3d(self):
     """This mesh as an open3d.geometry.TriangleMesh (vertex colours scaled to [0, 1])."""
     o3d = _open3d()
     out = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(_np.asarray(self.vertices, dtype=_np.float64)),
+        o3d.utility.Vector3dVector(_np.array(self.vertices, dtype=_np.float64)),  # a writeable copy
         o3d.utility.Vector3iVector(_np.asarray(self.faces, dtype=_np.int32)))
     if self.colors is not None:
         out.vertex_colors = o3d.utility.Vector3dVector(self.colors.astype(_np.float64) / 255.0)
