@@ -45,7 +45,8 @@ def write_bumpy_ellipsoid_off(path, nu=48, nv=24, rx=0.3, ry=0.5, rz=0.25):
         off.writelines("3 %d %d %d\n" % f for f in faces)
 
 
-@unittest.skipUnless(BIN and os.path.exists(os.path.join(BIN, "rgbd-synth")),
+@unittest.skipUnless(BIN and all(os.path.exists(os.path.join(BIN, t))
+                             for t in ("rgbd-synth", "rgbd-reconstruct")),
                      "needs RGBD_BIN with rgbd-synth and rgbd-reconstruct (ctest sets it)")
 class ReconstructEqualsTheTool(unittest.TestCase):
     @classmethod
