@@ -1,0 +1,651 @@
+// The pipeline stages from Python (docs/python.md): each function maps its keyword options onto
+// the stage's option structs exactly as the single tool maps its command line (cli/rgbd_cloud.cpp,
+// rgbd_clean.cpp, rgbd_upsample.cpp, rgbd_align.cpp, rgbd_fill.cpp, rgbd_mesh.cpp, rgbd_eval.cpp,
+// rgbd_reconstruct.cpp: same names with underscores, same defaults) and calls the same library
+// functions, with the GIL released. Views are modified in place, as the pipe would carry them.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "algorithms/denoise/density_outliers.hpp"
+#include "algorithms/denoise/depth_smoothing.hpp"
+#include "algorithms/denoise/distance_outliers.hpp"
+#include "algorithms/upsample/upsample_view.hpp"
+#include "cli/common/stages.hpp"
+#include "cli/common/tool.hpp"
+#include "io/capture_folder.hpp"
+#include "io/mesh_io.hpp"
+#include "pipeline/fill_stage.hpp"
+#include "pipeline/reconstruct.hpp"
+#include "pipeline/stages.hpp"
+#include "python/bindings.hpp"
+#include "toolkit/error.hpp"
+
+namespace rgbd::python {
+namespace {
+
+using namespace pybind11::literals;
+
+/// A capture argument: an opened Capture, or a path opened with io::open_capture.
+io::Capture capture_of(const py::object& capture) {
+    if (py::isinstance<io::Capture>(capture)) return capture.cast<io::Capture>();
+    const auto path = capture.cast<std::filesystem::path>();
+    py::gil_scoped_release release;
+    return io::open_capture(path);
+}
+
+/// The frames a tool selects with --frameset / --frames / --sensors (cli::select_frames, so
+/// that the same capture gives the same views here and in the tools).
+std::vector<std::pair<std::string, std::size_t>> selected_frames(
+    const io::Capture& capture, long long frameset, const std::string& frames,
+    const std::vector<std::string>& sensors) {
+    try {
+        return cli::select_frames(capture, frameset, frames, sensors, nullptr);
+    } catch (const cli::UsageError& e) {
+        throw InputError(e.what());
+    }
+}
+
+/// "auto" -> nullopt, else the named model (InputError naming the valid ones).
+std::optional<denoise::NoiseModel> noise_model_option(Options& options) {
+    std::string name = "auto";
+    options.get("noise_model", name);
+    if (name == "auto") return std::nullopt;
+    try {
+        return denoise::parse_noise_model(name);
+    } catch (const InputError& e) {
+        throw InputError(std::string("noise_model: ") + e.what());
+    }
+}
+
+// ---- clouds -----------------------------------------------------------------------------------
+
+py::object clouds(const py::object& capture_arg, const py::kwargs& kwargs) {
+    Options o("clouds", kwargs);
+    frames::CloudOptions options;
+    pipeline::SubjectStageOptions extraction;
+    long long frameset = 0;
+    std::string frames;
+    std::vector<std::string> sensors;
+    o.get("frameset", frameset);
+    o.get("frames", frames);
+    o.get("sensors", sensors);
+    o.get("z_min", options.z_min_m);
+    o.get("z_max", options.z_max_m);
+    options.use_mask = !o.flag("no_mask");
+    o.get("crop_radius_m", extraction.crop_radius_m);
+    extraction.subject.remove_ground = !o.flag("keep_ground");
+    extraction.enabled = !o.flag("no_extract");
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    check_range("z_min", options.z_min_m, Range::closed(0, 100), "m");
+    check_range("z_max", options.z_max_m, Range::closed(0, 100), "m");
+    check_range("crop_radius_m", extraction.crop_radius_m, Range::closed(0, 100), "m");
+    options.check();
+    std::sort(sensors.begin(), sensors.end());  // rgbd-cloud --sensors: a set of ids
+    sensors.erase(std::unique(sensors.begin(), sensors.end()), sensors.end());
+
+    const io::Capture capture = capture_of(capture_arg);
+    const auto jobs = selected_frames(capture, frameset, frames, sensors);
+    std::vector<PointCloud> views = without_gil(bridge, [&] {
+        const Progress progress = bridge.stage("clouds");
+        const auto centre = pipeline::object_centre(capture, jobs);
+        std::vector<PointCloud> out;
+        for (const auto& [id, position] : jobs) {
+            Report report;
+            out.push_back(pipeline::load_view(capture, id, position, static_cast<int>(out.size()),
+                                              options, centre, /*extraction=*/{0.0}, report));
+            report_progress(progress, 0.8 * out.size() / jobs.size());
+        }
+        try {
+            pipeline::extract_stage(out, centre, extraction);
+        } catch (const InputError& e) {
+            throw InputError(capture.root.string() + ": " + e.what());
+        }
+        report_progress(progress, 1.0);
+        return out;
+    });
+    return py::cast(std::move(views));
+}
+
+// ---- clean_distance / clean_density -----------------------------------------------------------
+
+py::object clean_distance(const py::handle& views_arg, const py::kwargs& kwargs) {
+    Options o("clean_distance", kwargs);
+    const auto views = views_of(views_arg, "clean_distance");
+    denoise::DistanceOptions distance;
+    denoise::SmoothOptions smoothing;
+    const auto noise = noise_model_option(o);
+    o.get("k", distance.k);
+    o.get("theta_max_deg", distance.theta_max_deg);
+    // high_recall sets its operating point; options given explicitly still win.
+    if (o.flag("high_recall")) distance.use_high_recall();
+    o.get("c_min", distance.c_min);
+    o.get("line_sigmas", distance.line_sigmas);
+    o.get("dense_min", distance.dense_min);
+    o.get("c_min_wide", distance.c_min_wide);
+    o.get("keep_knn", distance.keep_knn);
+    o.get("keep_k", distance.keep_k);
+    o.get("n_speckle", distance.n_speckle);
+    o.get("alpha", distance.alpha);
+    distance.pass_a = !o.flag("no_pass_a");
+    distance.pass_b = o.flag("knn_test");
+    distance.mark = o.flag("mark");
+    const bool smooth = o.flag("smooth");
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    if (noise) distance.noise_model = smoothing.noise_model = *noise;
+    distance.check();
+    smoothing.check();
+
+    std::vector<Report> reports = without_gil(bridge, [&] {
+        const Progress progress = bridge.stage("clean_distance");
+        std::vector<Report> out;
+        for (PointCloud* cloud : views) {
+            if (!noise)
+                distance.noise_model = smoothing.noise_model =
+                    pipeline::view_noise_model(*cloud).value_or(denoise::NoiseModel::kKinectV2);
+            Report report = denoise::remove_distance_outliers(*cloud, distance, progress);
+            if (smooth) report["smooth"] = denoise::smooth_depth(*cloud, smoothing);
+            report["view"] = cloud->view.id;
+            out.push_back(std::move(report));
+        }
+        return out;
+    });
+    py::list out;
+    for (const auto& r : reports) out.append(to_python(r));
+    return out;
+}
+
+py::object clean_density(const py::handle& views_arg, const py::kwargs& kwargs) {
+    Options o("clean_density", kwargs);
+    const auto views = views_of(views_arg, "clean_density");
+    denoise::DensityOptions density;
+    const auto noise = noise_model_option(o);
+    o.get("k", density.k);
+    o.get("theta_max_deg", density.theta_max_deg);
+    double beta = 0;
+    if (o.get("beta", beta)) density.beta = density.beta_local = beta;
+    std::string reference = "auto";
+    o.get("reference", reference);
+    if (reference == "auto")
+        density.reference = denoise::DensityReference::kAuto;
+    else if (reference == "sensors")
+        density.reference = denoise::DensityReference::kSensors;
+    else if (reference == "local")
+        density.reference = denoise::DensityReference::kLocal;
+    else
+        throw InputError("reference must be auto, sensors or local, not '" + reference + "'");
+    o.get("consensus_ratio", density.consensus_ratio);
+    o.get("consensus_sigmas", density.consensus_sigmas);
+    o.get("cluster_spacing", density.cluster_spacing);
+    o.get("min_cluster_fraction", density.min_cluster_fraction);
+    density.seed = 0;  // the tools' --seed default
+    o.get("seed", density.seed);
+    density.mark = o.flag("mark");
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    density.check();
+
+    const Report report = without_gil(bridge, [&] {
+        BorrowedViews borrowed(views);
+        density.noise_model = noise ? *noise : pipeline::stream_noise_model(borrowed.views());
+        return denoise::remove_density_outliers(borrowed.views(), density,
+                                                bridge.stage("clean_density"));
+    });
+    return to_python(report);
+}
+
+// ---- upsample ---------------------------------------------------------------------------------
+
+std::string view_label(const PointCloud& cloud) {
+    std::string label = "view " + std::to_string(cloud.view.id);
+    if (!cloud.view.source.empty()) label += " (" + cloud.view.source + ")";
+    return label;
+}
+
+py::object upsample(const py::handle& views_arg, const py::object& capture_arg,
+                    const py::kwargs& kwargs) {
+    Options o("upsample", kwargs);
+    const auto views = views_of(views_arg, "upsample");
+    upsample::UpsampleOptions options;
+    o.get("neighbors", options.neighbors);
+    if (o.flag("midpoints")) options.method = upsample::UpsampleMethod::kMidpoints;
+    o.get("sigma_spatial", options.sigma_spatial);
+    o.get("sigma_color", options.sigma_color);
+    o.get("grazing_deg", options.grazing_max_deg);
+    o.get("theta_max_deg", options.theta_max_deg);
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    options.check();
+    const io::Capture capture = capture_of(capture_arg);
+
+    // As rgbd-upsample per view: the view's frame in the capture, then upsample_view.
+    std::vector<Report> reports = without_gil(bridge, [&] {
+        const Progress progress = bridge.stage("upsample");
+        std::vector<Report> out;
+        for (PointCloud* cloud : views) {
+            RGBD_CHECK(cloud->view.has_grid(),
+                       view_label(*cloud) +
+                           ": the view has no pixel grid (rgbd:grid); upsample needs organised "
+                           "views from clouds()");
+            if (cloud->empty()) {
+                out.push_back({{"view", cloud->view.id}, {"note", "no points"}});
+                continue;
+            }
+            RGBD_CHECK(cloud->view.frame_index,
+                       view_label(*cloud) + ": no rgbd:view.frame_index to find its frame");
+            std::string sensor = cloud->view.sensor;
+            if (sensor.empty() && capture.rig.sensors.size() == 1)
+                sensor = capture.rig.sensors[0].id;
+            const auto position = capture.find_frame(sensor, *cloud->view.frame_index);
+            RGBD_CHECK(position, view_label(*cloud) + ": frame " +
+                                     std::to_string(*cloud->view.frame_index) + " of sensor '" +
+                                     sensor + "' is not in capture " + capture.root.string());
+            const io::FrameRecord& record = capture.frames.at(sensor)[*position];
+            RGBD_CHECK(!record.color.empty(), view_label(*cloud) + ": frame " +
+                                                  std::to_string(record.index) + " of sensor '" +
+                                                  sensor + "' has no colour image in capture " +
+                                                  capture.root.string());
+            const RgbdFrame frame = io::load_frame(capture, sensor, *position);
+            Report report = upsample::upsample_view(*cloud, frame, options, progress);
+            report["view"] = cloud->view.id;
+            out.push_back(std::move(report));
+        }
+        return out;
+    });
+    py::list out;
+    for (const auto& r : reports) out.append(to_python(r));
+    return out;
+}
+
+// ---- align ------------------------------------------------------------------------------------
+
+py::object align(const py::handle& views_arg, const py::kwargs& kwargs) {
+    Options o("align", kwargs);
+    const auto views = views_of(views_arg, "align");
+    registration::MultiViewOptions options;
+    int fixed_view = 0;
+    o.get("fixed_view", fixed_view);
+    RGBD_CHECK(fixed_view >= 0, "fixed_view must be >= 0");
+    options.fixed_view = static_cast<std::size_t>(fixed_view);
+    o.get("rounds", options.rounds);
+    o.get("voxel_m", options.voxel_m);
+    options.pairwise = !o.flag("no_pairwise");
+    options.global_registration = !o.flag("no_global");
+    o.get("colour_weight", options.colour_weight);
+    o.get("ransac_iterations", options.ransac_iterations);
+    o.get("max_prior_rotation_deg", options.max_prior_rotation_deg);
+    options.seed = 0;  // the tools' --seed default
+    o.get("seed", options.seed);
+    std::string stand_name = "auto";
+    o.get("stand", stand_name);
+    const bool ignore_poses = o.flag("ignore_poses");
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    options.check();
+    const pipeline::StandMode stand = pipeline::parse_stand_mode(stand_name);
+    RGBD_CHECK(options.fixed_view < views.size(),
+               "fixed_view " + std::to_string(options.fixed_view) + " but there are " +
+                   std::to_string(views.size()) + " views");
+
+    const Report report = without_gil(bridge, [&] {
+        BorrowedViews borrowed(views);
+        auto& all = borrowed.views();
+        if (ignore_poses)
+            for (PointCloud& view : all) {
+                if (view.view.frame == ViewFrame::kWorld && view.view.world_from_sensor)
+                    transform(view, view.view.world_from_sensor->inverse());
+                view.view.frame = ViewFrame::kSensor;
+                view.view.world_from_sensor = Pose::Identity();
+            }
+        Report out;
+        out["align"] = pipeline::align_stage(all, options, bridge.stage("align"));
+        if (pipeline::stand_applies(all, stand))
+            out["stand"] =
+                pipeline::stand_stage(all, stand, segment::StandOptions{}, bridge.stage("stand"));
+        return out;
+    });
+    return to_python(report);
+}
+
+// ---- fill -------------------------------------------------------------------------------------
+
+pipeline::FillStageOptions fill_options(Options& o) {
+    pipeline::FillStageOptions stage;
+    holes::BoundaryOptions& detect = stage.detect;
+    holes::FillOptions& fill = stage.fill;
+    holes::InpaintOptions& inpaint = stage.inpaint;
+    o.get("k", detect.neighbourhood.k);
+    o.get("radius_factor", detect.neighbourhood.radius_factor);
+    if (o.get("spacing_m", detect.spacing_m))
+        RGBD_CHECK(detect.spacing_m > 0, "spacing_m must be a positive number");
+    o.get("threshold", detect.threshold);
+    std::vector<double> weights;
+    if (o.get("weights", weights)) {
+        RGBD_CHECK(weights.size() == 3, "weights needs three numbers A, H, S");
+        detect.w_angle = weights[0];
+        detect.w_halfdisk = weights[1];
+        detect.w_shape = weights[2];
+    }
+    o.get("coherence", detect.coherence_passes);
+    detect.coherence_both = o.flag("coherence_both");
+    o.get("hysteresis", detect.hysteresis_threshold);
+    o.get("hysteresis_rings", detect.hysteresis_rings);
+    o.get("min_loop", detect.min_loop_points);
+    o.get("small_diameter", detect.small_max_diameter);
+    o.get("small_points", detect.small_max_points);
+    o.get("visible_angle_deg", detect.visible_max_angle_deg);
+    std::string mechanism;
+    if (o.get("mechanism", mechanism)) fill.mechanism = holes::parse_fill_mechanism(mechanism);
+    o.get("step", fill.step);
+    o.get("max_sweeps", fill.max_sweeps);
+    o.get("max_fit_rms", fill.max_fit_rms);
+    fill.fill_openings = o.flag("fill_openings");
+    o.get("inpaint_pixel", inpaint.pixel);
+    o.get("telea_radius", inpaint.telea_radius);
+    std::string colour = "criminisi";
+    o.get("colour_inpaint", colour);
+    if (colour == "criminisi")
+        inpaint.colour = holes::ColourInpaint::kCriminisi;
+    else if (colour == "telea")
+        inpaint.colour = holes::ColourInpaint::kTelea;
+    else
+        throw InputError("colour_inpaint must be criminisi or telea, not '" + colour + "'");
+    o.get("patch", inpaint.patch);
+    o.get("search_window", inpaint.search_window);
+    o.get("top_fraction", inpaint.top_fraction);
+    o.get("top_min_up", inpaint.top_min_up);
+    o.get("top_fit_radii", inpaint.top_fit_radii);
+    inpaint.ellipsoid = !o.flag("no_ellipsoid");
+    o.get("max_ellipsoid_rms", inpaint.max_ellipsoid_rms);
+    inpaint.biharmonic = !o.flag("no_biharmonic");
+    o.get("max_biharmonic_slope", inpaint.max_biharmonic_slope);
+    o.get("max_open_rim", inpaint.max_open_rim);
+    inpaint.top_without_ellipsoid = o.flag("top_without_ellipsoid");
+    o.get("min_rim_radial", inpaint.min_rim_radial);
+    o.get("clearance", inpaint.clearance);
+    inpaint.carve = !o.flag("no_carve");
+    o.get("carve_margin", inpaint.free_space.margin);
+    o.get("max_contradicted", inpaint.max_contradicted);
+    inpaint.visible_max_angle_deg = detect.visible_max_angle_deg;
+    inpaint.fill_openings = fill.fill_openings;
+    stage.detect_only = o.flag("detect_only");
+    stage.mark = o.flag("mark");
+    stage.large = !o.flag("no_large");
+    stage.head_top = !o.flag("no_head_top");
+    stage.ignore_poses = o.flag("ignore_poses");
+    stage.debug_colors = o.flag("debug_colors");
+    long long max_points = static_cast<long long>(stage.max_points);
+    o.get("max_points", max_points);
+    RGBD_CHECK(max_points >= 0, "max_points must be 0 or more");
+    stage.max_points = static_cast<std::size_t>(max_points);
+    detect.check();
+    fill.check();
+    inpaint.check();
+    return stage;
+}
+
+py::object fill(py::list views_arg, const py::kwargs& kwargs) {
+    Options o("fill", kwargs);
+    const auto views = views_of(views_arg, "fill");
+    const pipeline::FillStageOptions stage = fill_options(o);
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    Report report;
+    std::optional<PointCloud> added = without_gil(
+        bridge, [&] { return pipeline::fill_stage(views, stage, report, bridge.stage("fill")); });
+    // As rgbd-fill: the added points follow the views as one more view.
+    if (added) views_arg.append(py::cast(std::move(*added)));
+    return to_python(report);
+}
+
+// ---- mesh -------------------------------------------------------------------------------------
+
+reconstruction::ReconstructionOptions mesh_options(Options& o, bool watertight) {
+    reconstruction::ReconstructionOptions options;
+    o.get("method", options.method);
+    long long max_points = static_cast<long long>(options.max_points);
+    long long target_faces = 0;
+    o.get("max_points", max_points);
+    o.get("target_faces", target_faces);
+    RGBD_CHECK(max_points >= 0, "max_points must be >= 0, got " + std::to_string(max_points));
+    RGBD_CHECK(target_faces >= 0,
+               "target_faces must be 0 (keep) or >= 4, got " + std::to_string(target_faces));
+    options.max_points = static_cast<std::size_t>(max_points);
+    options.target_faces = static_cast<std::size_t>(target_faces);
+    options.watertight = watertight;
+    options.check();
+    return options;
+}
+
+py::object mesh(const py::handle& views_arg, const py::kwargs& kwargs) {
+    Options o("mesh", kwargs);
+    const auto views = views_of(views_arg, "mesh");
+    const bool watertight = o.flag("watertight");
+    const auto options = mesh_options(o, watertight);
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    Report report;
+    Mesh result = without_gil(bridge, [&] {
+        // The mesher consumes its views: a copy, so the caller's stay as they are.
+        std::vector<PointCloud> copies;
+        for (const PointCloud* v : views) copies.push_back(*v);
+        // A stand removed by align(): the object's walls carried down to its plane.
+        const std::size_t contact = pipeline::add_stand_contact(copies);
+        if (contact > 0) report["stand_contact_points"] = contact;
+        return pipeline::mesh_stage(std::move(copies), options, report, bridge.stage("mesh"));
+    });
+    py::object out = py::cast(std::move(result));
+    out.attr("report") = to_python(report);
+    return out;
+}
+
+// ---- evaluate ---------------------------------------------------------------------------------
+
+py::object evaluate(const py::object& result_arg, const py::object& reference_arg,
+                    const py::kwargs& kwargs) {
+    Options o("evaluate", kwargs);
+    evaluation::MetricOptions options;
+    std::vector<double> tau_mm = {2, 5};
+    o.get("tau_mm", tau_mm);
+    options.taus_m.clear();
+    for (double t : tau_mm) {
+        check_range("tau_mm", t, Range::open_closed(0, 1e6), "mm");
+        options.taus_m.push_back(t / 1000.0);
+    }
+    double invented_tau_mm = options.invented_tau_m * 1000.0;
+    o.get("invented_tau_mm", invented_tau_mm);
+    check_range("invented_tau_mm", invented_tau_mm, Range::open_closed(0, 1e6), "mm");
+    options.invented_tau_m = invented_tau_mm / 1000.0;
+    o.get("samples", options.samples);
+    options.seed = 0;  // the tools' --seed default
+    o.get("seed", options.seed);
+    o.done();
+    options.check();
+
+    pipeline::LoadedResult result;
+    if (py::isinstance<Mesh>(result_arg)) {
+        result.mesh = result_arg.cast<Mesh>();
+        RGBD_CHECK(result.mesh->number_of_faces() > 0, "the mesh has no faces");
+    } else {
+        for (const PointCloud* v : views_of(result_arg, "evaluate")) result.views.push_back(*v);
+    }
+    const Mesh reference = py::isinstance<Mesh>(reference_arg)
+                               ? reference_arg.cast<Mesh>()
+                               : io::read_mesh(reference_arg.cast<std::filesystem::path>());
+    Report report;
+    {
+        py::gil_scoped_release release;
+        report = pipeline::evaluate_surface(result, reference, options);
+    }
+    return to_python(report);
+}
+
+py::object evaluate_poses(const py::handle& views_arg, const std::filesystem::path& gt,
+                          bool keep_gauge) {
+    std::vector<PointCloud> views;
+    for (const PointCloud* v : views_of(views_arg, "evaluate_poses")) {
+        PointCloud pose_only;
+        pose_only.view = v->view;
+        views.push_back(std::move(pose_only));
+    }
+    Report report;
+    {
+        py::gil_scoped_release release;
+        report = pipeline::evaluate_poses(views, gt.string(), !keep_gauge);
+    }
+    return to_python(report);
+}
+
+// ---- reconstruct ------------------------------------------------------------------------------
+
+std::set<std::string> skip_option(const py::object& value) {
+    std::set<std::string> skip;
+    if (value.is_none()) return skip;
+    if (py::isinstance<py::str>(value)) {
+        // "a,b" as rgbd-reconstruct --skip takes it.
+        std::stringstream in(value.cast<std::string>());
+        std::string name;
+        while (std::getline(in, name, ','))
+            if (!name.empty()) skip.insert(name);
+    } else {
+        for (const auto& item : value) skip.insert(item.cast<std::string>());
+    }
+    std::string valid;
+    for (const auto& s : pipeline::optional_stages()) valid += (valid.empty() ? "" : ", ") + s;
+    for (const auto& s : skip)
+        RGBD_CHECK(std::find(pipeline::optional_stages().begin(), pipeline::optional_stages().end(),
+                             s) != pipeline::optional_stages().end(),
+                   "skip: unknown stage '" + s + "' (valid: " + valid + ")");
+    return skip;
+}
+
+py::object reconstruct(const py::object& capture_arg, const py::kwargs& kwargs) {
+    Options o("reconstruct", kwargs);
+    pipeline::ReconstructOptions options;
+    options.skip = skip_option(o.object("skip"));
+    o.get("method", options.mesh.method);
+    options.mesh.watertight = !o.flag("open");
+    options.mesh.check();
+    int neighbors = options.upsample.neighbors;
+    o.get("upsample", neighbors);
+    RGBD_CHECK(neighbors == 0 || neighbors == 4 || neighbors == 8,
+               "upsample must be 4 or 8 (0 = off), not " + std::to_string(neighbors));
+    if (neighbors == 0)
+        options.skip.insert("upsample");
+    else
+        options.upsample.neighbors = neighbors;
+    options.upsample.check();
+    options.noise_model = noise_model_option(o);
+    std::string stand = "auto";
+    o.get("stand", stand);
+    try {
+        options.stand = pipeline::parse_stand_mode(stand);
+    } catch (const InputError& e) {
+        throw InputError(std::string("stand: ") + e.what());
+    }
+    o.get("crop_radius_m", options.extraction.crop_radius_m);
+    check_range("crop_radius_m", options.extraction.crop_radius_m, Range::closed(0, 100), "m");
+    options.extraction.enabled = !o.flag("no_extract");
+    options.extraction.subject.remove_ground = !o.flag("keep_ground");
+    o.get("seed", options.seed);
+    long long frameset = 0;
+    std::string frames;
+    o.get("frameset", frameset);
+    o.get("frames", frames);
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+
+    const io::Capture capture = capture_of(capture_arg);
+    const auto jobs = selected_frames(capture, frameset, frames, {});
+    // Warnings as Python warnings (RuntimeWarning), from the thread that runs the chain.
+    pipeline::ReconstructHooks hooks;
+    hooks.stage_begin = [&](const std::string& stage) { return bridge.stage(stage); };
+    hooks.warn = [&](const std::string& message) {
+        py::gil_scoped_acquire gil;
+        try {
+            py::module_::import("warnings")
+                .attr("warn")(message, py::handle(PyExc_RuntimeWarning), 2);
+        } catch (...) {
+            bridge.fail();
+        }
+    };
+    pipeline::ReconstructResult result =
+        without_gil(bridge, [&] { return pipeline::reconstruct(capture, jobs, options, hooks); });
+    Report report = result.report;
+    report["capture"] = capture.root.string();
+    report["stages"] = result.stages_report();
+    report["timings_s"] = result.timings();
+    py::object out = py::cast(std::move(result.mesh));
+    out.attr("report") = to_python(report);
+    return out;
+}
+
+}  // namespace
+
+void bind_stages(py::module_& m) {
+    m.def("clouds", &clouds, "capture"_a,
+          "Views from a capture (rgbd-cloud): the frames of one frame set (multi-sensor) or "
+          "every frame (single-sensor sequences) as coloured clouds in the sensor frame, then "
+          "the object extraction over all of them. `capture` is a Capture or a path. Options "
+          "(rgbd-cloud's): frameset=0, frames='A:B[:STEP]', sensors=[ids], z_min=0, z_max=0 "
+          "(metres, 0 = the sensor's range), no_mask=False, crop_radius_m=0, keep_ground=False, "
+          "no_extract=False, progress=None. Returns a list of PointCloud.");
+    m.def("clean_distance", &clean_distance, "views"_a,
+          "Distance-based noise removal per organised view, in place (rgbd-clean --distance). "
+          "Options: noise_model='auto' (each view's own, else kinect_v2), k, theta_max_deg, "
+          "c_min, c_min_wide, line_sigmas, dense_min, keep_knn, keep_k, n_speckle, alpha, "
+          "no_pass_a, knn_test, high_recall, mark, smooth, progress (defaults: rgbd-clean's). "
+          "Returns one report dict per view.");
+    m.def("upsample", &upsample, "views"_a, "capture"_a,
+          "Colour-guided super-resolution of every organised view, in place (rgbd-upsample), "
+          "with the frames of `capture` (a Capture or a path). Options: neighbors=8, "
+          "midpoints=False, sigma_spatial, sigma_color, grazing_deg, theta_max_deg, progress. "
+          "Returns one report dict per view.");
+    m.def("align", &align, "views"_a,
+          "Multi-view registration, in place (rgbd-align without --merge): the views end in the "
+          "world frame with their refined poses; then the stand below the object (stand='auto', "
+          "'remove' or 'keep'). Options: fixed_view=0, rounds, voxel_m, no_pairwise, no_global, "
+          "colour_weight, ransac_iterations, max_prior_rotation_deg, seed=0, stand='auto', "
+          "ignore_poses=False, progress. Returns the report dict {'align': ..., 'stand': ...}.");
+    m.def("clean_density", &clean_density, "views"_a,
+          "Density-based noise removal over all aligned views, in place (rgbd-clean --density). "
+          "Options: noise_model='auto', k, theta_max_deg, beta, reference='auto', "
+          "consensus_ratio, consensus_sigmas, cluster_spacing, min_cluster_fraction, seed=0, "
+          "mark, progress. Returns the report dict.");
+    m.def("fill", &fill, "views"_a,
+          "Hole filling on aligned views (rgbd-fill): appends the added points to the list "
+          "`views` as one more view (nothing when no hole was filled). Options: rgbd-fill's "
+          "(mechanism='interpolation', k, radius_factor, spacing_m, threshold, "
+          "weights=(0.4, 0.4, 0.2), min_loop, small_diameter, detect_only, mark, no_large, "
+          "no_head_top, ignore_poses, max_points, ... with underscores), progress. Returns the "
+          "report dict.");
+    m.def("mesh", &mesh, "views"_a,
+          "Surface reconstruction of the views (rgbd-mesh; the views are not modified). "
+          "Options: method='front', max_points, watertight=False, target_faces=0, progress. "
+          "Returns a Mesh whose `report` attribute holds the stage's report.");
+    m.def("evaluate", &evaluate, "result"_a, "reference"_a,
+          "Surface metrics of a result (Mesh or list of views) against a reference (Mesh or "
+          "path), as rgbd-eval --reference: tau_mm=[2, 5], invented_tau_mm=5, samples=200000, "
+          "seed=0. Returns the report dict.");
+    m.def("evaluate_poses", &evaluate_poses, "views"_a, "gt_poses"_a, "keep_gauge"_a = false,
+          "Pose errors of the views against gt/world_from_depth.json (rgbd-eval --gt-poses).");
+    m.def("reconstruct", &reconstruct, "capture"_a,
+          "The whole method on a capture (rgbd-reconstruct; pipeline::reconstruct): clouds, "
+          "distance cleaning, super-resolution, alignment, density cleaning, hole filling and "
+          "a watertight mesh, with the same defaults, so the mesh equals the tool's. Options: "
+          "skip=[...] (distance, upsample, density, fill; or 'a,b'), frameset=0, "
+          "frames='A:B[:STEP]', noise_model='auto', crop_radius_m=0, keep_ground=False, "
+          "no_extract=False, method='front', stand='auto', open=False, upsample=8, seed=0, "
+          "progress=None. Warnings of the chain become RuntimeWarnings. Returns a Mesh with the "
+          "report (stages, timings, per-view counts) as its `report` attribute.");
+}
+
+}  // namespace rgbd::python
