@@ -1,5 +1,10 @@
 #include "io/textured_mesh_io.hpp"
 
+// tinygltf compiled here; images are encoded and decoded with OpenCV (io/CMakeLists.txt).
+#define TINYGLTF_IMPLEMENTATION
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -432,8 +437,14 @@ TexturedMesh read_glb(const fs::path& path) {
     tinygltf::Model model;
     std::string err, warn;
     const std::string name = path.string();
-    RGBD_CHECK(loader.LoadBinaryFromFile(&model, &err, &warn, name),
-               name + ": not a readable glTF binary" + (err.empty() ? "" : " (" + err + ")"));
+    std::ifstream in(path, std::ios::binary);
+    RGBD_CHECK_AS(IoError, in.good(), name + ": cannot open");
+    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                           std::istreambuf_iterator<char>());
+    RGBD_CHECK(
+        !bytes.empty() && loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(),
+                                                      static_cast<unsigned int>(bytes.size())),
+        name + ": not a readable glTF binary" + (err.empty() ? "" : " (" + err + ")"));
     TexturedMesh m;
     std::map<int, int> atlas_of_image;
     bool textured = true;
