@@ -155,7 +155,8 @@ const cli::ToolSpec kSpec{
             "smoothness", cli::value(kDefaults.selection.smoothness, "W"),
             "weight of the smoothness term (0 = best view per face)")(
             "sweeps", cli::value(kDefaults.selection.sweeps, "N"), "ICM sweeps")(
-            "max-angle-deg", cli::value(75.0, "D"),
+            "max-angle-deg",
+            cli::value(std::acos(kDefaults.selection.min_cos) * 180.0 / M_PI, "D"),
             "faces seen more obliquely than this are not textured from that camera")(
             "no-sharpness", "leave the image sharpness out of the view quality")(
             "no-adjust", "no per-camera colour adjustment")(
