@@ -46,8 +46,12 @@ inline TexturedMesh untextured(const Mesh& mesh) {
     }
     for (const auto f : mesh.faces()) {
         std::vector<int> ids;
-        for (const auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh))
-            ids.push_back(index[v.idx()]);
+        const auto first = mesh.halfedge(f);
+        auto h = first;
+        do {
+            ids.push_back(index[mesh.target(h).idx()]);
+            h = mesh.next(h);
+        } while (h != first);
         for (std::size_t j = 1; j + 1 < ids.size(); ++j)
             out.faces.push_back({ids[0], ids[j], ids[j + 1]});
     }
