@@ -23,6 +23,7 @@
 #include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
+#include "cli/eval_colour.hpp"
 #include "cli/eval_observed.hpp"
 #include "io/mesh_io.hpp"
 #include "pipeline/observed.hpp"
@@ -221,11 +222,12 @@ void run_eval(cli::Context& ctx) {
     const bool baseline_given = ctx.options().count("baseline") > 0;
     const bool report_given = ctx.options().count("report") > 0;
     const bool observed_given = ctx.options().count("observed") > 0;
+    const bool colour_given = ctx.options().count("colour") > 0;
     if (!reference_given && !ctx.options().count("gt-poses") && !baseline_given && !report_given &&
-        !ctx.options().count("points") && !observed_given)
+        !ctx.options().count("points") && !observed_given && !colour_given)
         throw cli::UsageError(
-            "give --reference MESH, --observed CAPTURE, --points STREAM, --gt-poses JSON, "
-            "--baseline NAME and/or --report DIR");
+            "give --reference MESH, --observed CAPTURE, --colour CAPTURE, --points STREAM, "
+            "--gt-poses JSON, --baseline NAME and/or --report DIR");
     evaluation::MetricOptions options;
     std::vector<int> depths;
     double trim = 0;
@@ -286,7 +288,7 @@ void run_eval(cli::Context& ctx) {
     if (report_given) picture_size = parse_size(ctx.get<std::string>("report-size"));
 
     const std::string input = ctx.inputs().front();
-    cli::LoadedResult result = cli::load_result(input);
+    cli::LoadedResult result = cli::load_eval_input(input);
     std::optional<cli::LoadedResult> input_points;
     if (ctx.options().count("points")) {
         const std::string path = ctx.get<std::string>("points");
@@ -327,6 +329,8 @@ void run_eval(cli::Context& ctx) {
                                         quality_options);
     };
     if (result.mesh) out["mesh_quality"] = mesh_quality(*result.mesh);
+    // --colour: the model's surface colour against the capture's colour images.
+    if (colour_given) out["colour"] = cli::colour_report(ctx, input);
 
     // --observed: the capture's own observations of the subject against the mesh.
     std::optional<pipeline::Observations> observations;
@@ -581,7 +585,12 @@ const cli::ToolSpec kSpec{
         "--observed, --baseline tsdf,screened-poisson runs Open3D 0.16 on the same subject "
         "points: TSDF fusion of each view's subject depth (--tsdf-voxel-mm, truncation 4 "
         "voxels, RGB8, marching cubes) and Screened Poisson (--observed-poisson-depth, normals "
-        "towards each view's camera, --baseline-trim), scored alike under \"baselines\".",
+        "towards each view's camera, --baseline-trim), scored alike under \"baselines\".\n\n"
+        "--colour CAPTURE renders the model into every colour camera of the frame set (z-buffer) "
+        "and compares its surface colour (an .obj/.glb's texture, bilinear; else vertex colours) "
+        "with the images wherever the camera sees the surface (2 px off the silhouette, "
+        "viewing angle below 78 deg): \"colour\" reports PSNR (dB), mean absolute error and "
+        "RMSE (levels 0-255) overall and per image.",
     .example =
         "rgbd-eval bust.ply --reference cap/gt/mesh.ply --points aligned.ply --baseline "
         "screened-poisson --report bust_report/",
@@ -591,9 +600,11 @@ const cli::ToolSpec kSpec{
     .scopes = {{{"baseline"},
                 {"baseline-depths", "baseline-trim", "tsdf-voxel-mm", "observed-poisson-depth"}},
                {{"observed"}, {"baseline-depths"}, /*not_with=*/true},
+               {{"colour"}, {"colour-views"}},
+               {{"observed", "colour"}, {"frameset", "frames"}},
                {{"observed"},
-                {"frameset", "frames", "observed-tau-mm", "observed-radius-m", "z-min", "z-max",
-                 "tsdf-voxel-mm", "observed-poisson-depth"}},
+                {"observed-tau-mm", "observed-radius-m", "z-min", "z-max", "tsdf-voxel-mm",
+                 "observed-poisson-depth"}},
                {{"report"}, {"report-size"}},
                {{"gt-poses"}, {"keep-gauge"}}},
     .add_options = [](cli::po::options_description& o) {
@@ -637,7 +648,13 @@ const cli::ToolSpec kSpec{
             "observed-poisson-depth", cli::value(9, "D"),
             "--observed --baseline screened-poisson: octree depth")(
             "report-size", cli::value<std::string>("640x480", "WxH"),
-            "size of each report picture, WxH");
+            "size of each report picture, WxH")(
+            "colour", cli::value<std::string>("CAPTURE"),
+            "PSNR and mean absolute error of the model's surface colour (texture of an .obj/.glb, "
+            "else vertex colours) against this capture's colour images")(
+            "colour-views", cli::value<std::string>("ALIGNED.ply"),
+            "--colour: frames and refined poses of these aligned views (default: the capture's "
+            "truth gt/world_from_depth.json when present, else its own poses)");
     }};
 
 }  // namespace

@@ -11,13 +11,16 @@
 #include <sstream>
 
 #include "algorithms/render/picture.hpp"
+#include "algorithms/texture/texture_mesh.hpp"
 #include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
+#include "io/textured_mesh_io.hpp"
 #include "pipeline/reconstruct.hpp"
+#include "pipeline/texture_views.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -180,6 +183,25 @@ void run_reconstruct(cli::Context& ctx) {
     pipeline::ReconstructResult result = pipeline::reconstruct(capture, jobs, options, hooks);
     const Mesh& mesh = result.mesh;
     report.update(result.report);
+    // 7b. -o model.obj|glb: the texture from the colour images, posed by the aligned views.
+    std::optional<TexturedMesh> textured;
+    if (io::is_textured_format(mesh_path)) {
+        Stopwatch watch;
+        Report texture_report;
+        {
+            auto texture_bar = ctx.progress("texture");
+            const auto colour_views = pipeline::load_texture_views(capture, jobs, &result.poses);
+            textured = texture::texture_mesh(mesh, colour_views, texture::TextureOptions{},
+                                             texture_report, texture_bar.callback());
+        }
+        report["texture"] = texture_report;
+        result.stages.push_back({"texture",
+                                 watch.seconds(),
+                                 mesh.number_of_faces(),
+                                 textured->faces.size(),
+                                 {{"unseen_faces", texture_report["selection"]["unseen_faces"]},
+                                  {"charts", texture_report["atlas"]["charts"]}}});
+    }
     report["stages"] = result.stages_report();
     Report& timings = report["timings_s"];
     timings = result.timings();
@@ -187,7 +209,11 @@ void run_reconstruct(cli::Context& ctx) {
     info.frame = ViewFrame::kWorld;
     info.sensor = "mesh";
     ctx.add_history(info);
-    io::write_mesh(mesh_path, mesh, &info);
+    if (textured)
+        io::write_textured_mesh(mesh_path, *textured,
+                                std::string("rgbd-reconstruct ") + cli::kVersion);
+    else
+        io::write_mesh(mesh_path, mesh, &info);
 
     // 8. evaluation against ground truth when there is some.
     std::string reference = ctx.options().count("reference")
@@ -270,7 +296,9 @@ const cli::ToolSpec kSpec{
         "comparisons. Writes the mesh and a report folder (metrics.json and index.html) with "
         "each stage's time and point counts in and out, per-view registration verdicts, the "
         "mesh's quality and, when the capture has ground truth (gt/ of rgbd-synth) or "
-        "--reference is given, the metrics of rgbd-eval.",
+        "--reference is given, the metrics of rgbd-eval. -o MODEL.obj or MODEL.glb adds the "
+        "texturing of rgbd-texture as the last stage (colour images of the same frames, posed by "
+        "the aligned views): OBJ + MTL + PNG or a glTF binary; .ply keeps vertex colours.",
     .example = "rgbd-reconstruct cap/ -o bust.ply --report report/",
     .writes_stream = false,
     .reads_stream = false,
