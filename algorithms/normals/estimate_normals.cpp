@@ -5,8 +5,11 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -49,6 +52,181 @@ std::optional<Eigen::Vector3d> view_sensor_centre(const PointCloud& cloud) {
     if (cloud.view.frame == ViewFrame::kSensor) return Eigen::Vector3d::Zero();
     if (cloud.view.world_from_sensor) return cloud.view.world_from_sensor->translation();
     return std::nullopt;
+}
+
+/// Normal of the points `nn[0, found)` (nearest first): the eigenvector of the smallest
+/// eigenvalue of their covariance, with the deterministic sign (largest component positive).
+/// Sets `degenerate` for collinear or coincident neighbours.
+Eigen::Vector3d pca_normal(const std::vector<Eigen::Vector3d>& xyz, const std::uint32_t* nn,
+                           std::size_t found, char& degenerate) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (std::size_t j = 0; j < found; ++j) mean += xyz[nn[j]];
+    mean /= static_cast<double>(found);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (std::size_t j = 0; j < found; ++j) {
+        const Eigen::Vector3d d = xyz[nn[j]] - mean;
+        cov.noalias() += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    Eigen::Vector3d normal = eig.eigenvectors().col(0);
+    const Eigen::Vector3d ev = eig.eigenvalues();
+    if (found < 3 || !normal.allFinite() || ev(1) <= 1e-14 * std::max(ev(2), 1e-300)) {
+        degenerate = 1;  // collinear or coincident neighbours
+        if (!normal.allFinite()) normal = Eigen::Vector3d::UnitZ();
+    }
+    Eigen::Index arg;
+    normal.cwiseAbs().maxCoeff(&arg);
+    if (normal(arg) < 0) normal = -normal;
+    return normal.normalized();
+}
+
+/// kNN neighbourhoods through a kd-tree (any cloud): one PCA per point, fixed chunks; each
+/// point's result depends only on its neighbourhood.
+Report knn_normals(const std::vector<Eigen::Vector3d>& xyz, const NormalOptions& options,
+                   const Progress& progress, std::vector<Eigen::Vector3d>& normals,
+                   std::vector<char>& degenerate, std::atomic<bool>& cancelled) {
+    const std::size_t n = xyz.size();
+    const internal::KdTree tree(xyz);
+    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(options.k), n);
+    const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    std::atomic<std::size_t> done{0};
+    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+        if (cancelled.load(std::memory_order_relaxed)) return;
+        std::vector<std::uint32_t> nn(k);
+        std::vector<double> sq(k);
+        const std::size_t begin = c * kChunk, end = std::min(n, begin + kChunk);
+        for (std::size_t i = begin; i < end; ++i) {
+            const std::size_t found = tree.knn(xyz[i], k, nn.data(), sq.data());
+            normals[i] = pca_normal(xyz, nn.data(), found, degenerate[i]);
+        }
+        const std::size_t so_far = done.fetch_add(end - begin) + (end - begin);
+        if (progress && c % 16 == 0 && !report_progress(progress, 0.9 * so_far / n))
+            cancelled = true;
+    });
+    return {{"method", "knn"}};
+}
+
+/// An organised view's points bucketed by depth pixel: pixel p's points are
+/// point[start[p], start[p + 1]) (by point order), and the window half-width that gives about
+/// 1.5 k candidates at the view's mean number of points per occupied pixel.
+struct PixelBuckets {
+    int width = 0, height = 0;
+    std::vector<std::uint32_t> start, point;
+    std::vector<std::uint32_t> occupied;  ///< pixels holding at least one point, ascending
+    int half_window = 1;
+};
+
+/// The buckets of a sensor-frame view with a pixel grid and a pixel per point, when
+/// options.pixel_grid allows; nullopt otherwise (the kd-tree path).
+std::optional<PixelBuckets> organised_grid(const PointCloud& cloud,
+                                           const std::vector<PointSet::Index>& index,
+                                           const NormalOptions& options) {
+    if (!options.pixel_grid || !cloud.view.has_grid() || cloud.view.frame != ViewFrame::kSensor)
+        return std::nullopt;
+    const auto pixel = cloud.pixel_map();
+    if (!pixel) return std::nullopt;
+    PixelBuckets b;
+    b.width = cloud.view.grid_width;
+    b.height = cloud.view.grid_height;
+    const std::size_t pixels = static_cast<std::size_t>(b.width) * b.height;
+    b.start.assign(pixels + 1, 0);
+    for (const auto idx : index) {
+        const std::uint32_t p = (*pixel)[idx];
+        if (p >= pixels) return std::nullopt;  // a pixel outside the grid: not organised
+        ++b.start[p + 1];
+    }
+    for (std::size_t p = 0; p < pixels; ++p) {
+        if (b.start[p + 1] > 0) b.occupied.push_back(static_cast<std::uint32_t>(p));
+        b.start[p + 1] += b.start[p];
+    }
+    b.point.resize(index.size());
+    std::vector<std::uint32_t> fill(b.start.begin(), b.start.end() - 1);
+    for (std::size_t i = 0; i < index.size(); ++i)
+        b.point[fill[(*pixel)[index[i]]]++] = static_cast<std::uint32_t>(i);
+    // A window of about 1.5 k points at the view's mean number of points per occupied pixel.
+    const double per_pixel = static_cast<double>(index.size()) / b.occupied.size();
+    const double side = std::sqrt(1.5 * options.k / per_pixel);
+    b.half_window = std::clamp(static_cast<int>(std::ceil((side - 1.0) / 2.0)), 1, 4);
+    return b;
+}
+
+/// Organised views: the neighbours of a depth pixel are the k points nearest (in 3D) to its
+/// first point among the points of the (2 h + 1)^2 pixels around it (the window sized from the
+/// points per pixel, so that the nearest k are inside it as with a kd-tree's kNN on the
+/// surface; across a depth edge the nearest are those of the same surface). One PCA per pixel,
+/// shared by the pixel's points (super-resolution's points lie within the pixel's footprint).
+Report grid_normals(const PixelBuckets& b, const std::vector<Eigen::Vector3d>& xyz,
+                    const NormalOptions& options, const Progress& progress,
+                    std::vector<Eigen::Vector3d>& normals, std::vector<char>& degenerate,
+                    std::atomic<bool>& cancelled) {
+    const std::size_t k = static_cast<std::size_t>(options.k);
+    const std::size_t count = b.occupied.size();
+    const std::size_t chunks = (count + kChunk - 1) / kChunk;
+    std::atomic<std::size_t> done{0};
+    const int h = b.half_window;
+    std::vector<char> sparse(count, 0);
+    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+        if (cancelled.load(std::memory_order_relaxed)) return;
+        std::vector<std::pair<double, std::uint32_t>> candidates;
+        std::vector<std::uint32_t> nn, window;
+        const std::size_t begin = c * kChunk, end = std::min(count, begin + kChunk);
+        for (std::size_t o = begin; o < end; ++o) {
+            const std::uint32_t p = b.occupied[o];
+            const int row = static_cast<int>(p / b.width), col = static_cast<int>(p % b.width);
+            window.clear();
+            for (int r = std::max(0, row - h); r <= std::min(b.height - 1, row + h); ++r) {
+                const std::size_t first = static_cast<std::size_t>(r) * b.width;
+                const std::uint32_t a0 = b.start[first + std::max(0, col - h)];
+                const std::uint32_t a1 = b.start[first + std::min(b.width - 1, col + h) + 1];
+                window.insert(window.end(), b.point.begin() + a0, b.point.begin() + a1);
+            }
+            if (2 * window.size() < k) {  // a sparse patch: the kd-tree reaches further
+                sparse[o] = 1;
+                continue;
+            }
+            // One PCA per pixel: the k points of the window nearest to the pixel's first
+            // (measured) point; the pixel's other points (super-resolution's) share it.
+            const Eigen::Vector3d& q = xyz[b.point[b.start[p]]];
+            candidates.clear();
+            for (const std::uint32_t j : window)
+                candidates.emplace_back((xyz[j] - q).squaredNorm(), j);
+            const std::size_t found = std::min(k, candidates.size());
+            std::partial_sort(candidates.begin(), candidates.begin() + found, candidates.end());
+            nn.resize(found);
+            for (std::size_t j = 0; j < found; ++j) nn[j] = candidates[j].second;
+            char degenerate_pixel = 0;
+            const Eigen::Vector3d normal = pca_normal(xyz, nn.data(), found, degenerate_pixel);
+            for (std::uint32_t a = b.start[p]; a < b.start[p + 1]; ++a) {
+                normals[b.point[a]] = normal;
+                degenerate[b.point[a]] = degenerate_pixel;
+            }
+        }
+        const std::size_t so_far = done.fetch_add(end - begin) + (end - begin);
+        if (progress && c % 16 == 0 && !report_progress(progress, 0.9 * so_far / count))
+            cancelled = true;
+    });
+    if (cancelled) return {};
+    // Pixels with fewer than k / 2 points in their window: each point's kNN over the view.
+    std::vector<std::uint32_t> sparse_points;
+    for (std::size_t o = 0; o < count; ++o)
+        if (sparse[o])
+            for (std::uint32_t a = b.start[b.occupied[o]]; a < b.start[b.occupied[o] + 1]; ++a)
+                sparse_points.push_back(b.point[a]);
+    if (!sparse_points.empty()) {
+        const internal::KdTree tree(xyz);
+        const std::size_t kk = std::min(k, xyz.size());
+        tbb::parallel_for(std::size_t{0}, sparse_points.size(), [&](std::size_t s) {
+            std::uint32_t nn[1024];
+            double sq[1024];
+            const std::uint32_t i = sparse_points[s];
+            const std::size_t found = tree.knn(xyz[i], kk, nn, sq);
+            normals[i] = pca_normal(xyz, nn, found, degenerate[i]);
+        });
+    }
+    return {{"method", "pixel_grid"},
+            {"half_window_px", h},
+            {"pixels", count},
+            {"points_by_knn", sparse_points.size()}};
 }
 
 void orient_mst(const std::vector<Eigen::Vector3d>& xyz, std::vector<Eigen::Vector3d>& normals,
@@ -112,46 +290,15 @@ Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const P
                    ": orientation 'sensor' needs a sensor-frame view, a world_from_sensor pose "
                    "or sensor_centres with a view property");
 
-    // PCA per point, fixed chunks; each point's result depends only on its neighbourhood.
-    const internal::KdTree tree(xyz);
-    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(options.k), n);
     std::vector<Eigen::Vector3d> normals(n);
     std::vector<char> degenerate(n, 0);
-    const std::size_t chunks = (n + kChunk - 1) / kChunk;
     std::atomic<bool> cancelled{false};
-    std::atomic<std::size_t> done{0};
-    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-        if (cancelled.load(std::memory_order_relaxed)) return;
-        std::vector<std::uint32_t> nn(k);
-        std::vector<double> sq(k);
-        const std::size_t begin = c * kChunk, end = std::min(n, begin + kChunk);
-        for (std::size_t i = begin; i < end; ++i) {
-            const std::size_t found = tree.knn(xyz[i], k, nn.data(), sq.data());
-            Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-            for (std::size_t j = 0; j < found; ++j) mean += xyz[nn[j]];
-            mean /= static_cast<double>(found);
-            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-            for (std::size_t j = 0; j < found; ++j) {
-                const Eigen::Vector3d d = xyz[nn[j]] - mean;
-                cov.noalias() += d * d.transpose();
-            }
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-            Eigen::Vector3d normal = eig.eigenvectors().col(0);
-            const Eigen::Vector3d ev = eig.eigenvalues();
-            if (found < 3 || !normal.allFinite() || ev(1) <= 1e-14 * std::max(ev(2), 1e-300)) {
-                degenerate[i] = 1;  // collinear or coincident neighbours
-                if (!normal.allFinite()) normal = Eigen::Vector3d::UnitZ();
-            }
-            // Deterministic PCA sign before orientation: largest component positive.
-            Eigen::Index arg;
-            normal.cwiseAbs().maxCoeff(&arg);
-            if (normal(arg) < 0) normal = -normal;
-            normals[i] = normal.normalized();
-        }
-        const std::size_t so_far = done.fetch_add(end - begin) + (end - begin);
-        if (progress && c % 16 == 0 && !report_progress(progress, 0.9 * so_far / n))
-            cancelled = true;
-    });
+    Report neighbours;
+    if (const auto grid = organised_grid(cloud, index, options)) {
+        neighbours = grid_normals(*grid, xyz, options, progress, normals, degenerate, cancelled);
+    } else {
+        neighbours = knn_normals(xyz, options, progress, normals, degenerate, cancelled);
+    }
     if (cancelled) throw AlgorithmError("normals: " + view_name(cloud) + ": cancelled");
 
     std::size_t flipped = 0, unoriented = 0;
@@ -191,6 +338,7 @@ Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const P
     for (char d : degenerate) degenerate_count += d ? 1 : 0;
     Report report;
     report["k"] = options.k;
+    report["neighbours"] = neighbours;
     report["orientation"] = to_string(rule);
     report["points"] = n;
     report["flipped"] = flipped;

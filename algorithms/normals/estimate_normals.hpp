@@ -32,6 +32,11 @@ struct NormalOptions {
     /// Merged clouds: sensor centre (in the cloud's frame) per source view id; points whose
     /// `view` property is listed are oriented towards that centre (used by kAuto / kSensor).
     std::map<int, Eigen::Vector3d> sensor_centres;
+    /// Organised views (sensor frame, a pixel grid and a pixel per point, as rgbd-cloud and
+    /// super-resolution make them) take each depth pixel's k nearest points from the window of
+    /// pixels around it (one PCA per pixel) instead of a kd-tree over the whole view; false:
+    /// always the kd-tree.
+    bool pixel_grid = true;
     /// Neighbours of the MST graph for kMst (CGAL's default is 18).
     int mst_k = 18;
 

@@ -1,0 +1,90 @@
+// Benchmark of estimate_normals (docs/algorithms.md §9) on one super-resolved Kinect v2 view,
+// one core: the pixel-window neighbours of organised views against the kd-tree's kNN (issue 38:
+// "normals of organised views from the pixel grid"). Frame: RGBD_NORMALS_CAPTURE (a capture
+// folder, first sensor of rig.json, first frame), else a synthetic 512x424 frame with a sphere of
+// 0.2 m radius at 1.5 m. Counter `same_share`: the share of normals within 1 deg of the
+// kd-tree's.
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstdlib>
+
+#include "algorithms/frames/depth_to_cloud.hpp"
+#include "algorithms/normals/estimate_normals.hpp"
+#include "algorithms/upsample/upsample_view.hpp"
+#include "io/capture_folder.hpp"
+
+using namespace rgbd;
+
+namespace {
+
+RgbdFrame synthetic_frame() {
+    RgbdFrame f;
+    f.depth_intrinsics = {512, 424, 365.5, 365.5, 256.0, 212.0, {}};
+    f.color_intrinsics = {1920, 1080, 1081.37, 1081.37, 959.5, 539.5, {}};
+    f.color_from_depth = Pose::Identity();
+    f.color_from_depth.translation() = Eigen::Vector3d(-0.052, 0, 0);
+    f.depth = cv::Mat(424, 512, CV_32FC1, cv::Scalar(NAN));
+    const Eigen::Vector3d c(0, 0, 1.5);
+    const double r = 0.2;
+    for (int v = 0; v < 424; ++v)
+        for (int u = 0; u < 512; ++u) {
+            const Eigen::Vector3d d = f.depth_intrinsics.unproject(u, v, 1.0).normalized();
+            const double b = d.dot(c), disc = b * b - (c.squaredNorm() - r * r);
+            if (disc > 0) f.depth.at<float>(v, u) = float((b - std::sqrt(disc)) * d.z());
+        }
+    f.color = cv::Mat(1080, 1920, CV_8UC3);
+    cv::randu(f.color, 0, 255);
+    return f;
+}
+
+/// The super-resolved view the alignment stage estimates normals on.
+const PointCloud& view() {
+    static const PointCloud cloud = [] {
+        RgbdFrame frame;
+        if (const char* cap = std::getenv("RGBD_NORMALS_CAPTURE")) {
+            const io::Capture capture = io::open_capture(cap);
+            frame = io::load_frame(capture, capture.rig.sensors.front().id, 0);
+        } else {
+            frame = synthetic_frame();
+        }
+        PointCloud c = frames::depth_to_cloud(frame, frames::CloudOptions{});
+        upsample::upsample_view(c, frame, upsample::UpsampleOptions{});
+        return c;
+    }();
+    return cloud;
+}
+
+void run(benchmark::State& state, bool pixel_grid) {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    normals::NormalOptions options;
+    options.pixel_grid = pixel_grid;
+    PointCloud cloud = view();
+    for (auto _ : state) {
+        state.PauseTiming();
+        cloud = view();
+        state.ResumeTiming();
+        benchmark::DoNotOptimize(normals::estimate_normals(cloud, options));
+    }
+    PointCloud reference = view();
+    options.pixel_grid = false;
+    normals::estimate_normals(reference, options);
+    std::size_t same = 0;
+    auto it = reference.points.begin();
+    for (const auto idx : cloud.points)
+        if (to_eigen(cloud.points.normal(idx)).dot(to_eigen(reference.points.normal(*it++))) >
+            std::cos(1.0 * M_PI / 180.0))
+            ++same;
+    state.counters["points"] = static_cast<double>(cloud.size());
+    state.counters["same_share"] = static_cast<double>(same) / cloud.size();
+}
+
+void BM_NormalsPixelWindow(benchmark::State& state) { run(state, true); }
+void BM_NormalsKdTree(benchmark::State& state) { run(state, false); }
+
+}  // namespace
+
+BENCHMARK(BM_NormalsPixelWindow)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_NormalsKdTree)->Unit(benchmark::kMillisecond);
+BENCHMARK_MAIN();
