@@ -175,12 +175,13 @@ void VideoStream::finish(const std::string& stop_reason) {
 }
 
 void VideoStream::totals(std::int64_t& offered, std::int64_t& fused, std::int64_t& skipped,
-                         double& wall_ms) const {
+                         double& wall_ms, double& cpu_ms) const {
     std::lock_guard<std::mutex> lock(mutex_);
     offered = offered_.load();
     fused = fused_.load();
     skipped = worker_.skipped();
     wall_ms = wall_ms_;
+    cpu_ms = cpu_ms_;
 }
 
 Report VideoStream::metrics() const {

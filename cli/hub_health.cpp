@@ -74,12 +74,13 @@ void HubHealth::frame(std::size_t sensor, std::int64_t capture_ns, std::int64_t 
 }
 
 void HubHealth::fusion_totals(std::int64_t offered, std::int64_t fused, std::int64_t skipped,
-                              double wall_ms) {
+                              double wall_ms, double cpu_ms) {
     causes_[kFusionSlow].count += std::max<std::int64_t>(0, skipped - skipped_);
     offered_ = offered;
     fused_ = fused;
     skipped_ = skipped;
     wall_ms_ = wall_ms;
+    cpu_ms_ = cpu_ms;
 }
 
 std::vector<std::string> HubHealth::tick(std::int64_t now_ns, const SystemSample& system) {
@@ -88,6 +89,7 @@ std::vector<std::string> HubHealth::tick(std::int64_t now_ns, const SystemSample
         window_start_ns_ = now_ns;
         cpu_start_s_ = system.process_cpu_s;
         offered0_ = offered_, fused0_ = fused_, skipped0_ = skipped_, wall0_ms_ = wall_ms_;
+        cpu0_ms_ = cpu_ms_;
         return lines;
     }
     const double window_s = 1e-9 * static_cast<double>(now_ns - window_start_ns_);
@@ -108,6 +110,7 @@ std::vector<std::string> HubHealth::tick(std::int64_t now_ns, const SystemSample
     skip_share_ = d_offered > 0 ? static_cast<double>(d_skipped) / d_offered : 0.0;
     fusion_ms_ = d_fused > 0 ? (wall_ms_ - wall0_ms_) / static_cast<double>(d_fused)
                              : 1e3 * window_s;  // not one set fused in the window
+    fusion_cpu_ms_ = d_fused > 0 ? (cpu_ms_ - cpu0_ms_) / static_cast<double>(d_fused) : fusion_ms_;
 
     const bool active[kCauses] = {static_cast<double>(late_node) / views > options_.share,
                                   static_cast<double>(late_hub) / views > options_.share,
@@ -136,6 +139,7 @@ std::vector<std::string> HubHealth::tick(std::int64_t now_ns, const SystemSample
     window_start_ns_ = now_ns;
     cpu_start_s_ = system.process_cpu_s;
     offered0_ = offered_, fused0_ = fused_, skipped0_ = skipped_, wall0_ms_ = wall_ms_;
+    cpu0_ms_ = cpu_ms_;
     late_views_window_ = w_.late;
     views_window_ = w_.views;
     window_len_s_ = window_s;
@@ -181,8 +185,9 @@ std::string HubHealth::message(Cause cause, const SystemSample& system) const {
                    ": the nodes' per-frame work does not keep up with their sensors (" + machine +
                    "); run fewer nodes per machine" +
                    (options_.fuse_on_nodes
-                        ? std::string(", or with nodes and hub on one PC use --fuse-on hub (the "
-                                      "hub then fuses the newest frame set and skips the others)")
+                        ? std::string(", or with nodes and hub on one PC use --fuse-on hub and "
+                                      "nodes without --views (the hub then fuses the newest frame "
+                                      "set and skips the others; docs/algorithms.md, one PC)")
                         : std::string(" (their encoding competes with the hub for the cores)"));
         case kHubBehind:
             return late + ": they wait " + whole(hub_delay_ms_) +
@@ -194,14 +199,18 @@ std::string HubHealth::message(Cause cause, const SystemSample& system) const {
             return percent(skip_share_) + " of frame sets are skipped for newer ones (" +
                    std::to_string(d_skipped_) + " of " + std::to_string(d_offered_) +
                    " in the last " + one_decimal(window_len_s_) +
-                   " s): fusing one frame set takes " + whole(fusion_ms_) +
-                   " ms, the frame period is " + period + " (" + machine + "); " +
+                   " s): fusing one frame set takes " + whole(fusion_ms_) + " ms" +
+                   (fusion_cpu_ms_ > 0 && fusion_cpu_ms_ < 0.5 * fusion_ms_
+                        ? " (" + whole(fusion_cpu_ms_) +
+                              " ms of CPU: it waits for a core, other processes take the machine)"
+                        : std::string()) +
+                   ", the frame period is " + period + " (" + machine + "); " +
                    (options_.fuse_on_nodes
                         ? std::string("give the hub a core of its own (fewer nodes on its "
                                       "machine), or a coarser --voxel-mm")
                         : std::string("move the per-view work to the nodes (--fuse-on nodes) "
-                                      "when they have machines of their own, or a coarser "
-                                      "--voxel-mm"));
+                                      "when they have machines of their own, or skip the clean "
+                                      "(--no-clean)"));
     }
 }
 

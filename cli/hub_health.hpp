@@ -58,10 +58,11 @@ public:
     /// mapped to hub time, the hub time it was read, and whether it missed its frame set.
     void frame(std::size_t sensor, std::int64_t capture_ns, std::int64_t sent_ns,
                std::int64_t received_ns, bool late);
-    /// Totals of the fusion so far (VideoStream::metrics): sets offered, fused, skipped, and
-    /// the wall time spent fusing (ms).
+    /// Totals of the fusion so far (VideoStream::totals): sets offered, fused, skipped, and
+    /// the wall and CPU time of the fusion thread (ms; wall well above CPU: the fusion waits
+    /// for a core, other processes take the machine).
     void fusion_totals(std::int64_t offered, std::int64_t fused, std::int64_t skipped,
-                       double wall_ms);
+                       double wall_ms, double cpu_ms = 0);
     /// Closes the window when `now_ns` passed its end; returns the warning lines due (without
     /// the tool's prefix), one per cause at most.
     std::vector<std::string> tick(std::int64_t now_ns, const SystemSample& system);
@@ -93,10 +94,10 @@ private:
     double cpu_start_s_ = -1;
     // fusion totals: at the window start and now
     std::int64_t offered0_ = 0, fused0_ = 0, skipped0_ = 0, offered_ = 0, fused_ = 0, skipped_ = 0;
-    double wall0_ms_ = 0, wall_ms_ = 0;
+    double wall0_ms_ = 0, wall_ms_ = 0, cpu0_ms_ = 0, cpu_ms_ = 0;
     // figures of the last closed window, for the messages
     double late_share_ = 0, node_delay_ms_ = 0, hub_delay_ms_ = 0, skip_share_ = 0, fusion_ms_ = 0,
-           cpu_share_ = 0;
+           fusion_cpu_ms_ = 0, cpu_share_ = 0;
     std::vector<std::int64_t> last_late_by_sensor_;
     std::int64_t late_views_window_ = 0, views_window_ = 0, late_unknown_window_ = 0,
                  d_offered_ = 0, d_skipped_ = 0;

@@ -277,9 +277,9 @@ void run_capture(cli::Context& ctx) {
     const auto check_health = [&](std::int64_t now) {
         if (fusion) {
             std::int64_t offered = 0, fused = 0, skipped = 0;
-            double wall_ms = 0;
-            fusion->totals(offered, fused, skipped, wall_ms);
-            health.fusion_totals(offered, fused, skipped, wall_ms);
+            double wall_ms = 0, cpu_ms = 0;
+            fusion->totals(offered, fused, skipped, wall_ms, cpu_ms);
+            health.fusion_totals(offered, fused, skipped, wall_ms, cpu_ms);
         }
         for (const std::string& line : health.tick(now, cli::sample_system())) ctx.warn(line);
     };

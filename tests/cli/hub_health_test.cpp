@@ -36,6 +36,7 @@ struct Second {
     bool send_time = true;                 ///< the nodes give their send time
     int fused = 30, skipped = 0;           ///< fusion: sets fused / skipped of 30 offered
     double fusion_ms = 20;                 ///< wall time per fused set
+    double fusion_cpu_ms = -1;             ///< its CPU time (-1: = the wall time)
 };
 
 struct Outcome {
@@ -49,7 +50,7 @@ template <typename At>
 Outcome simulate(HubHealth& health, int seconds, At at, double cpu_per_s = 0.5) {
     Outcome run;
     std::int64_t offered = 0, fused = 0, skipped = 0;
-    double wall = 0;
+    double wall = 0, cpu = 0;
     health.tick(0, SystemSample{0.0, 3.5, 2});
     for (int k = 0; k < seconds * 30; ++k) {
         const std::int64_t capture = k * kPeriod;
@@ -67,8 +68,9 @@ Outcome simulate(HubHealth& health, int seconds, At at, double cpu_per_s = 0.5) 
         } else if (k % 30 < s.skipped + s.fused) {
             ++fused;
             wall += s.fusion_ms;
+            cpu += s.fusion_cpu_ms < 0 ? s.fusion_ms : s.fusion_cpu_ms;
         }
-        health.fusion_totals(offered, fused, skipped, wall);
+        health.fusion_totals(offered, fused, skipped, wall, cpu);
         if (k % 6 == 5) {  // every 200 ms
             const std::int64_t now = capture + kPeriod;
             SystemSample system{cpu_per_s * 1e-9 * static_cast<double>(now), 3.5, 2};
@@ -200,12 +202,30 @@ TEST(HubHealth, SlowFusionNamesItsTimeAgainstTheFramePeriod) {
         EXPECT_NE(line.find("fusing one frame set takes 180 ms, the frame period is 33 ms"),
                   std::string::npos)
             << line;
-        EXPECT_NE(line.find("--voxel-mm"), std::string::npos) << line;
+        EXPECT_EQ(line.find("--voxel-mm") != std::string::npos, on_nodes) << line;
+        EXPECT_EQ(line.find("--no-clean") != std::string::npos, !on_nodes) << line;
         EXPECT_EQ(line.find("--fuse-on nodes") != std::string::npos, !on_nodes) << line;
         EXPECT_EQ(run.report["causes"]["fusion_slow"]["sets_skipped"], 6 * 25);
         EXPECT_EQ(run.report["causes"]["fusion_slow"]["warnings"], 1);
         EXPECT_EQ(run.report["views_late"], 0);
+        EXPECT_EQ(line.find("waits for a core"), std::string::npos) << line;
     }
+}
+
+TEST(HubHealth, AFusionStarvedOfCpuSaysSo) {
+    HubHealth health(options());
+    const Outcome run = simulate(health, 4, [](int) {
+        Second s;
+        s.fused = 8;
+        s.skipped = 22;
+        s.fusion_ms = 117;
+        s.fusion_cpu_ms = 5;
+        return s;
+    });
+    ASSERT_EQ(run.lines.size(), 1u);
+    EXPECT_NE(run.lines[0].find("takes 117 ms (5 ms of CPU: it waits for a core"),
+              std::string::npos)
+        << run.lines[0];
 }
 
 TEST(HubHealth, WithoutVideoFusionIsNotWatched) {

@@ -5,8 +5,9 @@
 # PC gets), once per setting given. Prints per setting: views late (the hub's health check),
 # frame sets fused / offered / skipped, latency p50 / p95 (capture instant -> frame written),
 # the hub's warnings on why, and the load average before and after.
-# Usage: video_one_pc.sh BUILD_DIR FRAMES OUT_DIR "HUB OPTIONS" ["HUB OPTIONS" ...]
-#        ("" = the defaults; SYNTH_DIR=DIR reuses a capture of an earlier run)
+# Usage: video_one_pc.sh BUILD_DIR FRAMES OUT_DIR "HUB OPTIONS[|NODE OPTIONS]" ...
+#        ("" = the defaults; node options default to --views, which --fuse-on nodes needs;
+#        SYNTH_DIR=DIR reuses a capture of an earlier run)
 set -euo pipefail
 BUILD=${1:?build dir}
 FRAMES=${2:?frames per node}
@@ -25,8 +26,11 @@ else
   fi
 fi
 k=0
-for OPTS in "$@"; do
+for ARG in "$@"; do
   k=$((k + 1))
+  OPTS=${ARG%%|*}
+  NODE_OPTS=--views
+  [[ "$ARG" == *"|"* ]] && NODE_OPTS=${ARG#*|}
   RUN=$OUT/run$k
   rm -rf "$RUN"
   mkdir -p "$RUN"
@@ -36,12 +40,13 @@ for OPTS in "$@"; do
   "$B/rgbd-capture" --rig "$SYNTH/rig.json" --video "$RUN/video" --exit-after-bye \
     --listen "tcp://127.0.0.1:$PORT" --metrics "$RUN/hub.json" -q $OPTS 2>"$RUN/hub.err" &
   for s in 0 1 2 3 4 5 6 7; do
-    "$B/rgbd-node" --sensor "playback:$SYNTH#k2-$s" --views --loop --frames "$FRAMES" \
+    # shellcheck disable=SC2086
+    "$B/rgbd-node" --sensor "playback:$SYNTH#k2-$s" $NODE_OPTS --loop --frames "$FRAMES" \
       --hub "tcp://127.0.0.1:$PORT" --metrics "$RUN/node$s.json" -q &
   done
   wait
   LOAD_AFTER=$(cut -d' ' -f1-3 /proc/loadavg)
-  echo "== hub options: ${OPTS:-(defaults)}"
+  echo "== hub options: ${OPTS:-(defaults)}; node options: ${NODE_OPTS:-(defaults)}"
   echo "   load average before: $LOAD_BEFORE, after: $LOAD_AFTER ($(nproc) cores)"
   /usr/bin/python3 - "$RUN/hub.json" <<'EOF'
 import json, sys
