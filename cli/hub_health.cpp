@@ -187,7 +187,7 @@ std::string HubHealth::message(Cause cause, const SystemSample& system) const {
                    (options_.fuse_on_nodes
                         ? std::string(", or with nodes and hub on one PC use --fuse-on hub and "
                                       "nodes without --views (the hub then fuses the newest frame "
-                                      "set and skips the others; docs/algorithms.md, one PC)")
+                                      "set and skips the others; docs/method.md, \"One PC\")")
                         : std::string(" (their encoding competes with the hub for the cores)"));
         case kHubBehind:
             return late + ": they wait " + whole(hub_delay_ms_) +
