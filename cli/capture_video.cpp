@@ -174,6 +174,16 @@ void VideoStream::finish(const std::string& stop_reason) {
     writer_->finish(metrics(), stop_reason);
 }
 
+void VideoStream::totals(std::int64_t& offered, std::int64_t& fused, std::int64_t& skipped,
+                         double& wall_ms, double& cpu_ms) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    offered = offered_.load();
+    fused = fused_.load();
+    skipped = worker_.skipped();
+    wall_ms = wall_ms_;
+    cpu_ms = cpu_ms_;
+}
+
 Report VideoStream::metrics() const {
     std::lock_guard<std::mutex> lock(mutex_);
     const double fused = static_cast<double>(fused_.load());

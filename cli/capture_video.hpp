@@ -67,6 +67,10 @@ public:
     /// Counters (also in video.json): sets offered, fused, skipped, empty, thinned, views
     /// fused / missing, CPU and wall ms of the fusion thread, latency p50 / p95.
     Report metrics() const;
+    /// Cheap running totals for the hub's health check (cli/hub_health.hpp): sets offered,
+    /// fused, skipped, and the fusion thread's wall and CPU time so far (ms).
+    void totals(std::int64_t& offered, std::int64_t& fused, std::int64_t& skipped, double& wall_ms,
+                double& cpu_ms) const;
 
 private:
     void fuse(LiveSet& set);

@@ -27,6 +27,7 @@
 #include "cli/capture_recorder.hpp"
 #include "cli/capture_video.hpp"
 #include "cli/common/tool.hpp"
+#include "cli/hub_health.hpp"
 #include "cli/node_views.hpp"
 #include "cli/view_server.hpp"
 #include "cli/zmq_errors.hpp"
@@ -256,6 +257,32 @@ void run_capture(cli::Context& ctx) {
     std::string error;
     zmq::message_t message;
     io::ColoredPoints view_points;
+    // Why views are late or sets skipped, said once per cause (cli/hub_health.hpp).
+    cli::HealthOptions health_options;
+    health_options.frame_period_ms = 1000.0 / video_options.frame_rate_hz;
+    health_options.deadline_ms = latency_ms;
+    health_options.repeat_s = ctx.get<double>("health-repeat-s");
+    health_options.fuse_on_nodes = video_options.fuse_on_nodes;
+    health_options.video = video;
+    for (const io::SensorSpec& s : rig.sensors) health_options.sensor_ids.push_back(s.id);
+    cli::HubHealth health(health_options);
+    // One received frame or view: grouped, and its timing given to the health check.
+    const auto arrived = [&](std::size_t sensor, const net::ClockFit& fit, std::int64_t hub_ns,
+                             std::int64_t index) {
+        const bool on_time = grouper.add(sensor, hub_ns, index);
+        const std::int64_t sent =
+            view.header.sent_ns != 0 ? fit.to_hub(view.header.sent_ns) : cli::HubHealth::kUnknown;
+        health.frame(sensor, hub_ns, sent, monotonic_ns(), !on_time);
+    };
+    const auto check_health = [&](std::int64_t now) {
+        if (fusion) {
+            std::int64_t offered = 0, fused = 0, skipped = 0;
+            double wall_ms = 0, cpu_ms = 0;
+            fusion->totals(offered, fused, skipped, wall_ms, cpu_ms);
+            health.fusion_totals(offered, fused, skipped, wall_ms, cpu_ms);
+        }
+        for (const std::string& line : health.tick(now, cli::sample_system())) ctx.warn(line);
+    };
 
     const auto drop = [&](const std::string& reason) {
         ++dropped[reason];
@@ -288,7 +315,7 @@ void run_capture(cli::Context& ctx) {
                 st.gaps.emplace_back(st.last_hub_ns, hub_ns);
             st.last_hub_ns = std::max(st.last_hub_ns, hub_ns);
             const std::int64_t index = st.recorded++;
-            grouper.add(sensor, hub_ns, index);
+            arrived(sensor, fit, hub_ns, index);
             history->store_view(sensor, index, hub_ns, view_points);
             ++received;
             return;
@@ -316,7 +343,7 @@ void run_capture(cli::Context& ctx) {
         job->sensor = sensor;
         job->index = st.recorded++;
         job->hub_ns = hub_ns;
-        grouper.add(sensor, hub_ns, job->index);
+        arrived(sensor, fit, hub_ns, job->index);
         if (history)
             history->store(sensor, job->index, hub_ns, job->depth, view.color,
                            view.header.color_bytes);
@@ -343,8 +370,13 @@ void run_capture(cli::Context& ctx) {
 
     std::string stop_reason = "signal";
     std::int64_t last_formed = monotonic_ns();
+    std::int64_t last_health = 0;
     for (;;) {
         if (g_stop) break;
+        if (monotonic_ns() - last_health > 250'000'000) {
+            last_health = monotonic_ns();
+            check_health(last_health);
+        }
         if (recorder.failed()) break;
         if (fusion && fusion->failed()) break;
         if (duration_s > 0 &&
@@ -449,6 +481,22 @@ void run_capture(cli::Context& ctx) {
         per_sensor[rig.sensors[s].id] = r;
     }
     m["sensors"] = per_sensor;
+    m["health"] = health.report();
+    {
+        const Report& h = m["health"];
+        const Report& c = h["causes"];
+        if (h["views_late"].get<std::int64_t>() > 0 ||
+            c["fusion_slow"]["sets_skipped"].get<std::int64_t>() > 0)
+            ctx.note("late: " + h["views_late"].dump() + " of " + h["views"].dump() +
+                     " views (nodes behind " + c["nodes_behind"]["views_late"].dump() +
+                     ", hub behind " + c["hub_behind"]["views_late"].dump() + "), " +
+                     c["fusion_slow"]["sets_skipped"].dump() +
+                     " frame sets skipped (fusion slower than the frames); " +
+                     std::to_string(c["nodes_behind"]["warnings"].get<int>() +
+                                    c["hub_behind"]["warnings"].get<int>() +
+                                    c["fusion_slow"]["warnings"].get<int>()) +
+                     " warnings on why");
+    }
     if (stream) {
         m["live"] = stream->metrics();
         m["live"]["output"] = live_options.path;
@@ -578,9 +626,13 @@ int main(int argc, char** argv) {
             "serve", cli::po::value<int>()->value_name("PORT"),
             "with --video: serve the live fused stream as a web page on PORT")(
             "bind", cli::value<std::string>("127.0.0.1", "ADDRESS"),
-            "address the --serve page listens on (another address lets remote viewers in)");
+            "address the --serve page listens on (another address lets remote viewers in)")(
+            "health-repeat-s", cli::value<double>(cli::HealthOptions{}.repeat_s, "S"),
+            "when views arrive too late or frame sets are skipped for more than 3 s, say why "
+            "(nodes behind, hub behind, fusion slow) and what helps, once per cause every S s");
     };
     spec.ranges = {{"drift-window-s", Range::closed(1, 86400), "s"},
+                   {"health-repeat-s", Range::closed(0.1, 86400), "s"},
                    {"duration-s", Range::closed(0, 1e7), "s"}};
     spec.scopes = {{{"video"},
                     {"fuse-on", "voxel-mm", "crop-radius-m", "no-clean", "draco-quantum-mm",

@@ -188,6 +188,10 @@ void run_node(cli::Context& ctx) {
     if (frames_limit < 0) throw cli::UsageError("--frames must be >= 0");
     if (!(duration_s >= 0)) throw cli::UsageError("--duration-s must be >= 0");
     const double start_timeout_s = ctx.get<double>("start-timeout-s");
+    const double work_delay_ms = ctx.get<double>("work-delay-ms");
+    if (!(work_delay_ms >= 0 && work_delay_ms <= 10000))
+        throw cli::UsageError("--work-delay-ms must be in [0, 10000]");
+    const auto work_delay_ns = static_cast<std::int64_t>(work_delay_ms * 1e6);
 
     const std::string hub = ctx.get<std::string>("hub");
     const std::string control =
@@ -382,6 +386,10 @@ void run_node(cli::Context& ctx) {
         header.node_ns = clock.at(frame.capture_ns);
         header.width = static_cast<std::uint16_t>(frame.depth.cols);
         header.height = static_cast<std::uint16_t>(frame.depth.rows);
+        if (work_delay_ns > 0) {  // testing: a node whose per-frame work is slow
+            std::this_thread::sleep_for(std::chrono::nanoseconds(work_delay_ns));
+        }
+        header.sent_ns = clock.now();  // the hub sees how far behind its sensor the node is
         net::encode_frame(header, rvl.data(), rvl.size(), color->data(), color->size(), message);
         encode_s += 1e-9 * static_cast<double>(sensors::monotonic_ns() - t_encode);
         bool accepted = false;
@@ -487,6 +495,9 @@ int main(int argc, char** argv) {
             "testing: run the node's clock this far ahead of the machine's")(
             "clock-drift-ppm", cli::value<double>(0.0, "PPM"),
             "testing: run the node's clock fast by this many parts per million")(
+            "work-delay-ms", cli::value<double>(0.0, "MS"),
+            "testing: spend MS more on every frame before sending it (a node too slow for its "
+            "sensor: it falls behind, and the hub says so)")(
             "truth", cli::po::value<std::string>()->value_name("FILE"),
             "testing: write session,index,source_position,true_ns,node_ns per frame sent")(
             "key", cli::po::value<std::string>()->value_name("FILE"),

@@ -38,8 +38,9 @@ constexpr std::size_t kOffMagic = 0, kOffVersion = 4, kOffHeaderSize = 6, kOffSe
                       kOffIndex = 16, kOffDevice = 24, kOffNode = 32, kOffWidth = 40,
                       kOffHeight = 42, kOffDepthBytes = 44, kOffColorBytes = 48, kOffDepthCrc = 52,
                       kOffColorCrc = 56, kOffIdLength = 60, kOffId = 64, kOffKind = 112,
-                      kOffHeaderCrc = 124;
+                      kOffSent = 116, kOffHeaderCrc = 124;
 static_assert(kOffId + kMaxSensorId + 1 <= kOffKind);
+static_assert(kOffKind < kOffSent && kOffSent + 8 <= kOffHeaderCrc);
 
 }  // namespace
 
@@ -71,6 +72,7 @@ void encode_frame(FrameHeader h, const std::uint8_t* depth_rvl, std::size_t dept
     put_u64(p + kOffIndex, static_cast<std::uint64_t>(h.index));
     put_u64(p + kOffDevice, static_cast<std::uint64_t>(h.device_ns));
     put_u64(p + kOffNode, static_cast<std::uint64_t>(h.node_ns));
+    put_u64(p + kOffSent, static_cast<std::uint64_t>(h.sent_ns));
     put_u16(p + kOffWidth, h.width);
     put_u16(p + kOffHeight, h.height);
     put_u32(p + kOffDepthBytes, h.depth_bytes);
@@ -109,6 +111,7 @@ bool parse_frame(const std::uint8_t* data, std::size_t size, FrameView& out, std
     h.index = static_cast<std::int64_t>(get_u64(data + kOffIndex));
     h.device_ns = static_cast<std::int64_t>(get_u64(data + kOffDevice));
     h.node_ns = static_cast<std::int64_t>(get_u64(data + kOffNode));
+    h.sent_ns = static_cast<std::int64_t>(get_u64(data + kOffSent));
     h.width = get_u16(data + kOffWidth);
     h.height = get_u16(data + kOffHeight);
     h.depth_bytes = get_u32(data + kOffDepthBytes);

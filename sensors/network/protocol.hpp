@@ -1,8 +1,9 @@
 // Wire format of the capture network (docs/algorithms.md §1). Two channels per node:
 //  - frames: node PUSH -> hub PULL, one ZeroMQ message part per frame: a fixed 128-byte
 //    little-endian header (magic, version, session, sensor id, frame index, device and node
-//    time stamps, image size, payload sizes, CRC-32 of header and of each payload), then the
-//    depth compressed with RVL (io/rvl.hpp), then the colour as a JPEG file.
+//    time stamps, the node's send time (bytes 116-123, once reserved: 0 from older nodes),
+//    image size, payload sizes, CRC-32 of header and of each payload), then the depth
+//    compressed with RVL (io/rvl.hpp), then the colour as a JPEG file.
 //  - control: node DEALER <-> hub ROUTER, small fixed messages (hello with the sensor's rig
 //    entry as JSON, clock probes and replies, start, bye), so probes never queue behind frames.
 // Parsers never throw and never read past the message: they return false with a reason, and
@@ -42,6 +43,10 @@ struct FrameHeader {
     std::int64_t index = 0;      ///< the node's frame counter
     std::int64_t device_ns = 0;  ///< device time stamp (its own clock)
     std::int64_t node_ns = 0;    ///< capture instant in the node's clock
+    /// When the node sent the message, in the node's clock (0 = not given: nodes before issue
+    /// 38). sent_ns - node_ns is how far the node is behind its sensor (rgbd-capture's health
+    /// check, cli/hub_health.hpp).
+    std::int64_t sent_ns = 0;
     std::uint16_t width = 0, height = 0;
     std::uint32_t depth_bytes = 0, color_bytes = 0;
     std::uint32_t depth_crc = 0, color_crc = 0;

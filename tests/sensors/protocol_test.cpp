@@ -19,6 +19,7 @@ std::vector<std::uint8_t> sample_frame(FrameHeader& h) {
     h.index = 41;
     h.device_ns = -5;
     h.node_ns = 1'700'000'000'123'456'789LL;
+    h.sent_ns = 1'700'000'000'150'000'000LL;  // the node's send time (issue 38)
     h.width = 512;
     h.height = 424;
     const std::vector<std::uint8_t> depth = {1, 2, 3, 4, 5, 6, 7, 8};
@@ -39,6 +40,7 @@ TEST(Protocol, FrameRoundTrip) {
     EXPECT_EQ(v.header.index, 41);
     EXPECT_EQ(v.header.device_ns, -5);
     EXPECT_EQ(v.header.node_ns, h.node_ns);
+    EXPECT_EQ(v.header.sent_ns, h.sent_ns);
     EXPECT_EQ(v.header.width, 512);
     EXPECT_EQ(v.header.height, 424);
     ASSERT_EQ(v.header.depth_bytes, 8u);
