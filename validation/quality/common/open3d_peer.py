@@ -1,9 +1,10 @@
 """The Open3D pipeline of the peer comparisons (docs/method.md, the Open3D 0.16 chain),
 shared by the validation scripts that compare with Open3D (person_vs_open3d.py, ablation.py,
 icp_vs_open3d.py, measure_align.py): per view statistical outlier removal and a down-sampled copy
-with normals, pairwise multi-scale point-to-plane ICP, the pose graph, the merged world-frame
-cloud and Screened Poisson. Open3D is imported by each function, so the module loads without
-it."""
+with normals, pairwise multi-scale point-to-plane ICP, the pose graph (register_ring: the ring of
+pairs from the identity or from given poses), the merged world-frame cloud and Screened Poisson;
+and TSDF fusion of depth images with marching cubes (tsdf_mesh). Open3D is imported by each
+function, so the module loads without it."""
 import numpy as np
 
 from rgbd_stream import rgb_of, xyz_of
@@ -60,6 +61,59 @@ def pair_icp(small, i, j, start):
                                  reg.TransformationEstimationPointToPlane(),
                                  reg.ICPConvergenceCriteria(1e-6, 1e-6, iterations)).transformation
     return t, reg.get_information_matrix_from_point_clouds(small[j], small[i], 0.012, t)
+
+
+def register_ring(small, starts=None):
+    """Consecutive pairs (view j = i + 1 onto view i) and, with more than two views, the
+    loop-closing pair (0 onto n-1) by pair_icp, then the pose graph (optimise; the closing edge
+    uncertain). `starts`: 4x4 world_from_sensor per view (e.g. the capture's poses): each pair
+    starts from inv(starts[i]) @ starts[j] and the graph's nodes are the starts; None: each pair
+    starts from the identity and the nodes are the pair results chained from view 0. Returns
+    (world_from_sensor per view after the pose graph, pair results [target_from_source] in
+    pair order, the last one the closing pair)."""
+    import open3d as o3d
+    reg = o3d.pipelines.registration
+    n = len(small)
+    graph = reg.PoseGraph()
+    chained = [np.eye(4) if starts is None else np.asarray(starts[0])]
+    graph.nodes.append(reg.PoseGraphNode(chained[0]))
+    edges = []
+    for i in range(n if n > 2 else n - 1):
+        j = (i + 1) % n
+        start = np.eye(4) if starts is None else np.linalg.inv(starts[i]) @ starts[j]
+        tr, info = pair_icp(small, i, j, start)
+        if j != 0:
+            chained.append(chained[-1] @ tr if starts is None else np.asarray(starts[j]))
+            graph.nodes.append(reg.PoseGraphNode(chained[-1]))
+        graph.edges.append(reg.PoseGraphEdge(j, i, tr, info, uncertain=(j == 0)))
+        edges.append(tr)
+    optimise(graph)
+    return [np.asarray(node.pose) for node in graph.nodes], edges
+
+
+def tsdf_mesh(frames, poses, voxel=0.004, trunc_voxels=4.0, depth_trunc=3.0):
+    """Open3D's TSDF fusion: a ScalableTSDFVolume (voxel `voxel` m, sdf_trunc trunc_voxels
+    voxels, colour RGB8) integrating every frame at its pose, then marching cubes
+    (extract_triangle_mesh). `frames`: per view a dict with `color` (8-bit RGB, H x W x 3),
+    `depth` (uint16, H x W, registered to the colour image, 0 = no depth), `depth_scale`
+    (values per metre) and `intrinsics` (w, h, fx, fy, cx, cy); poses: 4x4 world_from_sensor.
+    Returns (mesh, seconds integrating, seconds extracting)."""
+    import time
+    import open3d as o3d
+    vol = o3d.pipelines.integration.ScalableTSDFVolume(
+        voxel_length=voxel, sdf_trunc=trunc_voxels * voxel,
+        color_type=o3d.pipelines.integration.TSDFVolumeColorType.RGB8)
+    t0 = time.perf_counter()
+    for f, pose in zip(frames, poses):
+        rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
+            o3d.geometry.Image(np.ascontiguousarray(f["color"])),
+            o3d.geometry.Image(np.ascontiguousarray(f["depth"])), depth_scale=f["depth_scale"],
+            depth_trunc=depth_trunc, convert_rgb_to_intensity=False)
+        vol.integrate(rgbd, o3d.camera.PinholeCameraIntrinsic(*f["intrinsics"]),
+                      np.linalg.inv(pose))
+    t1 = time.perf_counter()
+    mesh = vol.extract_triangle_mesh()
+    return mesh, t1 - t0, time.perf_counter() - t1
 
 
 def merge_views(full, poses):
