@@ -34,9 +34,11 @@ Two runs, each side started alike in each (the results file says how, a line per
     registered pose; extract_triangle_mesh (marching cubes).
   Each Open3D pipeline runs in its own child process under /usr/bin/time -v (wall, peak RSS).
 - POSE-ACCURACY run: both sides start WITHOUT the poses. Ours: the pipe equivalent of the
-  default job's first stages, `rgbd-cloud CAP --frames SEL | rgbd-clean --distance |
-  rgbd-upsample | rgbd-align --ignore-poses --metrics m.json` (rgbd-reconstruct has no option
-  to ignore the poses; align.views[].world_from_sensor, in the first view's frame); Open3D: the
+  default job's stages up to the alignment, `rgbd-cloud CAP --frames SEL | rgbd-clean
+  --distance | rgbd-align --ignore-poses --metrics m.json` (rgbd-reconstruct has no option to
+  ignore the poses; `| rgbd-upsample` before rgbd-align only when the default job super-resolved
+  views: it does not on the person's registered 640 x 480 frames, where the standalone tool
+  would add points; align.views[].world_from_sensor, in the first view's frame); Open3D: the
   registration above with every pair started from the identity and the pose graph nodes
   chained from the pair results.
 - Pose accuracy: rotation error of every consecutive pair's relative pose against camera.xml,
@@ -225,21 +227,31 @@ def run_ours(b, frames, d, tag):
     m = json.load(open(metrics))
     rec = m.get("reconstruct", m)
     st = {s.get("name", s.get("stage", "?")): s.get("time_s", 0.0) for s in rec.get("stages", [])}
+    upsampled = sum(s.get("views", 0) for s in rec.get("stages", [])
+                    if s.get("stage") == "upsample")
     return {"wall_s": wall, "rss_mb": rss, "stages": st, "poses": aligned_poses(rec["align"]),
-            "loop": find_key(m, "loop_closure") or {}}
+            "loop": find_key(m, "loop_closure") or {}, "upsampled_views": upsampled}
 
 
-def run_ours_no_poses(b, frames, d, tag):
-    """Pose-accuracy run: the default job's stages up to the alignment as a pipe, the
-    alignment started without the poses (rgbd-align --ignore-poses)."""
+def no_poses_pipe(b, frames, upsample, metrics):
+    """The default job's stages up to the alignment as a pipe, the alignment started without
+    the poses. rgbd-upsample only when the default job ran it (`upsample`: rgbd-reconstruct
+    super-resolves only views whose colour camera has more pixels than the depth camera, not
+    the person's registered 640 x 480 frames; the standalone tool would add points)."""
+    return (f"{b}/rgbd-cloud {PERSON} --frames {frames} -q | {b}/rgbd-clean --distance -q | " +
+            (f"{b}/rgbd-upsample -q | " if upsample else "") +
+            f"{b}/rgbd-align --ignore-poses -q --metrics {metrics}")
+
+
+def run_ours_no_poses(b, frames, d, tag, upsample):
+    """Pose-accuracy run: no_poses_pipe, timed; the aligned poses from its metrics."""
     metrics = f"{d}/{tag}_noposes_align.json"
-    wall, rss, _ = timed(f"{b}/rgbd-cloud {PERSON} --frames {frames} -q | "
-                         f"{b}/rgbd-clean --distance -q | {b}/rgbd-upsample -q | "
-                         f"{b}/rgbd-align --ignore-poses -q --metrics {metrics} "
-                         f"> {d}/{tag}_noposes_aligned.ply")
+    cmd = no_poses_pipe(b, frames, upsample, metrics)
+    wall, rss, _ = timed(f"{cmd} > {d}/{tag}_noposes_aligned.ply")
     m = json.load(open(metrics))
     return {"wall_s": wall, "rss_mb": rss, "poses": aligned_poses(m.get("align", m)),
-            "loop": find_key(m, "loop_closure") or {}}
+            "loop": find_key(m, "loop_closure") or {},
+            "cmd": cmd.replace(b + "/", "").replace(metrics, "m.json").replace(PERSON, "CAP")}
 
 
 def run_o3d(views, d, tag, start, surface):
@@ -297,8 +309,10 @@ def pose_row(name, poses, truth, loop_deg, loop_mm):
     if len(poses) != len(truth):
         sys.exit(f"person_vs_open3d: {name}: {len(poses)} aligned poses for {len(truth)} views")
     e = pair_errors(poses, truth)
+    loop = "n/a (not in the metrics)" if np.isnan(loop_deg) else \
+        f"{loop_deg:.3f} deg / {loop_mm:.2f} mm"
     return (f"| {name} | {np.median(e):.3f} | {np.percentile(e, 90):.3f} | {e.max():.3f} | "
-            f"{loop_deg:.3f} deg / {loop_mm:.2f} mm |")
+            f"{loop} |")
 
 
 def ours_row(name, ours, truth):
@@ -362,7 +376,7 @@ def main():
     stamp(f"frames {frames}: Open3D-TSDF, from the poses")
     tsdf = run_o3d(views, work, "main", "poses", "tsdf")
     stamp(f"frames {frames}: ours, without the poses")
-    ours_np = run_ours_no_poses(b, frames, work, "main")
+    ours_np = run_ours_no_poses(b, frames, work, "main", ours["upsampled_views"] > 0)
     stamp(f"frames {frames}: Open3D registration, from the identity")
     o3d_np = run_o3d(views, work, "main", "identity", "none")
 
@@ -398,9 +412,10 @@ def main():
     say("## Pose accuracy: consecutive pairs against camera.xml (rotation error, degrees)")
     say("")
     say("Pose-accuracy run, both sides started WITHOUT the poses:")
-    say("- ours: `rgbd-cloud CAP --frames SEL | rgbd-clean --distance | rgbd-upsample | "
-        f"rgbd-align --ignore-poses` (every view from its own sensor frame; {ours_np['wall_s']:.1f}"
-        f" s, not part of the ratios).")
+    say(f"- ours: `{ours_np['cmd']}`, the default job's stages up to "
+        "the alignment (rgbd-upsample only when the default job super-resolved views: "
+        f"{ours['upsampled_views']} here), every view started from its own sensor frame "
+        f"({ours_np['wall_s']:.1f} s, not part of the ratios).")
     say("- Open3D: the same registration with every pair started from the identity, the graph "
         f"nodes chained from the pair results ({o3d_np['wall_s']:.1f} s).")
     say("")
