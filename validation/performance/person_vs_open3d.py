@@ -132,6 +132,9 @@ def capture_frame(comments):
     if depth_path is None or not depth_path.endswith("_depth.png"):
         sys.exit(f"person_vs_open3d: a view without a UvA depth image source ({depth_path})")
     stem = depth_path[:-len("_depth.png")]
+    for f in (depth_path, stem + ".jpg", stem + "_camera.xml"):
+        if not os.path.exists(f):
+            sys.exit(f"person_vs_open3d: {f} not found (the TSDF pipeline reads the capture)")
     xml = open(stem + "_camera.xml").read()
     k = re.search(r"<intrinsic[^>]*>.*?<data>(.*?)</data>", xml, re.S)
     if k is None:
