@@ -69,6 +69,9 @@ cli::ReportPage report_page(const Report& report) {
     for (const auto& s : report["skipped_stages"])
         skipped += (skipped.empty() ? "" : ", ") + s.get<std::string>();
     page.facts.push_back({"stages skipped", skipped.empty() ? "none" : skipped});
+    if (report.contains("texture"))  // the pictures show it; the viewer turns it
+        page.facts.push_back(
+            {"textured model", "rgbd-view " + report["mesh_file"].get<std::string>()});
     if (report.contains("evaluation"))
         page.tables.push_back(
             cli::side_by_side("Against the ground truth", {{"result", report["evaluation"]}}));
@@ -246,6 +249,7 @@ void run_reconstruct(cli::Context& ctx) {
         cli::PictureInputs pictures;
         pictures.input = &result.input;
         pictures.result = &mesh;
+        pictures.textured = textured ? &*textured : nullptr;
         pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
         Report picture_info;
         std::vector<cli::ReportImage> images;

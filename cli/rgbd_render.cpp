@@ -8,6 +8,7 @@
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
+#include "io/textured_mesh_io.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -66,17 +67,24 @@ void run_render(cli::Context& ctx) {
     }
 
     const std::string input = ctx.inputs().front();
-    cli::LoadedResult loaded = cli::load_result(input);
+    // A textured model (.obj with its MTL and atlas, .glb) is drawn with its texture.
+    const bool textured_file = io::is_textured_format(input);
+    cli::LoadedResult loaded;
+    if (!textured_file) loaded = cli::load_result(input);
     render::Geometry geometry;
     try {
-        geometry = loaded.mesh ? render::from_mesh(*loaded.mesh) : render::from_views(loaded.views);
+        if (textured_file)
+            geometry = render::from_textured_mesh(io::read_textured_mesh(input));
+        else
+            geometry =
+                loaded.mesh ? render::from_mesh(*loaded.mesh) : render::from_views(loaded.views);
     } catch (const InputError& e) {
         throw InputError(input + ": " + e.what());
     }
     if (geometry.vertices.empty()) throw InputError(input + ": nothing to draw (no points)");
     if (ctx.has("scalar") && !distance) {
         const std::string name = ctx.get<std::string>("scalar");
-        if (loaded.mesh)
+        if (loaded.mesh || textured_file)
             throw cli::UsageError("--scalar " + name +
                                   ": meshes carry no value properties; use distance");
         for (const auto& v : loaded.views) {
@@ -113,6 +121,7 @@ void run_render(cli::Context& ctx) {
     m["vertices"] = geometry.vertices.size();
     m["triangles"] = geometry.triangles.size();
     m["colors"] = !geometry.colors.empty();
+    m["textured"] = geometry.is_textured();
     m["intrinsics"] = {{"width", k.width}, {"height", k.height}, {"fx", k.fx},
                        {"fy", k.fy},       {"cx", k.cx},         {"cy", k.cy}};
     Report pose = Report::array();
@@ -137,12 +146,14 @@ const cli::ToolSpec kSpec{
     .name = "rgbd-render",
     .usage = "rgbd-render INPUT -o PICTURE.png [options]",
     .description =
-        "Draws a mesh (.ply/.off/.obj) or points (a view stream, .ply/.pcd/.xyz) into a PNG "
+        "Draws a mesh (.ply/.off/.obj; a textured .obj or .glb with its texture) or points (a view "
+        "stream, .ply/.pcd/.xyz) into a PNG "
         "picture, in software. The camera looks at the object's bounding box (0.2%-99.8% "
         "quantiles, so a few stray points do not shrink the object) and fits it into the "
         "picture; by default from a three-quarter view on the sensors' side (35 degrees right "
         "of the front, 20 degrees above), with up from the sensors' poses, else +y. Vertex "
-        "colours are used when present, else grey Lambert shading. Points are splatted as "
+        "colours (or the texture) are used when present, else grey Lambert shading. Points are "
+        "splatted as "
         "discs with a depth test. --scalar colours by a per-vertex value (turbo colour map) "
         "and adds a colour bar: 'distance' (to --reference, in mm) or a float property of a "
         "point file (confidence, scale, ...). --metrics gets the camera.",

@@ -3,6 +3,11 @@
 // /api/info and /api/frame/N at the video's frame rate (frames the index marks as broken, or
 // that the server cannot decode, are skipped); live mode fetches /api/live, the newest frame.
 // #status carries data-frame, data-points and data-shown (frames drawn) for tests.
+// kModelPage (rgbd-view MODEL.glb): the model of /model.glb through three.js's GLTFLoader,
+// lit as rgbd-render draws (colour x (0.7 + 0.3 Lambert), light above-left of the camera,
+// two-sided), seen from a three-quarter view (35 deg right of the front, 20 deg up; up and
+// front from /api/info) and orbited with the mouse. #status carries data-loaded, data-triangles and
+// data-textured (meshes with a texture) for tests.
 #pragma once
 
 namespace rgbd::cli {
@@ -124,6 +129,94 @@ function tick(now) {
   renderer.render(scene, camera);
 }
 start().then(() => requestAnimationFrame(tick)).catch(e => { msg.textContent = 'error: ' + e; });
+</script></body></html>
+)HTML";
+
+inline constexpr const char* kModelPage = R"HTML(<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>rgbd-view</title>
+<style>
+html,body{margin:0;height:100%;background:#202428;color:#e8e8e8;font:14px sans-serif;overflow:hidden}
+#bar{position:absolute;left:0;right:0;bottom:0;padding:8px 12px;background:rgba(0,0,0,.55)}
+#msg{position:absolute;top:8px;left:12px}
+</style></head><body>
+<div id="msg">loading...</div>
+<div id="bar"><span id="status" data-loaded="0" data-triangles="0" data-textured="0">-</span></div>
+<script src="three.min.js"></script>
+<script src="OrbitControls.js"></script>
+<script src="GLTFLoader.js"></script>
+<script>
+'use strict';
+const msg = document.getElementById('msg'), statusEl = document.getElementById('status');
+const renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
+renderer.setPixelRatio(window.devicePixelRatio || 1);
+renderer.setSize(window.innerWidth, window.innerHeight);
+document.body.insertBefore(renderer.domElement, document.body.firstChild);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x202428);
+const camera = new THREE.PerspectiveCamera(40, window.innerWidth / window.innerHeight, 0.001, 1000);
+const controls = new THREE.OrbitControls(camera, renderer.domElement);
+// colour x (0.7 + 0.3 max(0, n.l)), the light above-left of the camera: as rgbd-render.
+scene.add(new THREE.AmbientLight(0xffffff, 0.7));
+const sun = new THREE.DirectionalLight(0xffffff, 0.3);
+sun.position.set(-0.35, 0.5, 1.0);
+camera.add(sun); camera.add(sun.target);
+scene.add(camera);
+
+function place(object, upList, frontList) {
+  const up = new THREE.Vector3().fromArray(upList || [0, 1, 0]).normalize();
+  // Front: /api/info's, else the axis among +z, +x, -z, -x least aligned with up (as
+  // rgbd-render without sensors).
+  let front = frontList ? new THREE.Vector3().fromArray(frontList) : null;
+  if (!front) for (const a of [[0, 0, 1], [1, 0, 0], [0, 0, -1], [-1, 0, 0]]) {
+    const v = new THREE.Vector3().fromArray(a);
+    if (!front || Math.abs(v.dot(up)) < Math.abs(front.dot(up)) - 1e-9) front = v;
+  }
+  front.addScaledVector(up, -front.dot(up)).normalize();
+  const right = new THREE.Vector3().crossVectors(up, front);
+  const az = 35 * Math.PI / 180, el = 20 * Math.PI / 180;
+  const dir = front.clone().multiplyScalar(Math.cos(el) * Math.cos(az))
+      .addScaledVector(right, Math.cos(el) * Math.sin(az)).addScaledVector(up, Math.sin(el));
+  const sphere = new THREE.Box3().setFromObject(object).getBoundingSphere(new THREE.Sphere());
+  const dist = 1.1 * sphere.radius / Math.sin(camera.fov * Math.PI / 360);
+  camera.up.copy(up);
+  camera.position.copy(sphere.center).addScaledVector(dir, dist);
+  camera.near = dist / 100; camera.far = dist * 10; camera.updateProjectionMatrix();
+  controls.target.copy(sphere.center);
+  controls.update();
+}
+async function start() {
+  const info = await (await fetch('api/info', {cache: 'no-store'})).json();
+  const gltf = await new Promise((ok, fail) =>
+      new THREE.GLTFLoader().load('model.glb', ok, undefined, fail));
+  let triangles = 0, textured = 0;
+  gltf.scene.traverse(o => {
+    if (!o.isMesh) return;
+    const old = o.material;
+    if (old.map) { old.map.encoding = THREE.LinearEncoding; textured += 1; }
+    o.material = new THREE.MeshLambertMaterial({map: old.map || null,
+        vertexColors: old.vertexColors, side: THREE.DoubleSide});
+    const g = o.geometry;
+    triangles += (g.index ? g.index.count : g.attributes.position.count) / 3;
+  });
+  scene.add(gltf.scene);
+  place(gltf.scene, info.up, info.front);
+  statusEl.dataset.triangles = triangles; statusEl.dataset.textured = textured;
+  statusEl.dataset.loaded = 1;
+  statusEl.textContent = info.file + ': ' + triangles + ' triangles' +
+      (textured ? ', textured' : ', vertex colours');
+  msg.textContent = '';
+}
+window.onresize = () => {
+  camera.aspect = window.innerWidth / window.innerHeight; camera.updateProjectionMatrix();
+  renderer.setSize(window.innerWidth, window.innerHeight);
+};
+function tick() {
+  requestAnimationFrame(tick);
+  controls.update();
+  renderer.render(scene, camera);
+}
+requestAnimationFrame(tick);
+start().catch(e => { msg.textContent = 'error: ' + (e && e.message ? e.message : e); });
 </script></body></html>
 )HTML";
 

@@ -67,7 +67,8 @@ std::string read_file(const fs::path& path) {
 struct ViewServer::Impl {
     ViewServerOptions options;
     std::optional<fs::path> video_dir;
-    std::string three_js, orbit_js;
+    std::optional<ViewModel> model;  // model mode (rgbd-view MODEL.glb)
+    std::string three_js, orbit_js, gltf_js;
     asio::io_context io;
     tcp::acceptor acceptor{io};
     std::atomic<bool> stop{false};
@@ -103,7 +104,14 @@ struct ViewServer::Impl {
         std::string target(req.target());
         if (const auto q = target.find('?'); q != std::string::npos) target.resize(q);
         if (target == "/" || target == "/index.html")
-            return reply(req, http::status::ok, kViewPage, "text/html; charset=utf-8");
+            return reply(req, http::status::ok, model ? kModelPage : kViewPage,
+                         "text/html; charset=utf-8");
+        if (model && target == "/model.glb")
+            return reply(req, http::status::ok, model->glb, "model/gltf-binary");
+        if (model && target == "/GLTFLoader.js")
+            return reply(req, http::status::ok, gltf_js, "application/javascript");
+        if (model && target == "/api/info")
+            return reply(req, http::status::ok, model->info_json, "application/json");
         if (target == "/three.min.js")
             return reply(req, http::status::ok, three_js, "application/javascript");
         if (target == "/OrbitControls.js")
@@ -238,14 +246,30 @@ struct ViewServer::Impl {
 };
 
 ViewServer::ViewServer(const ViewServerOptions& options, std::optional<fs::path> video_dir)
+    : ViewServer(options, std::move(video_dir), std::nullopt) {}
+
+ViewServer::ViewServer(const ViewServerOptions& options, ViewModel model)
+    : ViewServer(options, std::nullopt, std::move(model)) {}
+
+ViewServer::ViewServer(const ViewServerOptions& options, std::optional<fs::path> video_dir,
+                       std::optional<ViewModel> model)
     : impl_(std::make_unique<Impl>()) {
     Impl& m = *impl_;
     m.options = options;
     m.video_dir = std::move(video_dir);
+    m.model = std::move(model);
     m.requests = &requests_;
     const fs::path three = find_three_dir(options.three_dir);
     m.three_js = read_file(three / "build/three.min.js");
     m.orbit_js = read_file(three / "examples/js/controls/OrbitControls.js");
+    if (m.model) {
+        const fs::path loader = three / "examples/js/loaders/GLTFLoader.js";
+        if (!fs::exists(loader))
+            throw IoError(loader.string() +
+                          ": three.js's glTF loader not found (Debian package "
+                          "libjs-three, or RGBD_THREE_DIR)");
+        m.gltf_js = read_file(loader);
+    }
     if (options.port < 0 || options.port > 65535)
         throw InputError("port must be 0..65535 (got " + std::to_string(options.port) + ")");
     beast::error_code ec;

@@ -106,6 +106,24 @@ void add_color_bar(Picture& pic, const cv::Mat& model, const PictureOptions& opt
     pic.image = out;
 }
 
+/// The colour of a CV_8UC3 BGR image at texture coordinates `uv` ([0, 1], origin at the
+/// top-left corner of the image), bilinear between the texel centres, clamped at the border.
+Rgb sample_bilinear(const cv::Mat& image, const Eigen::Vector2f& uv) {
+    const float x = std::clamp(uv.x() * image.cols - 0.5f, 0.0f, float(image.cols - 1));
+    const float y = std::clamp(uv.y() * image.rows - 0.5f, 0.0f, float(image.rows - 1));
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const int x1 = std::min(x0 + 1, image.cols - 1), y1 = std::min(y0 + 1, image.rows - 1);
+    const float fx = x - x0, fy = y - y0;
+    const cv::Vec3b a = image.at<cv::Vec3b>(y0, x0), b = image.at<cv::Vec3b>(y0, x1),
+                    c = image.at<cv::Vec3b>(y1, x0), d = image.at<cv::Vec3b>(y1, x1);
+    auto mix = [&](int k) {
+        const float top = a[k] + fx * (b[k] - a[k]), bottom = c[k] + fx * (d[k] - c[k]);
+        return static_cast<std::uint8_t>(
+            std::clamp(std::lround(top + fy * (bottom - top)), 0L, 255L));
+    };
+    return {mix(2), mix(1), mix(0)};
+}
+
 /// Smooth vertex normals: area-weighted sums of the face normals.
 std::vector<Eigen::Vector3d> vertex_normals(const Geometry& g) {
     std::vector<Eigen::Vector3d> n(g.vertices.size(), Eigen::Vector3d::Zero());
@@ -142,7 +160,7 @@ cv::Mat render_mesh(const Geometry& g, const Camera& cam, const PictureOptions& 
     const std::vector<Eigen::Vector3d> normals = vertex_normals(g);
     const Eigen::Vector3d light = light_direction(cam.world_from_camera);
     const auto& lut = turbo();
-    const bool colored = !g.colors.empty(), heat = !g.scalars.empty();
+    const bool colored = !g.colors.empty(), heat = !g.scalars.empty(), textured = g.is_textured();
     const double range = smax - smin;
     Shader shader = [&](const Eigen::Vector3d& p, int t) -> Rgb {
         const auto& tri = g.triangles[t];
@@ -166,6 +184,11 @@ cv::Mat render_mesh(const Geometry& g, const Camera& cam, const PictureOptions& 
         Eigen::Vector3d n = w0 * normals[tri[0]] + w1 * normals[tri[1]] + w2 * normals[tri[2]];
         if (!(n.norm() > 1e-9)) n = scene.normals()[t];
         const double l = lambert(n, light);
+        if (textured && g.triangle_atlas[t] >= 0) {
+            const auto& uv = g.corner_uvs[t];
+            const Eigen::Vector2f at = float(w0) * uv[0] + float(w1) * uv[1] + float(w2) * uv[2];
+            return scaled(sample_bilinear(g.atlases[g.triangle_atlas[t]], at), 0.7 + 0.3 * l);
+        }
         if (colored) {
             const Rgb& c0 = g.colors[tri[0]];
             const Rgb& c1 = g.colors[tri[1]];
@@ -307,6 +330,14 @@ void Geometry::check(const std::string& what) const {
     RGBD_CHECK(scalars.empty() || scalars.size() == vertices.size(),
                what + ": value count differs from the vertex count");
     for (double s : scalars) RGBD_CHECK(std::isfinite(s), what + ": non-finite value");
+    if (atlases.empty()) return;
+    RGBD_CHECK(triangle_atlas.size() == triangles.size() && corner_uvs.size() == triangles.size(),
+               what + ": texture coordinates not one set per triangle");
+    for (const auto& a : atlases)
+        RGBD_CHECK(a.type() == CV_8UC3 && !a.empty(), what + ": a texture atlas is not 8-bit RGB");
+    for (int a : triangle_atlas)
+        RGBD_CHECK(a >= -1 && a < static_cast<int>(atlases.size()),
+                   what + ": texture atlas index out of range");
 }
 
 Geometry from_mesh(const Mesh& mesh) {
@@ -327,6 +358,27 @@ Geometry from_mesh(const Mesh& mesh) {
             ids.push_back(index[v.idx()]);
         for (std::size_t j = 1; j + 1 < ids.size(); ++j)
             g.triangles.push_back({ids[0], ids[j], ids[j + 1]});
+    }
+    return g;
+}
+
+Geometry from_textured_mesh(const TexturedMesh& mesh) {
+    Geometry g;
+    g.vertices = mesh.vertices;
+    g.triangles = mesh.faces;
+    g.colors = mesh.vertex_colors;
+    if (!mesh.has_texture()) return g;
+    g.atlases = mesh.atlases;
+    g.triangle_atlas.resize(mesh.faces.size(), -1);
+    g.corner_uvs.resize(mesh.faces.size());
+    const int n_uvs = static_cast<int>(mesh.uvs.size());
+    for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+        const auto& ids = mesh.face_uvs[f];
+        if (ids[0] < 0 || ids[0] >= n_uvs || ids[1] < 0 || ids[1] >= n_uvs || ids[2] < 0 ||
+            ids[2] >= n_uvs)
+            continue;  // no texture on this face: its vertex colours
+        g.triangle_atlas[f] = f < mesh.face_atlas.size() ? mesh.face_atlas[f] : 0;
+        for (int j = 0; j < 3; ++j) g.corner_uvs[f][j] = mesh.uvs[ids[j]];
     }
     return g;
 }

@@ -21,6 +21,7 @@
 #include "toolkit/mesh.hpp"
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/pose.hpp"
+#include "toolkit/textured_mesh.hpp"
 
 namespace rgbd::render {
 
@@ -32,8 +33,15 @@ struct Geometry {
     std::vector<Eigen::Vector3d> normals;       ///< per point (clouds), or empty
     std::vector<double> scalars;                ///< per vertex heat-map values, or empty
     std::vector<Pose> sensors;                  ///< world_from_sensor of the source views
+    /// Texture (meshes, optional): atlases (CV_8UC3, BGR) and per triangle its atlas (-1: the
+    /// vertex colours) and its corners' texture coordinates (glTF convention: [0, 1], origin
+    /// top-left, v down).
+    std::vector<cv::Mat> atlases;
+    std::vector<int> triangle_atlas;
+    std::vector<std::array<Eigen::Vector2f, 3>> corner_uvs;
 
     bool is_mesh() const { return !triangles.empty(); }
+    bool is_textured() const { return !atlases.empty(); }
     /// Throws InputError naming `what` for no vertices, non-finite coordinates, triangle
     /// indices out of range or per-vertex arrays of the wrong size.
     void check(const std::string& what) const;
@@ -41,6 +49,9 @@ struct Geometry {
 
 /// The triangles (polygons fanned), vertex colours when the mesh has them.
 Geometry from_mesh(const Mesh& mesh);
+/// The triangles, vertex colours and texture (when it has one) of a textured mesh
+/// (rgbd-texture, .obj/.glb; rgbd-render, the report of rgbd-reconstruct -o model.glb).
+Geometry from_textured_mesh(const TexturedMesh& mesh);
 /// The points of every view in the world frame (a sensor-frame view is moved by its pose; one
 /// without a pose, such as a plain point file, is taken as it is), with colours when every
 /// view has them, normals when every view has them, and the views' sensor poses (a
@@ -122,11 +133,12 @@ struct Picture {
 /// The heat-map colour of a value t in [0, 1] (clamped): OpenCV's turbo colour map.
 Rgb heat_color(double t);
 
-/// Renders `geometry` seen by `camera`. Meshes: per-pixel barycentric interpolation of vertex
-/// colours (lightly shaded), of scalars (unshaded heat map) or of smooth vertex normals (grey,
-/// Lambert with a light above-left of the camera, two-sided, plus ambient). Points: discs with
-/// a depth test (ties to the lower index), shaded by their normals when there are any, else
-/// by depth. With scalars, a colour bar strip is appended on the right.
+/// Renders `geometry` seen by `camera`. Meshes: the texture, sampled bilinearly at the
+/// perspective-correct texture coordinates, or per-pixel barycentric interpolation of vertex
+/// colours (both lightly shaded, alike), of scalars (unshaded heat map) or of smooth vertex normals
+/// (grey, Lambert with a light above-left of the camera, two-sided, plus ambient). Points: discs
+/// with a depth test (ties to the lower index), shaded by their normals when there are any, else by
+/// depth. With scalars, a colour bar strip is appended on the right.
 Picture render_picture(const Geometry& geometry, const Camera& camera,
                        const PictureOptions& options = {});
 

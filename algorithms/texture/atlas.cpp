@@ -69,6 +69,8 @@ void AtlasOptions::check() const {
     RGBD_CHECK(std::isfinite(min_scale) && min_scale > 0 && min_scale <= scale,
                "texture: minimum texel scale must be in (0, scale]");
     RGBD_CHECK(flat_cell_px >= 2 && flat_cell_px <= 64, "texture: flat cells must be 2-64 px");
+    RGBD_CHECK(max_flat_cells >= 1 && max_flat_cells <= 1 << 20,
+               "texture: max_flat_cells must be in [1, 1048576]");
 }
 
 std::vector<Chart> make_charts(const std::vector<int>& label,
@@ -145,21 +147,41 @@ TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<Tex
         it.source = cv::Rect(x0, y0, std::max(1, x1 - x0 + 1), std::max(1, y1 - y0 + 1));
         items.push_back(it);
     }
-    // Flat cells: one per distinct colour of the faces in no chart.
-    std::map<std::array<int, 3>, int> cell_of;  // colour -> item
-    std::vector<int> face_cell(tris.size(), -1);
-    std::size_t flat_faces = 0;
-    for (std::size_t f = 0; f < tris.size(); ++f) {
-        if (in_chart[f]) continue;
-        ++flat_faces;
-        const Rgb c = flat_colour[f];
-        auto [it, fresh] = cell_of.try_emplace({c.r, c.g, c.b}, static_cast<int>(items.size()));
-        if (fresh) {
-            Item cell;
-            cell.width = cell.height = options.flat_cell_px;
-            items.push_back(cell);
+    // Flat cells: one per quantised colour of the faces in no chart, the finest quantum (levels
+    // per channel, a power of two) that needs at most max_flat_cells cells.
+    std::vector<int> flat;
+    for (std::size_t f = 0; f < tris.size(); ++f)
+        if (!in_chart[f]) flat.push_back(static_cast<int>(f));
+    const std::size_t flat_faces = flat.size();
+    int quantum = 1;
+    std::map<std::array<int, 3>, int> bin_of;  // quantised colour -> cell number
+    for (;; quantum *= 2) {
+        bin_of.clear();
+        for (const int f : flat) {
+            const Rgb c = flat_colour[f];
+            bin_of.try_emplace({c.r / quantum, c.g / quantum, c.b / quantum},
+                               static_cast<int>(bin_of.size()));
+            if (bin_of.size() > static_cast<std::size_t>(options.max_flat_cells)) break;
         }
-        face_cell[f] = it->second;
+        if (bin_of.size() <= static_cast<std::size_t>(options.max_flat_cells) || quantum >= 256)
+            break;
+    }
+    std::vector<std::array<long long, 4>> cell_sum(bin_of.size(), {0, 0, 0, 0});  // r g b n
+    std::vector<int> face_cell(tris.size(), -1);
+    const int first_cell = static_cast<int>(items.size());
+    for (const int f : flat) {
+        const Rgb c = flat_colour[f];
+        const int cell = bin_of.at({c.r / quantum, c.g / quantum, c.b / quantum});
+        cell_sum[cell][0] += c.r;
+        cell_sum[cell][1] += c.g;
+        cell_sum[cell][2] += c.b;
+        cell_sum[cell][3] += 1;
+        face_cell[f] = first_cell + cell;
+    }
+    for (std::size_t k = 0; k < bin_of.size(); ++k) {
+        Item cell;
+        cell.width = cell.height = options.flat_cell_px;
+        items.push_back(cell);
     }
     RGBD_CHECK(!items.empty(), "texture: nothing to put into the atlas");
 
@@ -245,13 +267,19 @@ TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<Tex
             }
         }
     }
-    // Flat cells: filled with their colour; every corner of their faces at the cell's centre.
+    // Flat cells: filled with their faces' mean colour; every corner of their faces at the
+    // cell's centre.
     std::vector<int> cell_uv(items.size(), -1);
-    for (const auto& [colour, index] : cell_of) {
+    for (std::size_t k = 0; k < cell_sum.size(); ++k) {
+        const int index = first_cell + static_cast<int>(k);
         const Item& it = items[index];
         cv::Mat& atlas = out.atlases[it.atlas];
+        const auto& sum = cell_sum[k];
+        auto mean = [&](int channel) {
+            return static_cast<double>((2 * sum[channel] + sum[3]) / (2 * sum[3]));  // rounded
+        };
         atlas(cv::Rect(it.x, it.y, it.width, it.height))
-            .setTo(cv::Scalar(colour[2], colour[1], colour[0]));
+            .setTo(cv::Scalar(mean(2), mean(1), mean(0)));
         cell_uv[index] = static_cast<int>(out.uvs.size());
         out.uvs.emplace_back(static_cast<float>((it.x + 0.5 * it.width) / atlas.cols),
                              static_cast<float>((it.y + 0.5 * it.height) / atlas.rows));
@@ -264,7 +292,8 @@ TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<Tex
     }
     report["charts"] = charts.size();
     report["flat_faces"] = flat_faces;
-    report["flat_cells"] = cell_of.size();
+    report["flat_cells"] = cell_sum.size();
+    report["flat_colour_quantum"] = quantum;
     report["atlases"] = atlases;
     Report sizes = Report::array();
     std::size_t total = 0;

@@ -8,7 +8,10 @@
 // not fit into one atlas of at most max_size x max_size texels, the charts' texel size is
 // scaled down until they do (at most down to min_scale; then further atlases are opened).
 // Faces no camera sees get a flat colour: a small cell of the atlas filled with the mean of
-// their vertices' colours.
+// their vertices' colours; those colours are quantised (1, 2, 4, ... levels per channel, the
+// finest step that needs at most max_flat_cells cells; each cell holds the mean colour of its
+// faces), so that a large unseen area of smoothly varying colour does not fill the atlas with
+// thousands of one-colour cells.
 #pragma once
 
 #include <array>
@@ -23,11 +26,12 @@
 namespace rgbd::texture {
 
 struct AtlasOptions {
-    int max_size = 8192;     ///< largest atlas side, texels (a power of two, 64 .. 16384)
-    int padding_px = 2;      ///< image pixels kept around each chart's projection
-    double scale = 1.0;      ///< texels per colour-image pixel (<= 1; lowered to fit max_size)
-    double min_scale = 0.5;  ///< lowest automatic scale; below it charts go to more atlases
-    int flat_cell_px = 4;    ///< side of a flat-colour cell (faces no camera sees)
+    int max_size = 8192;        ///< largest atlas side, texels (a power of two, 64 .. 16384)
+    int padding_px = 2;         ///< image pixels kept around each chart's projection
+    double scale = 1.0;         ///< texels per colour-image pixel (<= 1; lowered to fit max_size)
+    double min_scale = 0.5;     ///< lowest automatic scale; below it charts go to more atlases
+    int flat_cell_px = 4;       ///< side of a flat-colour cell (faces no camera sees)
+    int max_flat_cells = 2048;  ///< at most this many flat cells (colours quantised to fit)
 
     void check() const;
 };
@@ -45,7 +49,8 @@ std::vector<Chart> make_charts(const std::vector<int>& label,
 
 /// Builds the textured mesh: the scene's vertices and triangles, the charts' textures (each
 /// view's image adjusted by gains[view]) and flat cells for the faces of no chart, coloured
-/// `flat_colour[face]`. Report: charts, atlases, atlas sizes, scale, texels used, flat faces.
+/// `flat_colour[face]` (quantised to at most max_flat_cells colours). Report: charts, atlases,
+/// atlas sizes, scale, texels used, flat faces, flat cells and the colour quantum.
 TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<TextureView>& views,
                          const std::vector<Chart>& charts, const std::vector<ColourGain>& gains,
                          const std::vector<Rgb>& flat_colour, const AtlasOptions& options,

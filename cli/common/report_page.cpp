@@ -147,6 +147,8 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     std::optional<Geometry> result, baseline;
     if (in.result) result = render::from_mesh(*in.result);
     if (in.baseline) baseline = render::from_mesh(*in.baseline);
+    std::optional<Geometry> textured;
+    if (in.textured) textured = render::from_textured_mesh(*in.textured);
     const Geometry* fit = result ? &*result : in.input;
     if (!fit) return {};
     Eigen::Vector3d lo = fit->vertices.front(), hi = lo;
@@ -169,7 +171,7 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     };
     // The plain pictures and the heat maps' distances do not depend on each other: side by
     // side (each is parallel inside, but has sequential parts). Pictures keep their order.
-    ReportImage input_image, result_image, baseline_image;
+    ReportImage input_image, result_image, textured_image, baseline_image;
     std::vector<double> result_distances, baseline_distances;
     tbb::parallel_invoke(
         [&] {
@@ -186,6 +188,14 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
                     render::render_picture(*result, camera, plain).image};
         },
         [&] {
+            if (textured)
+                textured_image = {"textured.png",
+                                  "textured result (" +
+                                      std::to_string(in.textured->atlases.size()) + " atlas, " +
+                                      std::to_string(in.textured->faces.size()) + " triangles)",
+                                  render::render_picture(*textured, camera, plain).image};
+        },
+        [&] {
             if (baseline)
                 baseline_image = {"baseline.png",
                                   in.baseline_name + " (" +
@@ -197,7 +207,7 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
             if (result) result_distances = distances(*result);
             if (baseline) baseline_distances = distances(*baseline);
         });
-    for (ReportImage* image : {&input_image, &result_image, &baseline_image})
+    for (ReportImage* image : {&input_image, &result_image, &textured_image, &baseline_image})
         if (!image->file.empty()) images.push_back(std::move(*image));
     if (against.empty()) return {};
 
@@ -237,7 +247,7 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
         baseline_heat = std::move(*baseline);
         baseline_heat->scalars = std::move(baseline_distances);
     }
-    ReportImage result_error, baseline_error, closeup, closeup_error;
+    ReportImage result_error, baseline_error, closeup, closeup_error, textured_closeup;
     tbb::parallel_invoke(
         [&] {
             if (result_heat)
@@ -259,8 +269,14 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
                 closeup_error = {"result_closeup_error.png",
                                  "result, close-up: " + against + " (mm)",
                                  render::render_picture(*result_heat, *close, heat).image};
+        },
+        [&] {
+            if (close && textured)
+                textured_closeup = {"textured_closeup.png", "textured result, close-up",
+                                    render::render_picture(*textured, *close, plain).image};
         });
-    for (ReportImage* image : {&result_error, &baseline_error, &closeup, &closeup_error})
+    for (ReportImage* image :
+         {&result_error, &baseline_error, &closeup, &textured_closeup, &closeup_error})
         if (!image->file.empty()) images.push_back(std::move(*image));
     return against;
 }

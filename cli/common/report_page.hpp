@@ -14,6 +14,7 @@
 #include "algorithms/render/picture.hpp"
 #include "toolkit/mesh.hpp"
 #include "toolkit/report.hpp"
+#include "toolkit/textured_mesh.hpp"
 
 namespace rgbd::cli {
 
@@ -61,6 +62,7 @@ ReportTable side_by_side(const std::string& heading,
 struct PictureInputs {
     const render::Geometry* input = nullptr;  ///< the input cloud (world frame)
     const Mesh* result = nullptr;             ///< our result
+    const TexturedMesh* textured = nullptr;   ///< the result textured (-o model.obj|glb)
     const Mesh* baseline = nullptr;           ///< a peer's result
     std::string baseline_name = "baseline";
     const Mesh* reference = nullptr;  ///< true surface: heat maps show distance to it, else
@@ -68,7 +70,8 @@ struct PictureInputs {
     render::CameraOptions camera;     ///< size and direction (orientation from the input)
 };
 
-/// Renders the input, the result, the baseline and the heat maps of the result's and the
+/// Renders the input, the result (and, when given, the textured result and its close-up,
+/// same cameras), the baseline and the heat maps of the result's and the
 /// baseline's per-vertex distance (to the reference, else to the input points; one colour
 /// range for both, in mm) with one camera fitted to the result (else the input). Appends to
 /// `images` and returns a short description of the heat maps' distance ("to the reference").

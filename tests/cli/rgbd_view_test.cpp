@@ -1,13 +1,17 @@
 // rgbd-view (issue 20 item 4): the page, three.js from libjs-three and the frames over HTTP; a
 // corrupt frame file is answered 404 and marked in the index; in headless Chromium the page
-// draws the cloud (a screenshot shows its colour) and the frame counter advances. Skips the
-// browser part when chromium or libjs-three is missing, saying so.
+// draws the cloud (a screenshot shows its colour) and the frame counter advances. A textured
+// model (.glb; an .obj converted in memory) is served with three.js's GLTFLoader and drawn
+// with its texture (issue 36). Skips the browser part when chromium or libjs-three is missing,
+// saying so.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "io/textured_mesh_io.hpp"
 #include "io/video.hpp"
 #include "tests/support/capture_harness.hpp"
 
@@ -129,6 +133,93 @@ TEST(RgbdView, ServesThePageThreeJsAndFramesAndSkipsACorruptOne) {
     EXPECT_EQ(wait_for(dir, "view", 30), 0) << slurp(dir / "view.err");
 }
 
+/// A 0.4 m square in the z = 0 plane facing +z, textured left half red, right half green (no
+/// vertex colours: only the texture can colour it).
+rgbd::TexturedMesh red_green_square() {
+    rgbd::TexturedMesh m;
+    m.vertices = {{-0.2, -0.2, 0}, {0.2, -0.2, 0}, {0.2, 0.2, 0}, {-0.2, 0.2, 0}};
+    m.faces = {{{0, 1, 2}}, {{0, 2, 3}}};
+    // glTF convention: v down, so vertex 3 (top-left) is (0, 0).
+    m.uvs = {{0.f, 1.f}, {1.f, 1.f}, {1.f, 0.f}, {0.f, 0.f}};
+    m.face_uvs = m.faces;
+    m.face_atlas = {0, 0};
+    cv::Mat atlas(64, 64, CV_8UC3, cv::Scalar(30, 30, 230));        // BGR red
+    atlas(cv::Rect(32, 0, 32, 64)).setTo(cv::Scalar(30, 200, 30));  // green
+    m.atlases = {atlas};
+    return m;
+}
+
+const std::string kChromium =
+    "chromium --headless --no-sandbox --disable-gpu --enable-unsafe-swiftshader "
+    "--use-angle=swiftshader --disable-quic --no-first-run --disable-background-networking "
+    "--disable-component-update --disable-sync --user-data-dir=$(mktemp -d) "
+    "--window-size=640,480 ";
+
+TEST(RgbdView, ShowsATexturedModel) {
+    if (!fs::exists("/usr/share/javascript/three/examples/js/loaders/GLTFLoader.js"))
+        GTEST_SKIP() << "libjs-three (with its GLTFLoader) is not installed";
+    if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
+    const fs::path dir = temp_root();
+    const rgbd::TexturedMesh square = red_green_square();
+    rgbd::io::write_textured_mesh(dir / "square.glb", square);
+    rgbd::io::write_textured_mesh(dir / "square.obj", square);
+    for (const char* file : {"square.glb", "square.obj"}) {
+        SCOPED_TRACE(file);
+        const int port = free_port();
+        start(dir, "model",
+              "$BIN/rgbd-view " + std::string(file) + " --port " + std::to_string(port) +
+                  " --duration-s 120 --up y");
+        std::string page;
+        for (int i = 0; i < 200 && page.find("GLTFLoader.js") == std::string::npos; ++i) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            page = curl(port, "/");
+        }
+        ASSERT_NE(page.find("GLTFLoader.js"), std::string::npos) << slurp(dir / "model.err");
+        EXPECT_NE(curl(port, "/GLTFLoader.js").find("GLTFLoader"), std::string::npos);
+        const json info = json::parse(curl(port, "/api/info"));
+        EXPECT_EQ(info["mode"], "model");
+        EXPECT_EQ(info["triangles"], 2);
+        EXPECT_TRUE(info["textured"].get<bool>());
+        const std::string glb = curl(port, "/model.glb");
+        ASSERT_GT(glb.size(), 20u);
+        EXPECT_EQ(glb.substr(0, 4), "glTF");
+        if (std::string(file) == "square.glb") {
+            EXPECT_EQ(glb, slurp(dir / "square.glb"));
+        }
+
+        if (std::system("command -v chromium >/dev/null 2>&1") != 0) {
+            ::kill(pid_of(dir, "model"), SIGTERM);
+            wait_for(dir, "model", 30);
+            GTEST_SKIP() << "chromium is not installed: the browser check is skipped";
+        }
+        const fs::path png_path = dir / (std::string(file) + ".png");
+        Outcome shot = run("timeout 120 " + kChromium +
+                           "--virtual-time-budget=5000 --screenshot=" + png_path.string() +
+                           " http://127.0.0.1:" + std::to_string(port) + "/ 2>/dev/null");
+        ASSERT_TRUE(fs::exists(png_path)) << shot.err;
+        const cv::Mat png = cv::imread(png_path.string(), cv::IMREAD_COLOR);
+        ASSERT_FALSE(png.empty());
+        // The centre is the model, not the background (#202428).
+        const cv::Vec3b centre = png.at<cv::Vec3b>(png.rows / 2, png.cols / 2);
+        EXPECT_GT(
+            std::abs(centre[0] - 0x28) + std::abs(centre[1] - 0x24) + std::abs(centre[2] - 0x20),
+            60)
+            << "the centre pixel is the background";
+        // Both halves of the texture are drawn, red on the left, green on the right.
+        cv::Mat red, green;
+        cv::inRange(png, cv::Scalar(0, 0, 140), cv::Scalar(80, 80, 255), red);
+        cv::inRange(png, cv::Scalar(0, 120, 0), cv::Scalar(80, 255, 80), green);
+        EXPECT_GT(cv::countNonZero(red), 3000) << "no red half in the screenshot";
+        EXPECT_GT(cv::countNonZero(green), 3000) << "no green half in the screenshot";
+        if (cv::countNonZero(red) > 0 && cv::countNonZero(green) > 0) {
+            cv::Moments mr = cv::moments(red, true), mg = cv::moments(green, true);
+            EXPECT_LT(mr.m10 / mr.m00, mg.m10 / mg.m00) << "red is left of green";
+        }
+        ::kill(pid_of(dir, "model"), SIGTERM);
+        EXPECT_EQ(wait_for(dir, "model", 30), 0) << slurp(dir / "model.err");
+    }
+}
+
 TEST(RgbdView, UsageAndBadFolder) {
     Outcome r = run("$BIN/rgbd-view --help");
     EXPECT_EQ(r.code, 0);
@@ -139,6 +230,12 @@ TEST(RgbdView, UsageAndBadFolder) {
     r = run("$BIN/rgbd-view not_a_video --port 0 --duration-s 1");
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.err.find("video.json"), std::string::npos) << r.err;
+    std::ofstream(temp_root() / "garbage.glb") << "not a glTF file";
+    r = run("$BIN/rgbd-view garbage.glb --port 0 --duration-s 1");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.err.find("garbage.glb"), std::string::npos) << r.err;
+    r = run("$BIN/rgbd-view garbage.glb --port 0 --duration-s 1 --up 0,0,0");
+    EXPECT_EQ(r.code, 2) << r.err;
 }
 
 }  // namespace
