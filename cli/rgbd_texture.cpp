@@ -1,5 +1,6 @@
 // rgbd-texture: a textured model (OBJ + MTL + PNG, or glTF binary) of a mesh from the
 // full-resolution colour images of its capture (docs/algorithms.md "Texturing").
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -156,7 +157,8 @@ const cli::ToolSpec kSpec{
             "weight of the smoothness term (0 = best view per face)")(
             "sweeps", cli::value(kDefaults.selection.sweeps, "N"), "ICM sweeps")(
             "max-angle-deg",
-            cli::value(std::acos(kDefaults.selection.min_cos) * 180.0 / M_PI, "D"),
+            cli::value(std::round(std::acos(kDefaults.selection.min_cos) * 18000.0 / M_PI) / 100.0,
+                       "D"),
             "faces seen more obliquely than this are not textured from that camera")(
             "no-sharpness", "leave the image sharpness out of the view quality")(
             "no-adjust", "no per-camera colour adjustment")(
