@@ -84,15 +84,9 @@ void run_clean(cli::Context& ctx) {
         distance.pass_b = vm.count("knn-test") != 0;
         distance.mark = mark;
         if (vm.count("beta")) density.beta = density.beta_local = ctx.get<double>("beta");
-        const std::string reference = ctx.get<std::string>("reference");
-        if (reference == "auto")
-            density.reference = denoise::DensityReference::kAuto;
-        else if (reference == "sensors")
-            density.reference = denoise::DensityReference::kSensors;
-        else if (reference == "local")
-            density.reference = denoise::DensityReference::kLocal;
-        else
-            throw cli::UsageError("--reference must be auto, sensors or local");
+        const auto reference = denoise::density_reference_of(ctx.get<std::string>("reference"));
+        if (!reference) throw cli::UsageError("--reference must be auto, sensors or local");
+        density.reference = *reference;
         density.consensus_ratio = ctx.get<double>("consensus-ratio");
         density.consensus_sigmas = ctx.get<double>("consensus-sigmas");
         density.cluster_spacing = ctx.get<double>("cluster-spacing");

@@ -174,14 +174,10 @@ py::object clean_density(const py::handle& views_arg, const py::kwargs& kwargs) 
     if (o.get("beta", beta)) density.beta = density.beta_local = beta;
     std::string reference = "auto";
     o.get("reference", reference);
-    if (reference == "auto")
-        density.reference = denoise::DensityReference::kAuto;
-    else if (reference == "sensors")
-        density.reference = denoise::DensityReference::kSensors;
-    else if (reference == "local")
-        density.reference = denoise::DensityReference::kLocal;
-    else
+    const auto parsed = denoise::density_reference_of(reference);
+    if (!parsed)
         throw InputError("reference must be auto, sensors or local, not '" + reference + "'");
+    density.reference = *parsed;
     o.get("consensus_ratio", density.consensus_ratio);
     o.get("consensus_sigmas", density.consensus_sigmas);
     o.get("cluster_spacing", density.cluster_spacing);

@@ -42,9 +42,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
+#include <string_view>
 #include <vector>
 
 #include "algorithms/denoise/sensor_noise.hpp"
+#include "toolkit/enum_names.hpp"
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
@@ -57,6 +60,17 @@ enum class DensityReference {
     kSensors,  ///< from the views' cameras (throws InputError when a view lacks them)
     kLocal,    ///< median measured density of the k_ref nearest neighbours
 };
+
+inline constexpr EnumName<DensityReference> kDensityReferenceNames[] = {
+    {DensityReference::kAuto, "auto"},
+    {DensityReference::kSensors, "sensors"},
+    {DensityReference::kLocal, "local"}};
+
+/// The reference named "auto", "sensors" or "local" (rgbd-clean --reference); nullopt for any
+/// other name.
+inline std::optional<DensityReference> density_reference_of(std::string_view name) {
+    return value_of(kDensityReferenceNames, name);
+}
 
 /// Options of remove_density_outliers().
 struct DensityOptions {
