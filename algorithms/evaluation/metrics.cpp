@@ -92,6 +92,17 @@ void sample_triangles(const Triangles& t, std::size_t count, std::uint64_t seed,
                       });
 }
 
+/// The sample indices 0 .. count - 1 ordered by the face they lie on (`face_of`; identity
+/// when it is empty), ties by index.
+std::vector<std::uint32_t> by_face(const std::vector<std::uint32_t>& face_of, std::size_t count) {
+    std::vector<std::uint32_t> order(count);
+    std::iota(order.begin(), order.end(), 0u);
+    if (face_of.size() == count)
+        std::stable_sort(order.begin(), order.end(),
+                         [&](std::uint32_t a, std::uint32_t b) { return face_of[a] < face_of[b]; });
+    return order;
+}
+
 /// AABB tree over the positive-area triangles of a mesh, ready for parallel queries.
 struct MeshDistance {
     const Triangles& tri;
@@ -193,9 +204,9 @@ SurfaceMetrics compare_to_reference(const Mesh* result_mesh, const PointCloud* r
     std::optional<Triangles> res_tri;
     std::optional<MeshDistance> res_dist;
     std::vector<Eigen::Vector3d> cloud_normals;
+    std::vector<std::uint32_t> res_face;  // empty for a result cloud
     if (result_mesh) {
         res_tri.emplace(collect_triangles(*result_mesh, "result"));
-        std::vector<std::uint32_t> res_face;
         sample_triangles(*res_tri, options.samples, options.seed * 2, res_samples, res_face);
         res_normals.resize(res_samples.size());
         for (std::size_t i = 0; i < res_samples.size(); ++i)
@@ -217,13 +228,17 @@ SurfaceMetrics compare_to_reference(const Mesh* result_mesh, const PointCloud* r
         cloud_normals = res_normals;
     }
 
-    // Result -> reference.
+    // Result -> reference. The samples are drawn in random order; the queries run in the order
+    // of the faces they lie on, which are neighbours in the mesh's storage, so that successive
+    // queries walk the same branches of the tree (each query's answer does not depend on it).
     const std::size_t nr = res_samples.size();
     std::vector<double> acc(nr);
     std::vector<double> acc_normal(res_normals.empty() ? 0 : nr);
+    const std::vector<std::uint32_t> res_order = by_face(res_face, nr);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                          for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                              const std::size_t i = res_order[k];
                               std::uint32_t tri = 0;
                               acc[i] = ref_dist.query(res_samples[i], tri);
                               if (!acc_normal.empty())
@@ -237,9 +252,11 @@ SurfaceMetrics compare_to_reference(const Mesh* result_mesh, const PointCloud* r
     std::vector<double> comp(ns);
     std::vector<double> comp_normal(res_normals.empty() ? 0 : ns);
     if (res_dist) {
+        const std::vector<std::uint32_t> ref_order = by_face(ref_face, ns);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ns, 1024),
                           [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                                  const std::size_t i = ref_order[k];
                                   std::uint32_t tri = 0;
                                   comp[i] = res_dist->query(ref_samples[i], tri);
                                   comp_normal[i] = std::abs(
