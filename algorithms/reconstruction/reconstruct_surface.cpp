@@ -77,6 +77,14 @@ struct FrontSeed {
     std::array<FrontDelaunay::Vertex_handle, 3> corners;
 };
 
+/// The seed facets ranked by priority (see the specialisation of the front's `init` below):
+/// `list[next ..]` may still be free; `vertices` = the triangulation's vertices when ranked.
+struct FrontSeeds {
+    std::vector<FrontSeed> list;
+    std::size_t next = 0;
+    std::size_t vertices = 0;
+};
+
 /// Point indices {min, max} of the border edge a queue entry points at.
 inline std::pair<std::size_t, std::size_t> edge_ids(const FrontQueueEntry& e) {
     const auto& edge = e.second->first.first;
@@ -236,7 +244,7 @@ struct FrontPriority {
     double cos_facet;   ///< triangle normal against the corners' mean normal
     /// The seed facets by priority, filled by the front's first seed search (see the
     /// specialisation of `init` below); shared by the copies CGAL makes of the functor.
-    std::vector<internal::FrontSeed>* seeds = nullptr;
+    internal::FrontSeeds* seeds = nullptr;
     template <typename AdvancingFront, typename CellHandle>
     double operator()(const AdvancingFront& adv, CellHandle& c, const int& index) const {
         std::size_t id[3];
@@ -269,41 +277,57 @@ struct FrontPriority {
 
 /// CGAL's advancing front looks for the seed of each new connected component by scanning
 /// every facet of the triangulation (CGAL 5.5, `init`): with a few hundred components that was
-/// most of the front's time (2 of 3.8 s on a 10-view ring). The same choice, found faster: the
-/// first search ranks the facets of finite priority once, stably (ties in the iterator's
-/// order, as the scan's strict `<`), and every later search takes the first of them whose
-/// three corners are all still outside the surface -- the facet the scan would pick: a
-/// facet's priority does not change during the run (the triangulation is fixed, and the first
-/// search caches every facet's Delaunay-sphere radius from the iterator's side), and the scan
-/// skips the facets of infinite priority and those with a corner on the surface.
+/// most of the front's time (2 of 3.8 s on a 10-view ring). The same choice, found faster. The
+/// scan takes, among the facets whose three corners are all outside the surface ("exterior"),
+/// the first of least finite priority in the facet iterator's order (the first search: of all
+/// facets). Here the facets it evaluates are ranked once, stably (ties in the iterator's
+/// order, as the scan's strict `<`), and each search takes the first ranked facet whose
+/// corners are all still exterior. That is the scan's choice because (1) a facet's priority
+/// does not change while the triangulation does not: it is cached (the Delaunay-sphere radius,
+/// from the side first asked) when the ranking evaluates it, at the moment and from the side
+/// the scan would, and (2) a vertex never becomes exterior again while the triangulation does
+/// not change (its mark is reset only for a vertex next to one being removed), so a facet
+/// skipped once stays skipped (`next`). The post-processing removes vertices: when the
+/// triangulation has fewer vertices than when ranked, the ranking is made again, over the
+/// facets the scan would evaluate at that moment (all corners exterior).
 template <>
 bool CGAL::Advancing_front_surface_reconstruction<
     rgbd::reconstruction::internal::FrontDelaunay,
     rgbd::reconstruction::FrontPriority>::init(const bool& re_init) {
     init_timer.start();
-    std::vector<rgbd::reconstruction::internal::FrontSeed>& seeds = *priority.seeds;
-    if (!re_init) {
-        seeds.clear();
+    rgbd::reconstruction::internal::FrontSeeds& seeds = *priority.seeds;
+    const auto exterior = [](const Cell_handle& c, int index) {
+        return c->vertex((index + 1) & 3)->is_exterior() &&
+               c->vertex((index + 2) & 3)->is_exterior() &&
+               c->vertex((index + 3) & 3)->is_exterior();
+    };
+    if (!re_init || T.number_of_vertices() != seeds.vertices) {
+        seeds.list.clear();
+        seeds.next = 0;
+        seeds.vertices = T.number_of_vertices();
         for (auto it = T.finite_facets_begin(); it != T.finite_facets_end(); ++it) {
             const Cell_handle c = it->first;
             const int index = it->second;
+            if (re_init && !exterior(c, index)) continue;
             const coord_type value = priority(*this, c, index);
             if (!(value < infinity())) continue;  // never the minimum (nor NaN)
-            seeds.push_back({value,
-                             c,
-                             index,
-                             {c->vertex((index + 1) & 3), c->vertex((index + 2) & 3),
-                              c->vertex((index + 3) & 3)}});
+            seeds.list.push_back({value,
+                                  c,
+                                  index,
+                                  {c->vertex((index + 1) & 3), c->vertex((index + 2) & 3),
+                                   c->vertex((index + 3) & 3)}});
         }
-        std::stable_sort(seeds.begin(), seeds.end(),
+        std::stable_sort(seeds.list.begin(), seeds.list.end(),
                          [](const auto& a, const auto& b) { return a.value < b.value; });
     }
     const rgbd::reconstruction::internal::FrontSeed* chosen = nullptr;
-    for (const auto& s : seeds) {
-        // The first search takes the minimum regardless of the corners (all are outside then).
+    for (; seeds.next < seeds.list.size(); ++seeds.next) {
+        const auto& s = seeds.list[seeds.next];
+        // The first search takes the minimum regardless of the corners (all are exterior then).
         if (!re_init || (s.corners[0]->is_exterior() && s.corners[1]->is_exterior() &&
                          s.corners[2]->is_exterior())) {
             chosen = &s;
+            ++seeds.next;  // its corners are on the surface from now on
             break;
         }
     }
@@ -354,7 +378,7 @@ void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
     for (std::size_t i = 0; i < points.size(); ++i) indexed.emplace_back(points[i], i);
     internal::FrontDelaunay dt(indexed.begin(), indexed.end());
     if (priority) {
-        std::vector<internal::FrontSeed> seeds;
+        internal::FrontSeeds seeds;
         FrontPriority with_seeds = *priority;
         with_seeds.seeds = &seeds;
         CGAL::Advancing_front_surface_reconstruction<internal::FrontDelaunay, FrontPriority> r(
