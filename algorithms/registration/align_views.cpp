@@ -86,7 +86,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         copy.points.copy_properties(view.points);
         if (copy.points.properties() == view.points.properties()) {
             copy.points.reserve(kept.size());
-            for (const PointSet::Index i : kept) copy.points.insert(view.points, i);
+            for (PointSet::Index i : kept) copy.points.insert(view.points, i);
         } else {  // another layout: transfer() would pair the wrong properties
             copy = view;
             const auto copy_flag = *copy.flag(prop::kSynthetic);
