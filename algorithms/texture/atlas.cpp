@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
+#include "algorithms/texture/seam_levelling.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::texture {
@@ -104,11 +105,12 @@ std::vector<Chart> make_charts(const std::vector<int>& label,
 TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<TextureView>& views,
                          const std::vector<Chart>& charts, const std::vector<ColourGain>& gains,
                          const std::vector<Rgb>& flat_colour, const AtlasOptions& options,
-                         Report& report) {
+                         Report& report, const SeamCorrections* seams) {
     options.check();
     const auto& verts = scene.vertices();
     const auto& tris = scene.triangles();
-    RGBD_CHECK(flat_colour.size() == tris.size() && gains.size() == views.size(),
+    RGBD_CHECK(flat_colour.size() == tris.size() && gains.size() == views.size() &&
+                   (!seams || seams->chart_vertex.size() == charts.size()),
                "texture: build_atlas inputs disagree in size");
     TexturedMesh out;
     out.vertices = verts;
@@ -244,6 +246,18 @@ TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<Tex
             source.copyTo(target);
         else
             cv::resize(source, target, target.size(), 0, 0, cv::INTER_AREA);
+        if (!seams) continue;
+        // The chart's seam corrections over its texels (the padding included).
+        const double sx = static_cast<double>(it.width) / it.source.width;
+        const double sy = static_cast<double>(it.height) / it.source.height;
+        std::unordered_map<int, Eigen::Vector2d> texel_of;
+        for (const auto& [v, p] : corner_px[it.chart])
+            texel_of.emplace(v, Eigen::Vector2d((p.x() - it.source.x + 0.5) * sx,
+                                                (p.y() - it.source.y + 0.5) * sy));
+        std::vector<std::array<int, 3>> faces;
+        for (const int f : charts[it.chart].faces) faces.push_back(tris[f]);
+        add_chart_correction(target, faces, texel_of, seams->chart_vertex[it.chart],
+                             static_cast<int>(std::ceil(options.padding_px * sx)) + 2);
     }
     // Texture coordinates: a chart corner's image position mapped into its rectangle.
     for (const auto& it : items) {

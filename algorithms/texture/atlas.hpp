@@ -47,13 +47,16 @@ struct Chart {
 std::vector<Chart> make_charts(const std::vector<int>& label,
                                const std::vector<std::array<int, 3>>& adjacency);
 
+struct SeamCorrections;  // seam_levelling.hpp
+
 /// Builds the textured mesh: the scene's vertices and triangles, the charts' textures (each
-/// view's image adjusted by gains[view]) and flat cells for the faces of no chart, coloured
-/// `flat_colour[face]` (quantised to at most max_flat_cells colours). Report: charts, atlases,
-/// atlas sizes, scale, texels used, flat faces, flat cells and the colour quantum.
+/// view's image adjusted by gains[view], then, with `seams`, each chart's local corrections
+/// added over its texels, see seam_levelling.hpp) and flat cells for the faces of no chart,
+/// coloured `flat_colour[face]` (quantised to at most max_flat_cells colours). Report: charts,
+/// atlases, atlas sizes, scale, texels used, flat faces, flat cells and the colour quantum.
 TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<TextureView>& views,
                          const std::vector<Chart>& charts, const std::vector<ColourGain>& gains,
                          const std::vector<Rgb>& flat_colour, const AtlasOptions& options,
-                         Report& report);
+                         Report& report, const SeamCorrections* seams = nullptr);
 
 }  // namespace rgbd::texture

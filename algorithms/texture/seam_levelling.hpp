@@ -1,0 +1,69 @@
+// Local seam levelling of a texture (rgbd-texture, docs/algorithms.md "Texturing"), after the
+// global per-camera gain and offset of colour_adjustment.hpp: Waechter, Moehrle and Goesele,
+// "Let there be color!", ECCV 2014, §4 (after Lempitsky and Ivanov, "Seamless mosaicing of
+// image-based texture maps", CVPR 2007). Every chart gets an additive colour correction g per
+// vertex and channel (a vertex on a seam has one value per chart touching it). With f the colour
+// a chart's image shows at a seam vertex (the gain-adjusted image sampled along the seam edges
+// at that vertex, one sample per image pixel of edge length, weighted by 1 - the distance to the
+// vertex in units of the edge), the corrections minimise
+//   sum over seam vertices and chart pairs (A, B) meeting there of (f_A + g_A - f_B - g_B)^2
+//   + smoothness * sum over the edges inside each chart of (g_i - g_j)^2
+//   + regularisation * sum of g^2,
+// a sparse symmetric positive definite system (one matrix, three right-hand sides) solved by
+// Eigen's SimplicialLDLT. Waechter et al. weigh the edge term by 1/lambda with lambda = 0.1,
+// hence smoothness = 10. The regularisation fixes each connected set of charts' common constant
+// and keeps the corrections local: a correction decays into a chart over about
+// sqrt(smoothness / regularisation) edges (6 by default). With many small charts (1,800 on the
+// person sequence) a weak one (1e-3) let the seam differences of chains of charts add up into
+// corrections of 5-9 levels on average and lost 0.6-1.3 dB PSNR; 0.3 gained 0.6 dB there. Seam
+// pairs whose colours differ by more than outlier_levels in a channel are left out (an occluder,
+// not a brightness step). The corrections are interpolated over each face's texels (barycentric)
+// when the atlas is written (add_chart_correction), and extended by nearest filling to the padding
+// around the chart.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <opencv2/core.hpp>
+#include <unordered_map>
+#include <vector>
+
+#include "algorithms/texture/atlas.hpp"
+#include "algorithms/texture/colour_adjustment.hpp"
+#include "algorithms/texture/view_selection.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::texture {
+
+struct LevellingOptions {
+    bool enabled = true;
+    double smoothness = 10.0;      ///< weight of the edge term (Waechter et al.: 1 / 0.1)
+    double regularisation = 1e-3;  ///< weight of g^2 per unknown
+    double outlier_levels = 60.0;  ///< seam pairs differing by more (any channel) are left out
+
+    void check() const;
+};
+
+/// The corrections: for chart c, its vertices' additive BGR corrections (levels).
+struct SeamCorrections {
+    std::vector<std::unordered_map<int, Eigen::Vector3f>> chart_vertex;
+};
+
+/// Solves for the corrections of `charts` (as from make_charts over `adjacency`), sampling each
+/// chart's view through gains[view]. Report: unknowns, seam vertices, seam terms, outliers, the
+/// mean and largest absolute correction (levels) and the time.
+SeamCorrections level_seams(const render::RenderScene& scene, const std::vector<TextureView>& views,
+                            const std::vector<ColourGain>& gains, const std::vector<Chart>& charts,
+                            const std::vector<std::array<int, 3>>& adjacency,
+                            const LevellingOptions& options, Report& report);
+
+/// Adds one chart's corrections to its rectangle `target` of the atlas (CV_8UC3, saturating):
+/// `faces` the chart's triangles as vertex indices, `texel_of` each vertex's position in
+/// `target` in texel units (texel (x, y) covers [x, x + 1) x [y, y + 1)), `correction` each
+/// vertex's correction (BGR levels). Texels no face covers take the correction of the nearest
+/// covered texels (up to `reach` texels away; beyond, the chart's mean correction).
+void add_chart_correction(cv::Mat& target, const std::vector<std::array<int, 3>>& faces,
+                          const std::unordered_map<int, Eigen::Vector2d>& texel_of,
+                          const std::unordered_map<int, Eigen::Vector3f>& correction, int reach);
+
+}  // namespace rgbd::texture
