@@ -38,7 +38,7 @@ namespace rgbd::texture {
 struct LevellingOptions {
     bool enabled = true;
     double smoothness = 10.0;      ///< weight of the edge term (Waechter et al.: 1 / 0.1)
-    double regularisation = 1e-3;  ///< weight of g^2 per unknown
+    double regularisation = 0.3;   ///< weight of g^2 per unknown (keeps the corrections local)
     double outlier_levels = 60.0;  ///< seam pairs differing by more (any channel) are left out
 
     void check() const;
