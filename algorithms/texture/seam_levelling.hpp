@@ -11,14 +11,14 @@
 //   + regularisation * sum of g^2,
 // a sparse symmetric positive definite system (one matrix, three right-hand sides) solved by
 // Eigen's SimplicialLDLT. The regularisation fixes each connected set of charts' common constant
-// and keeps the corrections local: a correction decays into a chart over about
-// sqrt(smoothness / regularisation) edges (3 by default), and a step of d levels across a
-// straight seam between two large charts is left at roughly d sqrt(smoothness * regularisation)
-// / 2 (a tenth to a sixth of d). Waechter et al. weigh the edge term by 1/lambda = 10 with no
-// regularisation; with many small charts (1,800 on the person sequence) that let the seam
-// differences along chains of charts add up into corrections of 5-9 levels on average and lost
-// 0.6-1.3 dB PSNR (smoothness 10 with regularisation 1e-3); smoothness 1 with regularisation
-// 0.1 gained 0.7 dB there (validation/results/2026-11-27-texture-seams-*.md). Seam
+// and keeps the corrections local, decaying into a chart over a few edges. Waechter et al. weigh
+// the edge term by 1/lambda = 10 and have no regularisation; with many small charts (1,800 on
+// the person sequence) that let the seam differences along chains of charts add up into
+// corrections of 5-9 levels on average and lost 0.6-1.3 dB PSNR (smoothness 10, regularisation
+// 1e-3). Smoothness 0.1 with regularisation 0.03 (the person: +0.75 dB, flat from 0.1 to 1 with
+// the ratio kept) closes a step of 40 levels between two flat charts to 1.8 levels at the seam's
+// vertices, 8 levels at the centres of the faces next to it, and leaves the colours ten faces
+// away within 2 levels (tests/algorithms/texture/seam_levelling_test.cpp). Seam
 // pairs whose colours differ by more than outlier_levels in a channel are left out (an occluder,
 // not a brightness step). The corrections are interpolated over each face's texels (barycentric)
 // when the atlas is written (add_chart_correction), and extended by nearest filling to the padding
@@ -37,11 +37,10 @@
 #include "toolkit/report.hpp"
 
 namespace rgbd::texture {
-
 struct LevellingOptions {
     bool enabled = true;
-    double smoothness = 1.0;       ///< weight of the edge term inside a chart (seam term: 1)
-    double regularisation = 0.1;   ///< weight of g^2 per unknown (keeps the corrections local)
+    double smoothness = 0.1;       ///< weight of the edge term inside a chart (seam term: 1)
+    double regularisation = 0.03;  ///< weight of g^2 per unknown (keeps the corrections local)
     double outlier_levels = 60.0;  ///< seam pairs differing by more (any channel) are left out
 
     void check() const;
