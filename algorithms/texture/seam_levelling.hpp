@@ -15,14 +15,14 @@
 // the edge term by 1/lambda = 10 and have no regularisation; with many small charts (1,800 on
 // the person sequence) that let the seam differences along chains of charts add up into
 // corrections of 5-9 levels on average and lost 0.6-1.3 dB PSNR (smoothness 10, regularisation
-// 1e-3). Smoothness 0.1 with regularisation 0.03 (the person: +0.75 dB, flat from 0.1 to 1 with
-// the ratio kept) closes a step of 40 levels between two flat charts to 1.8 levels at the seam's
-// vertices, 8 levels at the centres of the faces next to it, and leaves the colours ten faces
-// away within 2 levels (tests/algorithms/texture/seam_levelling_test.cpp). Seam
-// pairs whose colours differ by more than outlier_levels in a channel are left out (an occluder,
-// not a brightness step). The corrections are interpolated over each face's texels (barycentric)
-// when the atlas is written (add_chart_correction), and extended by nearest filling to the padding
-// around the chart.
+// 1e-3). Smoothness 0.1 with regularisation 0.03 (the person: +0.6 dB over the photo-consistency
+// alone, flat from 0.1 to 1 with the ratio kept) closes a step of 40 levels between two flat charts
+// to 1.8 levels at the seam's vertices, 8 levels at the centres of the faces next to it, and leaves
+// the colours ten faces away within 2 levels (tests/algorithms/texture/seam_levelling_test.cpp).
+// Seam pairs whose colours differ by more than outlier_levels in a channel are left out (an
+// occluder, not a brightness step). The corrections are interpolated over each face's texels
+// (barycentric) when the atlas is written (add_chart_correction), and extended by nearest filling
+// to the padding around the chart.
 #pragma once
 
 #include <Eigen/Core>
