@@ -49,6 +49,10 @@ void run_texture(cli::Context& ctx) {
         options.selection.min_cos = std::cos(ctx.get<double>("max-angle-deg") * M_PI / 180.0);
         options.selection.sharpness = !ctx.options().count("no-sharpness");
         options.adjust.enabled = !ctx.options().count("no-adjust");
+        options.consistency.enabled = !ctx.options().count("no-consistency");
+        options.consistency.max_levels = ctx.get<double>("consistency-levels");
+        options.levelling.enabled = !ctx.options().count("no-levelling");
+        options.levelling.smoothness = ctx.get<double>("levelling-smoothness");
         options.atlas.max_size = ctx.get<int>("max-atlas");
         options.atlas.scale = ctx.get<double>("texel-scale");
         options.atlas.min_scale = std::min(options.atlas.min_scale, options.atlas.scale);
@@ -123,7 +127,10 @@ const cli::ToolSpec kSpec{
         "visibility by a depth test against the mesh rendered into every colour camera), traded "
         "against a smoothness term over face adjacency (iterated conditional modes) so that "
         "charts are large; per-camera gains and offsets, fitted where cameras overlap, level "
-        "the colours; each chart's rectangle of its image is packed into power-of-two atlases "
+        "the colours; a camera whose colour of a face lies far from the median of the cameras "
+        "seeing it loses that face (occluders, moving parts, highlights); additive per-vertex "
+        "corrections, solved by least squares, remove the remaining steps across the seams "
+        "between charts; each chart's rectangle of its image is packed into power-of-two atlases "
         "(at most --max-atlas texels a side: the texel size is scaled down, or more atlases are "
         "written, with a warning). Faces no camera sees get the mesh's vertex colours as flat "
         "colours (counted in the metrics). Poses: the capture's (rig.json, frames.csv), or the "
@@ -143,6 +150,8 @@ const cli::ToolSpec kSpec{
                {"max-angle-deg", Range::closed(1, 89), "degrees"},
                {"max-atlas", Range::closed(64, 16384), "texels"},
                {"texel-scale", Range::open_closed(0, 1)},
+               {"consistency-levels", Range::open_closed(0, 442), "levels"},
+               {"levelling-smoothness", Range::open_closed(0, 1e6)},
                {"padding", Range::closed(1, 64), "px"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("capture", cli::value<std::string>("DIR"),
@@ -162,6 +171,12 @@ const cli::ToolSpec kSpec{
             "faces seen more obliquely than this are not textured from that camera")(
             "no-sharpness", "leave the image sharpness out of the view quality")(
             "no-adjust", "no per-camera colour adjustment")(
+            "no-consistency", "keep cameras whose colour of a face disagrees with the others")(
+            "consistency-levels", cli::value(kDefaults.consistency.max_levels, "L"),
+            "a camera loses a face when its colour lies farther than this from the median "
+            "colour of the cameras seeing it (levels)")("no-levelling", "no local seam levelling")(
+            "levelling-smoothness", cli::value(kDefaults.levelling.smoothness, "W"),
+            "weight of the smoothness of the seam corrections inside a chart")(
             "max-atlas", cli::value(kDefaults.atlas.max_size, "N"),
             "largest atlas side in texels (a power of two)")(
             "texel-scale", cli::value(kDefaults.atlas.scale, "F"),

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
+#include "algorithms/texture/seam_levelling.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::texture {
@@ -58,6 +59,85 @@ int shelf_pack(std::vector<Item>& items, const std::vector<std::size_t>& order, 
     return atlas + 1;
 }
 
+/// The texels of a chart's rectangle whose centres lie inside one of its faces (`texel_of`: each
+/// vertex's position in texel units, texel (x, y) covering [x, x + 1) x [y, y + 1)); a face too
+/// small to hold a texel centre marks the texel under its centroid.
+cv::Mat chart_mask(cv::Size size, const std::vector<std::array<int, 3>>& faces,
+                   const std::unordered_map<int, Eigen::Vector2d>& texel_of) {
+    cv::Mat mask(size, CV_8U, cv::Scalar(0));
+    for (const auto& t : faces) {
+        const Eigen::Vector2d &p0 = texel_of.at(t[0]), &p1 = texel_of.at(t[1]),
+                              &p2 = texel_of.at(t[2]);
+        const double det =
+            (p1.x() - p0.x()) * (p2.y() - p0.y()) - (p2.x() - p0.x()) * (p1.y() - p0.y());
+        bool any = false;
+        if (std::abs(det) > 1e-12) {
+            const int x0 =
+                std::max(0, static_cast<int>(std::floor(std::min({p0.x(), p1.x(), p2.x()}))));
+            const int y0 =
+                std::max(0, static_cast<int>(std::floor(std::min({p0.y(), p1.y(), p2.y()}))));
+            const int x1 =
+                std::min(size.width - 1, static_cast<int>(std::max({p0.x(), p1.x(), p2.x()})));
+            const int y1 =
+                std::min(size.height - 1, static_cast<int>(std::max({p0.y(), p1.y(), p2.y()})));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x) {
+                    const double px = x + 0.5, py = y + 0.5;
+                    const double b1 =
+                        ((px - p0.x()) * (p2.y() - p0.y()) - (p2.x() - p0.x()) * (py - p0.y())) /
+                        det;
+                    const double b2 =
+                        ((p1.x() - p0.x()) * (py - p0.y()) - (px - p0.x()) * (p1.y() - p0.y())) /
+                        det;
+                    if (b1 < -1e-9 || b2 < -1e-9 || b1 + b2 > 1 + 1e-9) continue;
+                    mask.at<uchar>(y, x) = 1;
+                    any = true;
+                }
+        }
+        if (!any) {
+            const Eigen::Vector2d c = (p0 + p1 + p2) / 3.0;
+            mask.at<uchar>(std::clamp(static_cast<int>(c.y()), 0, size.height - 1),
+                           std::clamp(static_cast<int>(c.x()), 0, size.width - 1)) = 1;
+        }
+    }
+    return mask;
+}
+
+/// Texels outside `mask` take the mean of their masked 8-neighbours, ring by ring, `rings`
+/// times: a chart's padding repeats its own border texels instead of the image's pixels beyond
+/// it, which at the chart's silhouette in its image are the background (light specks along the
+/// charts' borders under bilinear lookups and mip-mapping). Texels further out keep the image.
+void pad_from_chart(cv::Mat& target, cv::Mat mask, int rings) {
+    for (int ring = 0; ring < rings; ++ring) {
+        cv::Mat next = mask.clone();
+        bool grown = false;
+        for (int y = 0; y < target.rows; ++y)
+            for (int x = 0; x < target.cols; ++x) {
+                if (mask.at<uchar>(y, x)) continue;
+                cv::Vec3i sum(0, 0, 0);
+                int count = 0;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int yy = y + dy, xx = x + dx;
+                        if (yy < 0 || xx < 0 || yy >= target.rows || xx >= target.cols ||
+                            !mask.at<uchar>(yy, xx))
+                            continue;
+                        const cv::Vec3b& p = target.at<cv::Vec3b>(yy, xx);
+                        sum += cv::Vec3i(p[0], p[1], p[2]);
+                        ++count;
+                    }
+                if (count == 0) continue;
+                cv::Vec3b& q = target.at<cv::Vec3b>(y, x);
+                for (int ch = 0; ch < 3; ++ch)
+                    q[ch] = static_cast<uchar>((sum[ch] + count / 2) / count);
+                next.at<uchar>(y, x) = 1;
+                grown = true;
+            }
+        mask = next;
+        if (!grown) break;
+    }
+}
+
 }  // namespace
 
 void AtlasOptions::check() const {
@@ -104,11 +184,12 @@ std::vector<Chart> make_charts(const std::vector<int>& label,
 TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<TextureView>& views,
                          const std::vector<Chart>& charts, const std::vector<ColourGain>& gains,
                          const std::vector<Rgb>& flat_colour, const AtlasOptions& options,
-                         Report& report) {
+                         Report& report, const SeamCorrections* seams) {
     options.check();
     const auto& verts = scene.vertices();
     const auto& tris = scene.triangles();
-    RGBD_CHECK(flat_colour.size() == tris.size() && gains.size() == views.size(),
+    RGBD_CHECK(flat_colour.size() == tris.size() && gains.size() == views.size() &&
+                   (!seams || seams->chart_vertex.size() == charts.size()),
                "texture: build_atlas inputs disagree in size");
     TexturedMesh out;
     out.vertices = verts;
@@ -244,6 +325,21 @@ TexturedMesh build_atlas(const render::RenderScene& scene, const std::vector<Tex
             source.copyTo(target);
         else
             cv::resize(source, target, target.size(), 0, 0, cv::INTER_AREA);
+        const double sx = static_cast<double>(it.width) / it.source.width;
+        const double sy = static_cast<double>(it.height) / it.source.height;
+        std::unordered_map<int, Eigen::Vector2d> texel_of;
+        for (const auto& [v, p] : corner_px[it.chart])
+            texel_of.emplace(v, Eigen::Vector2d((p.x() - it.source.x + 0.5) * sx,
+                                                (p.y() - it.source.y + 0.5) * sy));
+        std::vector<std::array<int, 3>> faces;
+        for (const int f : charts[it.chart].faces) faces.push_back(tris[f]);
+        const int reach = static_cast<int>(std::ceil(options.padding_px * sx)) + 2;
+        // The chart's seam corrections over its texels (the padding included), then the padding
+        // from the chart's own texels.
+        if (seams)
+            add_chart_correction(target, faces, texel_of, seams->chart_vertex[it.chart], reach);
+        if (options.pad_from_chart)
+            pad_from_chart(target, chart_mask(target.size(), faces, texel_of), reach);
     }
     // Texture coordinates: a chart corner's image position mapped into its rectangle.
     for (const auto& it : items) {

@@ -6,23 +6,6 @@
 #include "toolkit/error.hpp"
 
 namespace rgbd::texture {
-namespace {
-
-/// Bilinear BGR colour at pixel coordinates (u, v) (inside the image).
-Eigen::Vector3d sample(const cv::Mat& bgr, double u, double v) {
-    const int x0 = std::clamp(static_cast<int>(std::floor(u)), 0, bgr.cols - 2);
-    const int y0 = std::clamp(static_cast<int>(std::floor(v)), 0, bgr.rows - 2);
-    const double fx = std::clamp(u - x0, 0.0, 1.0), fy = std::clamp(v - y0, 0.0, 1.0);
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-    const cv::Vec3b p[4] = {bgr.at<cv::Vec3b>(y0, x0), bgr.at<cv::Vec3b>(y0, x0 + 1),
-                            bgr.at<cv::Vec3b>(y0 + 1, x0), bgr.at<cv::Vec3b>(y0 + 1, x0 + 1)};
-    for (int i = 0; i < 4; ++i)
-        for (int ch = 0; ch < 3; ++ch) c[ch] += w[i] * p[i][ch];
-    return c;
-}
-
-}  // namespace
 
 void AdjustOptions::check() const {
     RGBD_CHECK(std::isfinite(prior_weight) && prior_weight > 0 && prior_weight <= 1e6,
@@ -65,7 +48,7 @@ std::vector<ColourGain> adjust_colours(const render::RenderScene& scene,
             if (!(quality.at(v, f) > 0)) continue;
             const Eigen::Vector2d uv =
                 views[v].intrinsics.project(views[v].world_from_camera.inverse() * cw);
-            seen.emplace_back(v, sample(views[v].image, uv.x(), uv.y()) / 255.0);
+            seen.emplace_back(v, sample_bgr(views[v].image, uv.x(), uv.y()) / 255.0);
         }
         ++points;
         for (std::size_t p = 0; p < seen.size(); ++p)
@@ -122,6 +105,19 @@ std::vector<ColourGain> adjust_colours(const render::RenderScene& scene,
     report["pairs_rejected"] = rejected;
     report["views"] = per_view;
     return gains;
+}
+
+Eigen::Vector3d sample_bgr(const cv::Mat& bgr, double u, double v) {
+    const int x0 = std::clamp(static_cast<int>(std::floor(u)), 0, bgr.cols - 2);
+    const int y0 = std::clamp(static_cast<int>(std::floor(v)), 0, bgr.rows - 2);
+    const double fx = std::clamp(u - x0, 0.0, 1.0), fy = std::clamp(v - y0, 0.0, 1.0);
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    const cv::Vec3b p[4] = {bgr.at<cv::Vec3b>(y0, x0), bgr.at<cv::Vec3b>(y0, x0 + 1),
+                            bgr.at<cv::Vec3b>(y0 + 1, x0), bgr.at<cv::Vec3b>(y0 + 1, x0 + 1)};
+    for (int i = 0; i < 4; ++i)
+        for (int ch = 0; ch < 3; ++ch) c[ch] += w[i] * p[i][ch];
+    return c;
 }
 
 void apply_gain(cv::Mat& bgr, const ColourGain& gain) {

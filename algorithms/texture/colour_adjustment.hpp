@@ -47,4 +47,13 @@ std::vector<ColourGain> adjust_colours(const render::RenderScene& scene,
 /// Applies `gain` to a BGR image (saturating).
 void apply_gain(cv::Mat& bgr, const ColourGain& gain);
 
+/// Bilinear BGR colour (levels) of a CV_8UC3 image at pixel coordinates (u, v) (pixel centres at
+/// integers; clamped to the image).
+Eigen::Vector3d sample_bgr(const cv::Mat& bgr, double u, double v);
+
+/// `gain` applied to one BGR colour, clamped to [0, 255] (as apply_gain, without rounding).
+inline Eigen::Vector3d adjusted(const ColourGain& gain, const Eigen::Vector3d& bgr) {
+    return (gain.gain.cwiseProduct(bgr) + gain.offset).cwiseMax(0.0).cwiseMin(255.0);
+}
+
 }  // namespace rgbd::texture

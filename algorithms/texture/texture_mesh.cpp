@@ -7,6 +7,8 @@ namespace rgbd::texture {
 void TextureOptions::check() const {
     selection.check();
     adjust.check();
+    consistency.check();
+    levelling.check();
     atlas.check();
 }
 
@@ -21,9 +23,25 @@ TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& view
     report["faces"] = tris.size();
     report["views"] = views.size();
 
-    const FaceQuality quality = face_quality(scene, views, options.selection, [&](double f) {
+    FaceQuality quality = face_quality(scene, views, options.selection, [&](double f) {
         return report_progress(progress, 0.7 * f);
     });
+    report["quality_time_s"] = watch.seconds();
+
+    // The global gains first: the photo-consistency test compares adjusted colours.
+    Stopwatch adjust_watch;
+    Report adjust;
+    const std::vector<ColourGain> gains =
+        adjust_colours(scene, views, quality, options.adjust, adjust);
+    adjust["time_s"] = adjust_watch.seconds();
+    report["adjust"] = adjust;
+    Stopwatch consistency_watch;
+    Report consistency;
+    reject_inconsistent_views(scene, views, gains, options.consistency, quality, consistency);
+    consistency["time_s"] = consistency_watch.seconds();
+    report["consistency"] = consistency;
+
+    Stopwatch selection_watch;
     const auto adjacency = face_adjacency(tris);
     const Selection selection = select_views(quality, adjacency, options.selection);
     if (selection.unseen == tris.size())
@@ -42,16 +60,8 @@ TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& view
     for (std::size_t v = 0; v < views.size(); ++v)
         per_view.push_back({{"view", views[v].name}, {"faces", count[v]}});
     sel["views"] = per_view;
-    sel["time_s"] = watch.seconds();
+    sel["time_s"] = selection_watch.seconds();
     report["selection"] = sel;
-    report_progress(progress, 0.75);
-
-    Stopwatch adjust_watch;
-    Report adjust;
-    const std::vector<ColourGain> gains =
-        adjust_colours(scene, views, quality, options.adjust, adjust);
-    adjust["time_s"] = adjust_watch.seconds();
-    report["adjust"] = adjust;
     report_progress(progress, 0.8);
 
     // Flat colours of unseen faces: the mean of their vertices' colours (grey without any).
@@ -69,10 +79,16 @@ TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& view
                        static_cast<std::uint8_t>((sum[1] + 1) / 3),
                        static_cast<std::uint8_t>((sum[2] + 1) / 3)};
         }
-    Stopwatch atlas_watch;
     const std::vector<Chart> charts = make_charts(selection.label, adjacency);
+    Report levelling;
+    const SeamCorrections seams =
+        level_seams(scene, views, gains, charts, adjacency, options.levelling, levelling);
+    report["levelling"] = levelling;
+    report_progress(progress, 0.9);
+    Stopwatch atlas_watch;
     Report atlas;
-    TexturedMesh out = build_atlas(scene, views, charts, gains, flat, options.atlas, atlas);
+    TexturedMesh out = build_atlas(scene, views, charts, gains, flat, options.atlas, atlas,
+                                   options.levelling.enabled ? &seams : nullptr);
     atlas["time_s"] = atlas_watch.seconds();
     report["atlas"] = atlas;
     out.vertex_colors = plain.vertex_colors;

@@ -11,6 +11,8 @@
 
 #include "algorithms/texture/atlas.hpp"
 #include "algorithms/texture/colour_adjustment.hpp"
+#include "algorithms/texture/photo_consistency.hpp"
+#include "algorithms/texture/seam_levelling.hpp"
 #include "algorithms/texture/view_selection.hpp"
 #include "toolkit/mesh.hpp"
 #include "toolkit/progress.hpp"
@@ -22,15 +24,17 @@ namespace rgbd::texture {
 struct TextureOptions {
     SelectionOptions selection;
     AdjustOptions adjust;
+    ConsistencyOptions consistency;
+    LevellingOptions levelling;
     AtlasOptions atlas;
 
     void check() const;
 };
 
 /// Textures `mesh` (world frame) from `views`. Report: faces, views, per-step times and
-/// counts (selection: unseen faces, relabelled; adjust; atlas). Throws InputError when there
-/// are no views, a view's image is missing or of the wrong size, or no face of the mesh is
-/// seen by any view.
+/// counts (adjust; consistency; selection: unseen faces, relabelled; levelling; atlas). Throws
+/// InputError when there are no views, a view's image is missing or of the wrong size, or no face
+/// of the mesh is seen by any view.
 TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& views,
                           const TextureOptions& options, Report& report,
                           const Progress& progress = {});
