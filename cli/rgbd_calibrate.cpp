@@ -346,8 +346,8 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     RGBD_CHECK_AS(AlgorithmError, fixed >= 0,
                   "the anchor " + rig.sensors[anchor].id + " sees nothing in this frame set");
     RGBD_CHECK_AS(AlgorithmError, views.size() >= 2, "fewer than 2 sensors see the object");
-    ctx.note("depth: per-pixel mean (around the median) of " + std::to_string(most_sets) +
-             " frame set" + (most_sets == 1 ? "" : "s") + " from frame set " +
+    ctx.note("depth: per-pixel mean of " + std::to_string(most_sets) + " frame set" +
+             (most_sets == 1 ? "" : "s") + " (the depths near their median) from frame set " +
              std::to_string(frameset));
     const registration::MultiViewOptions options =
         calibration::rig_refinement_options(static_cast<std::size_t>(fixed), ctx.seed());
