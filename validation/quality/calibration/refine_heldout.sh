@@ -32,7 +32,7 @@ PY
         --seed "$seed" --calib-error-deg 3 --calib-error-mm 30
     fi
     for bin in "$@"; do
-      tag="$(basename "$(dirname "$(dirname "$bin")")")"
+      tag="$(basename "$(dirname "$(dirname "$(realpath "$bin")")")")"
       out="$work/$bust-$sensors-$seed.$tag"
       t0=$(date +%s.%N)
       if ! "$bin/rgbd-calibrate" "$cap" --refine -q -o "$out.json" >"$out.table" 2>"$out.err"; then
