@@ -296,7 +296,8 @@ std::vector<std::size_t> sensor_positions(const io::Capture& capture, std::size_
 }
 
 /// rgbd-calibrate CAPTURE --refine -o rig.json: multi-view registration of the sensors' views,
-/// each the per-pixel median depth of up to --sets frame sets (docs/algorithms.md §6b).
+/// each the per-pixel mean of the agreeing depths of up to --sets frame sets (docs/algorithms.md
+/// §6b).
 void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor) {
     const io::Rig& rig = capture.rig;
     for (const auto& s : rig.sensors)
@@ -329,7 +330,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
             std::vector<cv::Mat> depths{frame.depth};
             for (std::size_t k = 1; k < positions.size(); ++k)
                 depths.push_back(io::load_frame(capture, id, positions[k]).depth);
-            frame.depth = calibration::median_depth(depths);
+            frame.depth = calibration::combined_depth(depths);
         }
         PointCloud view = cli::view_from_frame(frame, static_cast<int>(views.size()), cloud_options,
                                                centre, extraction, report);
@@ -345,8 +346,9 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     RGBD_CHECK_AS(AlgorithmError, fixed >= 0,
                   "the anchor " + rig.sensors[anchor].id + " sees nothing in this frame set");
     RGBD_CHECK_AS(AlgorithmError, views.size() >= 2, "fewer than 2 sensors see the object");
-    ctx.note("depth: per-pixel median of " + std::to_string(most_sets) + " frame set" +
-             (most_sets == 1 ? "" : "s") + " from frame set " + std::to_string(frameset));
+    ctx.note("depth: per-pixel mean of " + std::to_string(most_sets) + " frame set" +
+             (most_sets == 1 ? "" : "s") + " (the depths near their median) from frame set " +
+             std::to_string(frameset));
     const registration::MultiViewOptions options =
         calibration::rig_refinement_options(static_cast<std::size_t>(fixed), ctx.seed());
     auto bar = ctx.progress("refine");
@@ -408,8 +410,9 @@ int main(int argc, char** argv) {
         "With --refine: starts from the capture's rig.json and refines the poses on whatever\n"
         "the sensors see (a person standing still, a bust) with the toolkit's multi-view\n"
         "registration (rgbd-align's align_views, joint rounds from the rig's poses); each\n"
-        "sensor's depth is the per-pixel median of --sets frame sets (one frame's noise leaves\n"
-        "~0.3 deg on a rounded object). Prints the change per sensor and writes nothing (exit 1)\n"
+        "sensor's depth is the per-pixel mean of --sets frame sets' depths near their median\n"
+        "(one frame's noise leaves ~0.3 deg on a rounded object). Prints the change per sensor\n"
+        "and writes nothing (exit 1)\n"
         "unless every sensor's alignment verdict is PASS.\n"
         "Board file: {\"squares_x\": 7, \"squares_y\": 5, \"square_m\": 0.08, \"marker_m\": 0.06,\n"
         "\"dictionary\": \"DICT_5X5_100\"} (these are the defaults).";
@@ -430,7 +433,7 @@ int main(int argc, char** argv) {
             "frameset", cli::value<long long>(0, "N"), "--refine: the first frame set to register")(
             "sets", cli::value<int>(8, "N"),
             "--refine: frame sets (from --frameset on) whose depth is combined by a per-pixel "
-            "median; the scene must stand still (pixels that change are left out)")(
+            "mean around the median; the scene must stand still (pixels that change are left out)")(
             "min-corners", cli::value<int>(calibration::DetectionOptions{}.min_corners, "N"),
             "board views with fewer corners are not used")(
             "max-rms-px", cli::value<double>(calibration::DetectionOptions{}.max_rms_px, "PX"),

@@ -10,14 +10,14 @@
 
 namespace rgbd::calibration {
 
-cv::Mat median_depth(const std::vector<cv::Mat>& depths, double agree_m, double agree_ratio) {
-    RGBD_CHECK(!depths.empty(), "median depth: no depth images");
+cv::Mat combined_depth(const std::vector<cv::Mat>& depths, double agree_m, double agree_ratio) {
+    RGBD_CHECK(!depths.empty(), "combined depth: no depth images");
     RGBD_CHECK(
         std::isfinite(agree_m) && agree_m >= 0 && std::isfinite(agree_ratio) && agree_ratio >= 0,
-        "median depth: tolerances must be >= 0");
+        "combined depth: tolerances must be >= 0");
     for (const cv::Mat& d : depths)
         RGBD_CHECK(d.type() == CV_32FC1 && d.size() == depths.front().size(),
-                   "median depth: every image must be CV_32FC1 of the same size");
+                   "combined depth: every image must be CV_32FC1 of the same size");
     if (depths.size() == 1) return depths.front().clone();
     const std::size_t n = depths.size();
     cv::Mat out(depths.front().size(), CV_32FC1);
@@ -39,8 +39,13 @@ cv::Mat median_depth(const std::vector<cv::Mat>& depths, double agree_m, double 
             const float median = m % 2 ? values[m / 2] : 0.5f * (values[m / 2 - 1] + values[m / 2]);
             const double tolerance = agree_m + agree_ratio * median;
             std::size_t agree = 0;
-            for (float z : values) agree += std::abs(z - median) <= tolerance;
-            if (2 * agree > n) dst[c] = median;
+            double sum = 0.0;
+            for (float z : values)
+                if (std::abs(z - median) <= tolerance) {
+                    ++agree;
+                    sum += z;
+                }
+            if (2 * agree > n) dst[c] = static_cast<float>(sum / static_cast<double>(agree));
         }
     });
     return out;

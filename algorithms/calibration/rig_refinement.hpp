@@ -1,13 +1,17 @@
 // Refining a sensor network's extrinsics on what the sensors see (rgbd-calibrate --refine,
 // issue 19; docs/algorithms.md §6b): the depth of a still scene combined over several frame
-// sets (per-pixel median), and the settings of the toolkit's multi-view registration
-// (registration::align_views, docs/algorithms.md §6) for a rig that is roughly right.
+// sets (per-pixel mean around the median), and the settings of the toolkit's multi-view
+// registration (registration::align_views, docs/algorithms.md §6) for a rig that is roughly right.
 // Why (measured on synthetic bust captures with truth, validation/quality/calibration): on a
 // rounded object the surface hardly pins a sensor's rotation about the object's centre (0.2 deg
 // moves a bust's surface by ~0.5 mm), so with one frame set the per-pixel depth noise (Kinect v2
 // ~1.4 mm at 1.5 m, more at grazing incidence) leaves ~0.3 deg: started at the true poses the
-// registration also ends ~0.3 deg off, and without noise it ends within 0.08 deg. The median
-// of 8 frame sets cuts that noise by ~2.3x. See also: cli/rgbd_calibrate.cpp.
+// registration also ends ~0.3 deg off. 8 frame sets cut that noise by ~2.8x when their agreeing
+// depths are averaged; their median (the earlier combination) cut it by ~2.3x only and was
+// biased by ~+0.05 mm on the 1 mm steps of the sensors' depth images: with geometry alone
+// (no colour term) a ring of 4 around a held-out bust then ended 0.36 deg off instead of 0.08
+// (issue 39, validation/results/2026-11-27-calibration-refine-*.md). See also:
+// cli/rgbd_calibrate.cpp.
 #pragma once
 
 #include <cstdint>
@@ -18,14 +22,16 @@
 
 namespace rgbd::calibration {
 
-/// Per-pixel median of depth images of a still scene from one sensor (CV_32FC1, metres, NaN or
-/// <= 0 = invalid; all the same size). A pixel is valid in the result when more than half of the
-/// images have a valid depth there and more than half lie within `agree_m` + `agree_ratio` x
-/// depth of their median (so a pixel that something moved through is left out rather than
-/// blurred). One image is returned as it is. Throws InputError on an empty list, sizes or types
-/// that differ, or a negative tolerance.
-cv::Mat median_depth(const std::vector<cv::Mat>& depths, double agree_m = 0.01,
-                     double agree_ratio = 0.01);
+/// Per-pixel combination of depth images of a still scene from one sensor (CV_32FC1, metres, NaN
+/// or <= 0 = invalid; all the same size): the mean of the valid depths within `agree_m` +
+/// `agree_ratio` x depth of their median. A pixel is valid in the result when more than half of
+/// the images have a valid depth there and more than half lie within that tolerance (so a pixel
+/// that something moved through is left out rather than blurred). For Gaussian noise the mean of
+/// n values has sigma / sqrt(n), the median ~1.2 sigma / sqrt(n) (n = 8), and the median of
+/// depths quantised to 1 mm moves in 0.5 mm steps. One image is returned as it is. Throws
+/// InputError on an empty list, sizes or types that differ, or a negative tolerance.
+cv::Mat combined_depth(const std::vector<cv::Mat>& depths, double agree_m = 0.01,
+                       double agree_ratio = 0.01);
 
 /// align_views settings for refining a rig that is roughly right (a few degrees, a few cm):
 /// - no pairwise stage: every view starts where the rig puts it and all are refined jointly

@@ -270,7 +270,7 @@ TEST_F(Calibrate, RefineOnTheBust) {
     const Outcome r =
         run("$BIN/rgbd-calibrate bust --refine -o refined.json --metrics refine_m.json");
     ASSERT_EQ(r.code, 0) << r.err;
-    for (const char* id : {"k2-1", "k2-5", "change_deg", "median of 8 frame sets"})
+    for (const char* id : {"k2-1", "k2-5", "change_deg", "mean of 8 frame sets"})
         EXPECT_NE((r.out + r.err).find(id), std::string::npos) << id;
     EXPECT_EQ(nlohmann::json::parse(slurp(temp_root() / "refine_m.json"))["framesets_combined"], 8);
     const rgbd::Mesh surface = rgbd::io::read_mesh(temp_root() / "bust" / "gt" / "mesh.ply");
