@@ -24,6 +24,7 @@ void run_mesh(cli::Context& ctx) {
                                   std::to_string(target_faces));
         options.max_points = static_cast<std::size_t>(max_points);
         options.watertight = ctx.options().count("watertight") > 0;
+        if (ctx.options().count("no-carve-closure")) options.carve_steps = 0;
         options.target_faces = static_cast<std::size_t>(target_faces);
         options.check();
     } catch (const InputError& e) {
@@ -82,6 +83,9 @@ const cli::ToolSpec kSpec{
                         cli::value(reconstruction::ReconstructionOptions{}.method, "NAME"),
                         "front, poisson or advancing-front")(
             "watertight", "close every hole: the result is a closed 2-manifold")(
+            "no-carve-closure",
+            "--watertight: keep the faired hole patches as they are (default: carved back out "
+            "of the space at least two sensors saw empty)")(
             "target-faces",
             cli::value(static_cast<long long>(reconstruction::ReconstructionOptions{}.target_faces),
                        "N"),

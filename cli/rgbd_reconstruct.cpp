@@ -115,6 +115,7 @@ void run_reconstruct(cli::Context& ctx) {
     try {
         options.mesh.method = ctx.get<std::string>("method");
         options.mesh.watertight = ctx.options().count("open") == 0;
+        if (ctx.options().count("no-carve-closure")) options.mesh.carve_steps = 0;
         options.mesh.check();
         const int neighbors = ctx.get<int>("upsample");
         if (neighbors != 0 && neighbors != 4 && neighbors != 8)
@@ -340,6 +341,9 @@ const cli::ToolSpec kSpec{
             "it on single-sensor captures of several views: turntable), remove or keep")(
             "open",
             "keep the holes no sensor saw open (default: closed, as rgbd-mesh --watertight)")(
+            "no-carve-closure",
+            "keep the closed holes' faired patches as they are (default: carved back out of the "
+            "space at least two sensors saw empty, as rgbd-mesh)")(
             "upsample", cli::value(pipeline::ReconstructOptions{}.upsample.neighbors, "4|8"),
             "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
             "--skip upsample)");

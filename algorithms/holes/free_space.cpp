@@ -19,6 +19,8 @@ void FreeSpaceOptions::check() const {
     check_range("free space: the facing angle", max_angle_deg, Range::open(0, 90), "degrees");
     check_range("free space: the background border", background_border, Range::closed(0, 1000),
                 "pixels");
+    check_range("free space: the background window", background_window, Range::closed(1, 50),
+                "pixels");
 }
 
 namespace {
@@ -100,6 +102,15 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
 }
 
 int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+    return scan(p, n, false);
+}
+
+int FreeSpace::count_seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+    return scan(p, n, true);
+}
+
+int FreeSpace::scan(const Eigen::Vector3d& p, const Eigen::Vector3d& n, bool count) const {
+    int hits = 0;
     const double cos_face = std::cos(options_.max_angle_deg * M_PI / 180.0);
     for (std::size_t s = 0; s < maps_.size(); ++s) {
         const Map& m = maps_[s];
@@ -117,8 +128,9 @@ int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) co
         const int r = static_cast<int>(std::floor((d.dot(m.down) / z - m.v0) * m.focal));
         if (c < 0 || r < 0 || c >= m.cols || r >= m.rows) continue;
         float near3 = kNone, near5 = kNone;
-        for (int dr = -2; dr <= 2; ++dr)
-            for (int dc = -2; dc <= 2; ++dc) {
+        const int w = options_.background_window;
+        for (int dr = -w; dr <= w; ++dr)
+            for (int dc = -w; dc <= w; ++dc) {
                 const int r2 = r + dr, c2 = c + dc;
                 if (r2 < 0 || c2 < 0 || r2 >= m.rows || c2 >= m.cols) continue;
                 const float depth = m.nearest[std::size_t(r2) * m.cols + c2];
@@ -129,8 +141,10 @@ int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) co
             // Something measured in front of p (the view of it was blocked), or p on the
             // measured surface: no evidence. Everything behind by the margin: seen through,
             // when the sensor would have measured p's surface (facing it, not grazing).
-            if (n.dot(-d.normalized()) >= cos_face && near3 > z + options_.margin * spacing_)
-                return static_cast<int>(s);
+            if (n.dot(-d.normalized()) >= cos_face && near3 > z + options_.margin * spacing_) {
+                if (!count) return static_cast<int>(s);
+                ++hits;
+            }
             continue;
         }
         // Outside the silhouette of the measured object whatever p's normal: a point on the
@@ -138,10 +152,12 @@ int FreeSpace::seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) co
         // No return anywhere near the ray, well inside the sensor's view of the object.
         const int border = kPad + options_.background_border;
         if (options_.background && near5 == kNone && c >= border && r >= border &&
-            c < m.cols - border && r < m.rows - border)
-            return static_cast<int>(s);
+            c < m.cols - border && r < m.rows - border) {
+            if (!count) return static_cast<int>(s);
+            ++hits;
+        }
     }
-    return -1;
+    return count ? hits : -1;
 }
 
 }  // namespace rgbd::holes

@@ -32,6 +32,9 @@ struct FreeSpaceOptions {
     /// bounding box of the points in front of it) saw background: free space too.
     bool background = true;
     int background_border = 3;
+    /// Half-width (pixels) of the window around the ray in which no measured point may lie for
+    /// the ray to have seen background.
+    int background_window = 2;
     void check() const;
 };
 
@@ -53,7 +56,14 @@ public:
     /// no sensor did (occluded, grazing, outside every view, or on the measured surface).
     int seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
 
+    /// How many sensors saw the point `p` (unit normal `n`) as empty space, by the test of
+    /// seen_empty(): agreement of several sensors is the stronger evidence.
+    int count_seen_empty(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
+
 private:
+    /// seen_empty() (count false: the first sensor or -1), count_seen_empty() (count true).
+    int scan(const Eigen::Vector3d& p, const Eigen::Vector3d& n, bool count) const;
+
     struct Map {
         Eigen::Vector3d centre, forward, right, down;
         double focal = 0;  ///< pixels per unit of tan(angle)

@@ -52,7 +52,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::n
                    std::size_t fair_max_edges = 300, std::vector<Mesh::Face_index>* added = nullptr,
                    const std::optional<Eigen::Vector4d>& ground = std::nullopt,
                    double ground_margin_m = 0.0, const SeenEmpty& seen_empty = {},
-                   double seen_through_max = 0.5);
+                   double seen_through_max = 0.5, int carve_steps = 40);
 
 /// Removes the faces of folds and spikes, the defects an interpolating front leaves on noisy
 /// points: both faces of every edge across which the face normals differ by more than

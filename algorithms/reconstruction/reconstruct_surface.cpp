@@ -142,6 +142,8 @@ void ReconstructionOptions::check() const {
     RGBD_CHECK(max_points == 0 || max_points >= 100,
                "reconstruction: max_points must be 0 or >= 100");
     check_range("reconstruction: seen_through_max", seen_through_max, Range::closed(0, 1));
+    check_range("reconstruction: carve_steps", carve_steps, Range::closed(0, 1000), "steps");
+    check_range("reconstruction: carve_votes", carve_votes, Range::closed(1, 1000), "sensors");
     RGBD_CHECK(fair_max_edges >= 3, "reconstruction: fair_max_edges must be at least 3");
     check_range("reconstruction: ground_margin_m", ground_margin_m, Range::closed_open(0, 1), "m");
     RGBD_CHECK(!ground || ground->allFinite(), "reconstruction: the ground plane must be finite");
@@ -660,14 +662,17 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                 for (auto idx : cloud.points)
                     if (!synthetic || !(*synthetic)[idx])
                         measured.push_back(to_eigen(cloud.points.point(idx)));
-                free.emplace(measured, options.sensors, spacing, holes::FreeSpaceOptions{});
-                seen_empty = [&free](const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
-                    return free->seen_empty(p, n) >= 0;
+                holes::FreeSpaceOptions evidence;
+                evidence.background_window = 3;
+                free.emplace(measured, options.sensors, spacing, evidence);
+                seen_empty = [&free, votes = options.carve_votes](const Eigen::Vector3d& p,
+                                                                  const Eigen::Vector3d& n) {
+                    return free->count_seen_empty(p, n) >= votes;
                 };
             }
-            steps["holes"] = internal::close_holes(mesh, options.up, options.fair_max_edges, &added,
-                                                   options.ground, options.ground_margin_m,
-                                                   seen_empty, options.seen_through_max);
+            steps["holes"] = internal::close_holes(
+                mesh, options.up, options.fair_max_edges, &added, options.ground,
+                options.ground_margin_m, seen_empty, options.seen_through_max, options.carve_steps);
         }
         if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");

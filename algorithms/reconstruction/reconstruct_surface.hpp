@@ -61,6 +61,16 @@ struct ReconstructionOptions {
     /// of a mask. They stay closed (removing them opened simple closed objects).
     std::vector<holes::SensorView> sensors;
     double seen_through_max = 0.5;
+    /// `watertight` with `sensors`: every faired closure patch is first carved out of the space
+    /// at least `carve_votes` sensors saw empty (mesh_finishing.hpp: close_holes), for at most
+    /// `carve_steps` steps of half its edge length (0 = no carving). The background test uses a
+    /// window of 3 pixels around the ray (holes::FreeSpaceOptions::background_window), one more
+    /// than the fill's: the sensors lose the object's grazing rim, so the measured silhouette
+    /// is a little smaller than the object's. On the bull of the variety set (seed 1), one
+    /// sensor and a 2-pixel window carved through the belly (invented area inside the truth
+    /// 0.17% -> 5.1%); two sensors and 3 pixels: 0.20%, invented 4.3% -> 3.3%.
+    int carve_steps = 40;
+    int carve_votes = 2;
     /// `watertight`: holes with at most this many boundary edges are triangulated, refined and
     /// faired (CGAL PMP, Liepa 2003); larger ones only triangulated and refined. At 300 (before)
     /// the one hole of 314-658 edges under Homer's feet, the cow's, the bull's and the cellist's

@@ -5,6 +5,7 @@
 #include <CGAL/Polygon_mesh_processing/manifoldness.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/repair.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 #include <malloc.h>
@@ -508,3 +509,103 @@ TEST(ReconstructSurface, BadInput) {
 }
 
 }  // namespace
+
+namespace {
+
+/// A latitude-longitude sphere of radius kRadius without the faces within `hole_deg` of its
+/// north pole (an unseen crown), its faces turned inward when `inside_out`.
+Mesh sphere_with_crown_hole(double hole_deg, bool inside_out) {
+    constexpr int kRings = 30, kSectors = 60;
+    std::vector<rgbd::Point_3> points;
+    std::vector<std::array<std::size_t, 3>> faces;
+    auto index = [](int ring, int sector) {
+        return std::size_t(ring - 1) * kSectors + std::size_t(sector % kSectors) + 2;
+    };
+    points.emplace_back(0, 0, kRadius);
+    points.emplace_back(0, 0, -kRadius);
+    for (int i = 1; i < kRings; ++i)
+        for (int j = 0; j < kSectors; ++j) {
+            const double polar = M_PI * i / kRings, azimuth = 2 * M_PI * j / kSectors;
+            points.emplace_back(kRadius * std::sin(polar) * std::cos(azimuth),
+                                kRadius * std::sin(polar) * std::sin(azimuth),
+                                kRadius * std::cos(polar));
+        }
+    auto add = [&](std::size_t a, std::size_t b, std::size_t c) {
+        if (inside_out)
+            faces.push_back({a, c, b});
+        else
+            faces.push_back({a, b, c});
+    };
+    for (int j = 0; j < kSectors; ++j) {
+        if (hole_deg <= 0) add(0, index(1, j), index(1, j + 1));
+        add(1, index(kRings - 1, j + 1), index(kRings - 1, j));
+    }
+    for (int i = 1; i + 1 < kRings; ++i) {
+        if (180.0 * i / kRings < hole_deg) continue;  // the ring's upper edge is in the hole
+        for (int j = 0; j < kSectors; ++j) {
+            add(index(i, j), index(i + 1, j), index(i + 1, j + 1));
+            add(index(i, j), index(i + 1, j + 1), index(i, j + 1));
+        }
+    }
+    Mesh mesh;
+    CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, faces, mesh);
+    CGAL::Polygon_mesh_processing::remove_isolated_vertices(mesh);
+    mesh.collect_garbage();
+    return mesh;
+}
+
+double signed_volume(const Mesh& mesh) {
+    double volume = 0;
+    for (auto f : mesh.faces()) {
+        std::vector<Eigen::Vector3d> q;
+        for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh))
+            q.push_back(rgbd::to_eigen(mesh.point(v)));
+        volume += q[0].dot(q[1].cross(q[2])) / 6.0;
+    }
+    return volume;
+}
+
+double highest(const Mesh& mesh) {
+    double z = -1;
+    for (auto v : mesh.vertices()) z = std::max(z, mesh.point(v).z());
+    return z;
+}
+
+}  // namespace
+
+// The crown of a sphere is unseen, and the sensors saw everything above z = 0.085 m empty (the
+// object is a sphere with a flat top there): the faired patch over the crown bulges up to the
+// sphere's 0.1 m; carved, it ends at the free space's boundary, within a step of it, and the
+// mesh stays closed. Without carving (0 steps) the bulge stays: the assertion needs the carving.
+TEST(ReconstructSurface, ClosureCarvedOutOfTheSpaceTheSensorsSawEmpty) {
+    const rgbd::reconstruction::internal::SeenEmpty above =
+        [](const Eigen::Vector3d& p, const Eigen::Vector3d&) { return p.z() > 0.085; };
+    Mesh kept = sphere_with_crown_hole(40, false);
+    const rgbd::Report keep_report = rgbd::reconstruction::internal::close_holes(
+        kept, std::nullopt, 1000, nullptr, std::nullopt, 0.0, above, 0.5, 0);
+    EXPECT_TRUE(CGAL::is_closed(kept));
+    EXPECT_GT(highest(kept), 0.095) << keep_report.dump();
+
+    Mesh carved = sphere_with_crown_hole(40, false);
+    const rgbd::Report report = rgbd::reconstruction::internal::close_holes(
+        carved, std::nullopt, 1000, nullptr, std::nullopt, 0.0, above, 0.5, 40);
+    EXPECT_TRUE(CGAL::is_closed(carved));
+    EXPECT_LT(highest(carved), 0.085 + 0.005) << report.dump();
+    EXPECT_GT(report["carved_vertices"].get<std::size_t>(), 10u) << report.dump();
+    EXPECT_GT(signed_volume(carved), 0.0);
+}
+
+// A front can close a surface inside out; the closed mesh is turned outward (positive signed
+// volume), and the carving still moves inward (down from the free space, not up into it).
+TEST(ReconstructSurface, ClosedMeshIsOrientedOutwardBeforeCarving) {
+    Mesh mesh = sphere_with_crown_hole(40, true);
+    ASSERT_LT(signed_volume(sphere_with_crown_hole(0, true)), 0.0);
+    const rgbd::reconstruction::internal::SeenEmpty above =
+        [](const Eigen::Vector3d& p, const Eigen::Vector3d&) { return p.z() > 0.085; };
+    const rgbd::Report report = rgbd::reconstruction::internal::close_holes(
+        mesh, std::nullopt, 1000, nullptr, std::nullopt, 0.0, above, 0.5, 40);
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    EXPECT_EQ(report["components_reversed"], 1) << report.dump();
+    EXPECT_GT(signed_volume(mesh), 0.8 * 4.0 / 3.0 * M_PI * std::pow(kRadius, 3));
+    EXPECT_LT(highest(mesh), 0.085 + 0.005) << report.dump();
+}
