@@ -78,6 +78,7 @@ const cli::ToolSpec kSpec{
     .example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align | rgbd-mesh -o bust.ply --metrics mesh.json",
     .whole_stream = true,
+    .scopes = {{{"watertight"}, {"no-carve-closure"}}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("method",
                         cli::value(reconstruction::ReconstructionOptions{}.method, "NAME"),

@@ -309,6 +309,7 @@ const cli::ToolSpec kSpec{
     .reads_stream = false,
     .writes_file = true,
     .ranges = {{"crop-radius-m", Range::closed(0, 100), "m"}},
+    .scopes = {{{"open"}, {"no-carve-closure"}, /*not_with=*/true}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("report", cli::value<std::string>("DIR"),
                         "report folder (default: MESH without extension + _report)")(

@@ -335,19 +335,23 @@ std::size_t orient_outward(Mesh& mesh) {
     return reversed;
 }
 
-/// Space carving of one closure patch (`faces`, its new interior `vertices`): the patch is
-/// displaced inward, each vertex along its normal on the faired patch by a depth s >= 0 that is
-/// smooth over the patch and 0 on its rim. Each step deepens s by half the patch's mean edge
-/// length at the vertices a sensor saw as empty space (`seen_empty` at the vertex and its
-/// normal), then smooths s once (each vertex to the mean of itself and its neighbours' mean,
-/// the rim counting 0), until no sensor sees a vertex of the patch empty or after `max_steps`
-/// steps. A faired patch spans its rim smoothly, so over a wide hole the sensors did not see
-/// into (an animal's belly between its legs, under a seat) it bulges out through space the side
-/// sensors saw through; carving brings it back to the boundary of that space, the visual hull
-/// (Laurentini, "The visual hull concept for silhouette-based image understanding", PAMI 1994;
-/// space carving: Kutulakos and Seitz, IJCV 2000), while the patch stays closed and smooth (the
-/// directions are fixed: moving each vertex along its own current normal roughened the patch
-/// until normals flipped). Returns the number of vertices moved.
+/// Space carving of one closure patch (`faces`, its new interior `vertices`; the mesh closed
+/// and oriented outward): the patch is displaced inward, each vertex along its normal on the
+/// faired patch by a depth s >= 0 that is smooth over the patch and 0 on its rim. Each step
+/// deepens s by half the patch's mean edge length at the vertices a sensor saw as empty space
+/// (`seen_empty` at the vertex and its normal), then smooths s once (each vertex to the mean of
+/// itself and its neighbours' mean, the rim counting 0), until no sensor sees a vertex of the
+/// patch empty or after `max_steps` steps. No vertex goes deeper than half its distance to the
+/// rim (a dent of at most 27 degrees from the rim), so that noisy evidence cannot push a patch
+/// through the object it closes (without that bound the seated cellist's seat patch went 22 cm
+/// deep and its invented area rose from 14.7% to 23.5%). A faired patch spans its rim smoothly,
+/// so over a wide hole the sensors did not see into (an animal's belly between its legs, under
+/// a seat) it bulges out through space the side sensors saw through; carving brings it back to
+/// the boundary of that space, the visual hull (Laurentini, "The visual hull concept for
+/// silhouette-based image understanding", PAMI 1994; space carving: Kutulakos and Seitz, IJCV
+/// 2000), while the patch stays closed and smooth (the directions are fixed: moving each vertex
+/// along its own current normal roughened the patch until normals flipped). Returns the number
+/// of vertices seen empty at least once.
 std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
                         const std::vector<Mesh::Vertex_index>& vertices,
                         const SeenEmpty& seen_empty, int max_steps) {
@@ -398,10 +402,9 @@ std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
         if (std::find(empty.begin(), empty.end(), 1) == empty.end()) break;
         for (std::size_t i = 0; i < n; ++i)
             if (empty[i]) depth[i] += step, moved[i] = 1;
-        // Smoothed over the vertices carved so far; the others hold like the rim (depth 0):
-        // no vertex moves without evidence of its own.
+        // Smoothed over the patch (the rim holds at depth 0), never below the deepest.
         for (std::size_t i = 0; i < n; ++i) {
-            if (!moved[i] || around[i].empty()) {
+            if (around[i].empty()) {
                 smoothed[i] = depth[i];
                 continue;
             }

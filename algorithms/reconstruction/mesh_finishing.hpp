@@ -41,9 +41,14 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// the margin plus 3 robust RMS of the rim's plane, at least 1 cm), the object stood on the
 /// ground: the base goes on it. Otherwise the base is the rim's own plane at its deep quintile
 /// (never lower than the rim's lowest vertex: no skirt below what the sensors saw).
-/// With `seen_empty` (whether a sensor saw the point with that outward normal as empty space),
-/// the faired or refined patches with more than `seen_through_max` of their face centres seen
-/// empty are counted (report: seen_through): surface the sensors contradict. They are kept.
+/// Once every loop is closed, each closed connected component with a negative signed volume
+/// (inside out) is reversed (report: components_reversed). With `seen_empty` (whether a sensor
+/// saw the point with that outward normal as empty space), every faired or refined patch is
+/// carved back out of that space, for at most `carve_steps` steps (0 = not carved; report:
+/// carved_patches, carved_vertices): displaced inward along its normals where it was seen
+/// empty, smoothly, no deeper than half a vertex's distance to the rim; then the patches with
+/// more than `seen_through_max` of their face centres still seen empty are counted (report:
+/// seen_through): surface the sensors contradict. They are kept.
 /// The result is closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans,
 /// faces_added, largest_hole_edges, up (null when unknown), base ("ground" or "rim", with
 /// base_height_m above the ground when known), time_s.

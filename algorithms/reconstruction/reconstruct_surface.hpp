@@ -68,7 +68,7 @@ struct ReconstructionOptions {
     /// than the fill's: the sensors lose the object's grazing rim, so the measured silhouette
     /// is a little smaller than the object's. On the bull of the variety set (seed 1), one
     /// sensor and a 2-pixel window carved through the belly (invented area inside the truth
-    /// 0.17% -> 5.1%); two sensors and 3 pixels: 0.20%, invented 4.3% -> 3.3%.
+    /// 0.17% -> 5.1%); two sensors and 3 pixels: 0.20%, invented 4.4% -> 3.4%.
     int carve_steps = 40;
     int carve_votes = 2;
     /// `watertight`: holes with at most this many boundary edges are triangulated, refined and
