@@ -4,7 +4,6 @@
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/fair.h>
-#include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/refine.h>
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/repair.h>
@@ -15,17 +14,15 @@
 #include <CGAL/Surface_mesh_simplification/edge_collapse.h>
 #include <CGAL/boost/graph/Euler_operations.h>
 #include <CGAL/boost/graph/helpers.h>
-#include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
 #include <iterator>
 #include <limits>
-#include <unordered_map>
 #include <vector>
 
+#include "algorithms/reconstruction/closure_carving.hpp"
 #include "toolkit/order_statistics.hpp"
 #include "toolkit/report.hpp"
 
@@ -303,122 +300,6 @@ bool seen_through(const Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
         empty += seen_empty(c, n);
     }
     return static_cast<double>(empty) > max_share * static_cast<double>(faces.size());
-}
-
-/// Reverses the faces of every closed connected component whose signed volume is negative
-/// (inside out: its normals point inward), so that every closed component bounds its volume
-/// with outward normals; open components are left as they are. Returns the number reversed.
-std::size_t orient_outward(Mesh& mesh) {
-    auto component = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_orient", 0).first;
-    const std::size_t count = PMP::connected_components(mesh, component);
-    std::vector<double> volume(count, 0.0);
-    std::vector<char> open(count, 0);
-    for (auto f : mesh.faces()) {
-        const Halfedge h = mesh.halfedge(f);
-        const Eigen::Vector3d a = to_eigen(mesh.point(mesh.source(h)));
-        const Eigen::Vector3d b = to_eigen(mesh.point(mesh.target(h)));
-        const Eigen::Vector3d c = to_eigen(mesh.point(mesh.target(mesh.next(h))));
-        volume[component[f]] += a.dot(b.cross(c)) / 6.0;
-        for (Halfedge x : CGAL::halfedges_around_face(h, mesh))
-            if (mesh.is_border(mesh.opposite(x))) open[component[f]] = 1;
-    }
-    std::size_t reversed = 0;
-    for (std::size_t k = 0; k < count; ++k) {
-        if (open[k] || !(volume[k] < 0)) continue;
-        std::vector<Mesh::Face_index> faces;
-        for (auto f : mesh.faces())
-            if (component[f] == k) faces.push_back(f);
-        PMP::reverse_face_orientations(faces, mesh);
-        ++reversed;
-    }
-    mesh.remove_property_map(component);
-    return reversed;
-}
-
-/// Space carving of one closure patch (`faces`, its new interior `vertices`; the mesh closed
-/// and oriented outward): the patch is displaced inward, each vertex along its normal on the
-/// faired patch by a depth s >= 0 that is smooth over the patch and 0 on its rim. Each step
-/// deepens s by half the patch's mean edge length at the vertices a sensor saw as empty space
-/// (`seen_empty` at the vertex and its normal), then smooths s once (each vertex to the mean of
-/// itself and its neighbours' mean, the rim counting 0), until no sensor sees a vertex of the
-/// patch empty or after `max_steps` steps. No vertex goes deeper than half its distance to the
-/// rim (a dent of at most 27 degrees from the rim), so that noisy evidence cannot push a patch
-/// through the object it closes (without that bound the seated cellist's seat patch went 22 cm
-/// deep and its invented area rose from 14.7% to 23.5%). A faired patch spans its rim smoothly,
-/// so over a wide hole the sensors did not see into (an animal's belly between its legs, under
-/// a seat) it bulges out through space the side sensors saw through; carving brings it back to
-/// the boundary of that space, the visual hull (Laurentini, "The visual hull concept for
-/// silhouette-based image understanding", PAMI 1994; space carving: Kutulakos and Seitz, IJCV
-/// 2000), while the patch stays closed and smooth (the directions are fixed: moving each vertex
-/// along its own current normal roughened the patch until normals flipped). Returns the number
-/// of vertices seen empty at least once.
-std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
-                        const std::vector<Mesh::Vertex_index>& vertices,
-                        const SeenEmpty& seen_empty, int max_steps) {
-    if (faces.size() < 20 || vertices.empty()) return 0;
-    double length = 0;
-    std::size_t edges = 0;
-    for (auto f : faces)
-        for (Halfedge h : CGAL::halfedges_around_face(mesh.halfedge(f), mesh)) {
-            length += (to_eigen(mesh.point(mesh.source(h))) - to_eigen(mesh.point(mesh.target(h))))
-                          .norm();
-            ++edges;
-        }
-    const double step = 0.5 * length / static_cast<double>(std::max<std::size_t>(edges, 1));
-    const std::size_t n = vertices.size();
-    std::unordered_map<std::uint32_t, std::uint32_t> index;
-    for (std::size_t i = 0; i < n; ++i) index.emplace(std::uint32_t(vertices[i]), std::uint32_t(i));
-    // Neighbours inside the patch (-1: a rim vertex, depth 0).
-    std::vector<std::vector<std::int64_t>> around(n);
-    std::vector<Eigen::Vector3d> base(n), direction(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        base[i] = to_eigen(mesh.point(vertices[i]));
-        direction[i] = to_eigen(PMP::compute_vertex_normal(vertices[i], mesh));
-        for (auto w : CGAL::vertices_around_target(mesh.halfedge(vertices[i]), mesh)) {
-            const auto it = index.find(std::uint32_t(w));
-            around[i].push_back(it == index.end() ? -1 : std::int64_t(it->second));
-        }
-    }
-    // The deepest a vertex may go: half its distance to the rim (a slope of 27 degrees from
-    // the rim), so that a patch is dented, never pushed through the object it closes.
-    std::vector<Eigen::Vector3d> rim;
-    for (std::size_t i = 0; i < n; ++i)
-        for (auto w : CGAL::vertices_around_target(mesh.halfedge(vertices[i]), mesh))
-            if (!index.count(std::uint32_t(w))) rim.push_back(to_eigen(mesh.point(w)));
-    std::vector<double> deepest(n, 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-        double nearest = std::numeric_limits<double>::infinity();
-        for (const auto& q : rim) nearest = std::min(nearest, (q - base[i]).squaredNorm());
-        deepest[i] = rim.empty() ? 0.0 : 0.5 * std::sqrt(nearest);
-    }
-    std::vector<double> depth(n, 0.0), smoothed(n);
-    std::vector<char> empty(n, 0), moved(n, 0);
-    for (int k = 0; k < max_steps; ++k) {
-        tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
-            empty[i] = depth[i] < deepest[i] && direction[i].allFinite() &&
-                       direction[i].squaredNorm() > 0.5 &&
-                       seen_empty(base[i] - depth[i] * direction[i], direction[i]);
-        });
-        if (std::find(empty.begin(), empty.end(), 1) == empty.end()) break;
-        for (std::size_t i = 0; i < n; ++i)
-            if (empty[i]) depth[i] += step, moved[i] = 1;
-        // Smoothed over the patch (the rim holds at depth 0), never below the deepest.
-        for (std::size_t i = 0; i < n; ++i) {
-            if (around[i].empty()) {
-                smoothed[i] = depth[i];
-                continue;
-            }
-            double sum = 0;
-            for (auto j : around[i]) sum += j < 0 ? 0.0 : depth[std::size_t(j)];
-            smoothed[i] = std::min(
-                deepest[i], 0.5 * depth[i] + 0.5 * sum / static_cast<double>(around[i].size()));
-        }
-        depth.swap(smoothed);
-    }
-    for (std::size_t i = 0; i < n; ++i)
-        if (depth[i] > 0 && direction[i].allFinite())
-            mesh.point(vertices[i]) = to_point(base[i] - depth[i] * direction[i]);
-    return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));
 }
 
 }  // namespace
