@@ -417,6 +417,7 @@ reconstruction::ReconstructionOptions mesh_options(Options& o, bool watertight) 
     options.max_points = static_cast<std::size_t>(max_points);
     options.target_faces = static_cast<std::size_t>(target_faces);
     options.watertight = watertight;
+    if (o.flag("no_carve_closure")) options.carve_steps = 0;
     options.check();
     return options;
 }
@@ -529,6 +530,7 @@ py::object reconstruct(const py::object& capture_arg, const py::kwargs& kwargs) 
     options.skip = skip_option(o.object("skip"));
     o.get("method", options.mesh.method);
     options.mesh.watertight = !o.flag("open");
+    if (o.flag("no_carve_closure")) options.mesh.carve_steps = 0;
     options.mesh.check();
     int neighbors = options.upsample.neighbors;
     o.get("upsample", neighbors);
@@ -625,7 +627,8 @@ void bind_stages(py::module_& m) {
           "report dict.");
     m.def("mesh", &mesh, "views"_a,
           "Surface reconstruction of the views (rgbd-mesh; the views are not modified). "
-          "Options: method='front', max_points, watertight=False, target_faces=0, progress. "
+          "Options: method='front', max_points, watertight=False, no_carve_closure=False, "
+          "target_faces=0, progress. "
           "Returns a Mesh whose `report` attribute holds the stage's report.");
     m.def("evaluate", &evaluate, "result"_a, "reference"_a,
           "Surface metrics of a result (Mesh or list of views) against a reference (Mesh or "
@@ -639,7 +642,8 @@ void bind_stages(py::module_& m) {
           "a watertight mesh, with the same defaults, so the mesh equals the tool's. Options: "
           "skip=[...] (distance, upsample, density, fill; or 'a,b'), frameset=0, "
           "frames='A:B[:STEP]', noise_model='auto', crop_radius_m=0, keep_ground=False, "
-          "no_extract=False, method='front', stand='auto', open=False, upsample=8, seed=0, "
+          "no_extract=False, method='front', stand='auto', open=False, no_carve_closure=False, "
+          "upsample=8, seed=0, "
           "progress=None. Warnings of the chain become RuntimeWarnings. Returns a Mesh with the "
           "report (stages, timings, per-view counts) as its `report` attribute.");
 }
