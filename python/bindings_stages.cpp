@@ -8,6 +8,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -16,14 +17,17 @@
 #include "algorithms/denoise/density_outliers.hpp"
 #include "algorithms/denoise/depth_smoothing.hpp"
 #include "algorithms/denoise/distance_outliers.hpp"
+#include "algorithms/texture/texture_mesh.hpp"
 #include "algorithms/upsample/upsample_view.hpp"
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
+#include "io/textured_mesh_io.hpp"
 #include "pipeline/fill_stage.hpp"
 #include "pipeline/reconstruct.hpp"
 #include "pipeline/stages.hpp"
+#include "pipeline/texture_views.hpp"
 #include "python/bindings.hpp"
 #include "toolkit/error.hpp"
 
@@ -444,6 +448,50 @@ py::object mesh(const py::handle& views_arg, const py::kwargs& kwargs) {
     return out;
 }
 
+// ---- texture ----------------------------------------------------------------------------------
+
+py::object texture(const py::object& mesh_arg, const py::object& capture_arg,
+                   const std::filesystem::path& output, const py::kwargs& kwargs) {
+    Options o("texture", kwargs);
+    const Mesh& mesh = mesh_arg.cast<const Mesh&>();
+    RGBD_CHECK(io::is_textured_format(output),
+               output.string() + ": texture writes a .obj (with .mtl and .png) or a .glb");
+    RGBD_CHECK(mesh.number_of_faces() > 0, "texture: the mesh has no faces");
+    const io::Capture capture = capture_of(capture_arg);
+    long long frameset = 0;
+    std::string frames;
+    o.get("frameset", frameset);
+    o.get("frames", frames);
+    const py::object views_arg = o.object("views");
+    texture::TextureOptions options;
+    // rgbd-texture's default: the library's angle rounded to 0.01 degree, as its --help shows.
+    double angle_deg = std::round(std::acos(options.selection.min_cos) * 18000.0 / M_PI) / 100.0;
+    o.get("max_angle_deg", angle_deg);
+    check_range("max_angle_deg", angle_deg, Range::closed(1, 89), "degrees");
+    options.selection.min_cos = std::cos(angle_deg * M_PI / 180.0);
+    if (o.flag("no_consistency")) options.consistency.enabled = false;
+    if (o.flag("no_levelling")) options.levelling.enabled = false;
+    ProgressBridge bridge(o.object("progress"));
+    o.done();
+    options.check();
+    // As rgbd-texture: the frames (and refined poses) of aligned views, else the selection.
+    std::vector<PointCloud> aligned;
+    if (!views_arg.is_none())
+        for (const PointCloud* v : views_of(views_arg, "texture")) aligned.push_back(*v);
+    const auto selection = aligned.empty() ? selected_frames(capture, frameset, frames, {})
+                                           : pipeline::frames_of_views(capture, aligned);
+    Report report;
+    without_gil(bridge, [&] {
+        const auto views =
+            pipeline::load_texture_views(capture, selection, aligned.empty() ? nullptr : &aligned);
+        const TexturedMesh model =
+            texture::texture_mesh(mesh, views, options, report, bridge.stage("texture"));
+        io::write_textured_mesh(output, model, "rgbd_toolkit.texture");
+        return 0;
+    });
+    return to_python(report);
+}
+
 // ---- evaluate ---------------------------------------------------------------------------------
 
 py::object evaluate(const py::object& result_arg, const py::object& reference_arg,
@@ -630,6 +678,12 @@ void bind_stages(py::module_& m) {
           "Options: method='front', max_points, watertight=False, no_carve_closure=False, "
           "target_faces=0, progress. "
           "Returns a Mesh whose `report` attribute holds the stage's report.");
+    m.def("texture", &texture, "mesh"_a, "capture"_a, "output"_a,
+          "A textured model of the mesh from the capture's colour images (rgbd-texture), written "
+          "to `output` (.obj with .mtl and .png, or .glb). Options: views=None (aligned views: "
+          "their frames and refined poses; else frameset=0 / frames='A:B[:STEP]' of the "
+          "capture's own poses), max_angle_deg, no_consistency=False, no_levelling=False, "
+          "progress. Returns the report dict (selection, atlas, adjustment, levelling).");
     m.def("evaluate", &evaluate, "result"_a, "reference"_a,
           "Surface metrics of a result (Mesh or list of views) against a reference (Mesh or "
           "path), as rgbd-eval --reference: tau_mm=[2, 5], invented_tau_mm=5, samples=200000, "

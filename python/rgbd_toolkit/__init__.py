@@ -15,6 +15,7 @@ The stages one by one (the README's pipe):
     rt.clean_density(views)                  # | rgbd-clean --density
     rt.fill(views)                           # | rgbd-fill
     mesh = rt.mesh(views, watertight=True)   # | rgbd-mesh --watertight
+    rt.texture(mesh, "cap/", "model.obj", views=views)  # rgbd-texture --views
 
 The compiled extension _rgbd_toolkit holds the bindings; this package adds the Open3D
 conversions (when open3d is importable), in pure Python.
@@ -44,6 +45,7 @@ from ._rgbd_toolkit import (  # noqa: F401
     read_mesh,
     read_views,
     reconstruct,
+    texture,
     upsample,
     write_views,
 )
@@ -52,7 +54,7 @@ __all__ = [
     "AlgorithmError", "Capture", "Frame", "FrameSet", "InputError", "IoError", "Mesh",
     "PointCloud", "Sensor", "align", "clean_density", "clean_distance", "clouds", "evaluate",
     "evaluate_poses", "fill", "mesh", "read_capture", "read_mesh", "read_views", "reconstruct",
-    "upsample", "write_views",
+    "texture", "upsample", "write_views",
 ]
 
 

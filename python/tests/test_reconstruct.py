@@ -107,6 +107,32 @@ class ReconstructEqualsTheTool(unittest.TestCase):
         mesh = rt.mesh(views, watertight=True)
         self.assert_same_mesh(mesh, self.mesh)
 
+    @unittest.skipUnless(BIN and os.path.exists(os.path.join(BIN, "rgbd-texture")),
+                         "needs rgbd-texture in RGBD_BIN")
+    def test_texture_writes_the_tools_model(self):
+        tool_obj = os.path.join(self.dir, "tool.obj")
+        subprocess.run([os.path.join(BIN, "rgbd-texture"), os.path.join(self.dir, "m.ply"),
+                        "--capture", self.capture, "-o", tool_obj, "-q"], check=True)
+        obj = os.path.join(self.dir, "python.obj")
+        report = rt.texture(rt.read_mesh(os.path.join(self.dir, "m.ply")), self.capture, obj)
+        self.assertGreater(report["atlas"]["charts"], 0)
+
+        def geometry(path):  # vertices, texture coordinates and faces of an OBJ
+            with open(path) as f:
+                return [l for l in f if l.split(" ")[0] in ("v", "vt", "f")]
+
+        lines = geometry(obj)
+        self.assertGreater(len(lines), 1000)
+        # Compared whole, not by assertEqual (its diff of 100k lines would take minutes).
+        self.assertTrue(lines == geometry(tool_obj), "the OBJ differs from rgbd-texture's")
+        with open(os.path.join(self.dir, "python.png"), "rb") as a, \
+                open(os.path.join(self.dir, "tool.png"), "rb") as b:
+            self.assertTrue(a.read() == b.read(), "the atlas differs from rgbd-texture's")
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "python.mtl")))
+        with self.assertRaisesRegex(ValueError, "texture writes a .obj"):
+            rt.texture(self.mesh, self.capture, os.path.join(self.dir, "model.ply"))
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "model.ply")))
+
     def test_progress_reaches_every_long_stage(self):
         seen = {}
 
