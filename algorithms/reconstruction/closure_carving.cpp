@@ -60,23 +60,20 @@ std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
     const std::size_t n = vertices.size();
     std::unordered_map<std::uint32_t, std::uint32_t> index;
     for (std::size_t i = 0; i < n; ++i) index.emplace(std::uint32_t(vertices[i]), std::uint32_t(i));
-    // Neighbours inside the patch (-1: a rim vertex, depth 0).
+    // Neighbours inside the patch (-1: a rim vertex, depth 0), and the rim's points.
     std::vector<std::vector<std::int64_t>> around(n);
-    std::vector<Eigen::Vector3d> base(n), direction(n);
+    std::vector<Eigen::Vector3d> base(n), direction(n), rim;
     for (std::size_t i = 0; i < n; ++i) {
         base[i] = to_eigen(mesh.point(vertices[i]));
         direction[i] = to_eigen(PMP::compute_vertex_normal(vertices[i], mesh));
         for (auto w : CGAL::vertices_around_target(mesh.halfedge(vertices[i]), mesh)) {
             const auto it = index.find(std::uint32_t(w));
+            if (it == index.end()) rim.push_back(to_eigen(mesh.point(w)));
             around[i].push_back(it == index.end() ? -1 : std::int64_t(it->second));
         }
     }
     // The deepest a vertex may go: half its distance to the rim (a slope of 27 degrees from
     // the rim), so that a patch is dented, never pushed through the object it closes.
-    std::vector<Eigen::Vector3d> rim;
-    for (std::size_t i = 0; i < n; ++i)
-        for (auto w : CGAL::vertices_around_target(mesh.halfedge(vertices[i]), mesh))
-            if (!index.count(std::uint32_t(w))) rim.push_back(to_eigen(mesh.point(w)));
     std::vector<double> deepest(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
         double nearest = std::numeric_limits<double>::infinity();
