@@ -166,8 +166,11 @@ const cli::ToolSpec kSpec{
             "weight of the smoothness term (0 = best view per face)")(
             "sweeps", cli::value(kDefaults.selection.sweeps, "N"), "ICM sweeps")(
             "max-angle-deg",
-            cli::value(std::round(std::acos(kDefaults.selection.min_cos) * 18000.0 / M_PI) / 100.0,
-                       "D"),
+            // The library's angle itself (so that rgbd-reconstruct -o .obj, which calls the
+            // library, textures alike), shown to 0.01 degree.
+            cli::value<double>("D")->default_value(
+                std::acos(kDefaults.selection.min_cos) * 180.0 / M_PI,
+                cli::formatted("%.2f", std::acos(kDefaults.selection.min_cos) * 180.0 / M_PI)),
             "faces seen more obliquely than this are not textured from that camera")(
             "no-sharpness", "leave the image sharpness out of the view quality")(
             "no-adjust", "no per-camera colour adjustment")(

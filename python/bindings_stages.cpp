@@ -464,8 +464,7 @@ py::object texture(const py::object& mesh_arg, const py::object& capture_arg,
     o.get("frames", frames);
     const py::object views_arg = o.object("views");
     texture::TextureOptions options;
-    // rgbd-texture's default: the library's angle rounded to 0.01 degree, as its --help shows.
-    double angle_deg = std::round(std::acos(options.selection.min_cos) * 18000.0 / M_PI) / 100.0;
+    double angle_deg = std::acos(options.selection.min_cos) * 180.0 / M_PI;
     o.get("max_angle_deg", angle_deg);
     check_range("max_angle_deg", angle_deg, Range::closed(1, 89), "degrees");
     options.selection.min_cos = std::cos(angle_deg * M_PI / 180.0);
