@@ -7,7 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
-#include "algorithms/texture/ring_dilation.hpp"
+#include "algorithms/internal/ring_dilation.hpp"
 #include "algorithms/texture/seam_levelling.hpp"
 #include "toolkit/error.hpp"
 
@@ -109,7 +109,7 @@ cv::Mat chart_mask(cv::Size size, const std::vector<std::array<int, 3>>& faces,
 /// it, which at the chart's silhouette in its image are the background (light specks along the
 /// charts' borders under bilinear lookups and mip-mapping). Texels further out keep the image.
 void pad_from_chart(cv::Mat& target, cv::Mat mask, int rings) {
-    internal::dilate_covered<uchar>(target, mask, rings);
+    rgbd::internal::dilate_covered<uchar>(target, mask, rings);
 }
 
 }  // namespace

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <set>
 
-#include "algorithms/texture/ring_dilation.hpp"
+#include "algorithms/internal/ring_dilation.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::texture {
@@ -219,7 +219,7 @@ void add_chart_correction(cv::Mat& target, const std::vector<std::array<int, 3>>
     }
     // Texels next to the faces (read by bilinear lookups and mip-mapping): the mean of their
     // covered 8-neighbours, ring by ring.
-    internal::dilate_covered<float>(corr, covered, reach);
+    rgbd::internal::dilate_covered<float>(corr, covered, reach);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const cv::Vec3f c = covered.at<uchar>(y, x) ? corr.at<cv::Vec3f>(y, x)

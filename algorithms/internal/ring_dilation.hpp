@@ -2,13 +2,13 @@
 // with a covered 8-neighbour takes the mean of those neighbours and becomes covered. The atlas
 // pads a chart from its own texels with it (atlas.cpp, CV_8UC3, rounded integer mean) and the
 // seam levelling extends a chart's colour corrections past its faces (seam_levelling.cpp,
-// CV_32FC3, float mean). Internal to algorithms/texture/ (not installed).
+// CV_32FC3, float mean). Internal to algorithms/ (not installed).
 #pragma once
 
 #include <opencv2/core.hpp>
 #include <type_traits>
 
-namespace rgbd::texture::internal {
+namespace rgbd::internal {
 
 /// Dilates `image` (3 channels of `Channel`: uchar for CV_8UC3, float for CV_32FC3) from the
 /// pixels where `covered` (CV_8U, same size; changed in place) is non-zero, for at most `rings`
@@ -55,4 +55,4 @@ void dilate_covered(cv::Mat& image, cv::Mat& covered, int rings) {
     }
 }
 
-}  // namespace rgbd::texture::internal
+}  // namespace rgbd::internal
