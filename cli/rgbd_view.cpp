@@ -6,6 +6,7 @@
 // it shows the model with its texture (issue 36) through three.js's GLTFLoader.
 #include <unistd.h>
 
+#include <Eigen/Core>
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -54,9 +55,33 @@ std::array<double, 3> parse_up(const std::string& text, const std::string& optio
 
 /// The model of a .glb (as it is) or of another mesh file (converted to glTF binary) for the
 /// page; errors name the file.
-cli::ViewModel load_model(const fs::path& path, const std::array<double, 3>& up,
-                          const std::optional<std::array<double, 3>>& front, cli::Context& ctx) {
+cli::ViewModel load_model(const fs::path& path,
+                          const std::optional<std::array<double, 3>>& up_given,
+                          const std::optional<std::array<double, 3>>& front_given,
+                          cli::Context& ctx) {
     const TexturedMesh mesh = io::read_textured_mesh(path);  // checks it; errors name it
+    // --up and --front are in the model's coordinates. A .glb whose root node turns its up to
+    // +Y (the toolkit's, from the capture's cameras) is drawn turned by three.js, so both turn
+    // alike; --up defaults to the file's up, then y. The default front is chosen as the page
+    // does (+z, +x, -z, -x: the first least aligned with up), before the turn.
+    using Vec = Eigen::Vector3d;
+    const auto vec = [](const std::array<double, 3>& a) { return Vec(a[0], a[1], a[2]); };
+    const Vec up_model = up_given ? vec(*up_given) : mesh.up ? *mesh.up : Vec::UnitY();
+    const Eigen::Matrix3d turn =
+        mesh.up ? io::gltf_up_rotation(*mesh.up) : Eigen::Matrix3d::Identity();
+    const auto array = [](const Vec& v) { return std::array<double, 3>{v.x(), v.y(), v.z()}; };
+    const std::array<double, 3> up = array(turn * up_model);
+    std::optional<std::array<double, 3>> front;
+    if (front_given) {
+        front = array(turn * vec(*front_given));
+    } else if (mesh.up) {
+        const Vec u = up_model.normalized();
+        Vec best = Vec::UnitZ();
+        for (const Vec& v :
+             std::array<Vec, 4>{Vec::UnitZ(), Vec::UnitX(), -Vec::UnitZ(), -Vec::UnitX()})
+            if (std::abs(v.dot(u)) < std::abs(best.dot(u)) - 1e-9) best = v;
+        front = array(turn * best);
+    }
     fs::path glb = path;
     std::string ext = path.extension().string();
     for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -104,7 +129,8 @@ void run_view(cli::Context& ctx) {
     if (options.port < 0 || options.port > 65535) throw cli::UsageError("--port must be 0..65535");
     const double duration_s = ctx.get<double>("duration-s");
     if (!(duration_s >= 0)) throw cli::UsageError("--duration-s must be >= 0");
-    const std::array<double, 3> up = parse_up(ctx.get<std::string>("up"), "up");
+    std::optional<std::array<double, 3>> up;
+    if (!ctx.options()["up"].defaulted()) up = parse_up(ctx.get<std::string>("up"), "up");
     std::optional<std::array<double, 3>> front;
     if (ctx.options().count("front")) front = parse_up(ctx.get<std::string>("front"), "front");
     const bool model_mode = is_model_file(dir);
@@ -175,7 +201,8 @@ int main(int argc, char** argv) {
             "duration-s", cli::value<double>(0.0, "S"),
             "stop after S seconds (0 = until a signal)")(
             "up", cli::value<std::string>("y", "AXIS|X,Y,Z"),
-            "a model's up direction in its coordinates (x, -y, ... or X,Y,Z)")(
+            "a model's up direction in its coordinates (x, -y, ... or X,Y,Z; default: the "
+            "up a .glb of this toolkit records, else y)")(
             "front", cli::value<std::string>("AXIS|X,Y,Z"),
             "the side of a model to face the viewer (default: +z, +x, -z or -x, the one least "
             "aligned with up)");

@@ -7,12 +7,15 @@
 #define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <tiny_gltf.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <sstream>
 
 #include "io/capture_folder.hpp"
@@ -353,6 +356,13 @@ void write_glb(const fs::path& path, const TexturedMesh& m, const std::string& c
     model.meshes.push_back(mesh);
     tinygltf::Node node;
     node.mesh = 0;
+    if (m.up) {  // column-major 4 x 4, no translation: vertices stay in the world frame
+        const Eigen::Matrix3d r = gltf_up_rotation(*m.up);
+        node.matrix.assign(16, 0.0);
+        for (int c = 0; c < 3; ++c)
+            for (int row = 0; row < 3; ++row) node.matrix[4 * c + row] = r(row, c);
+        node.matrix[15] = 1.0;
+    }
     model.nodes.push_back(node);
     tinygltf::Scene scene;
     scene.nodes.push_back(0);
@@ -429,6 +439,35 @@ std::vector<double> element(const tinygltf::Model& model, const tinygltf::Access
         }
     }
     return out;
+}
+
+/// The direction the root node of the default scene turns to +Y, when its transform is a
+/// rotation (matrix without translation or scale, or a quaternion alone); else none.
+std::optional<Eigen::Vector3d> root_up(const tinygltf::Model& model) {
+    const int s = model.defaultScene >= 0 ? model.defaultScene : 0;
+    if (s >= static_cast<int>(model.scenes.size()) || model.scenes[s].nodes.empty()) return {};
+    const tinygltf::Node& node = model.nodes.at(model.scenes[s].nodes.front());
+    Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+    if (node.matrix.size() == 16) {
+        for (int c = 0; c < 3; ++c)
+            for (int row = 0; row < 3; ++row) r(row, c) = node.matrix[4 * c + row];
+        const bool moved =
+            std::abs(node.matrix[12]) + std::abs(node.matrix[13]) + std::abs(node.matrix[14]) >
+                1e-9 ||
+            node.matrix[3] != 0 || node.matrix[7] != 0 || node.matrix[11] != 0 ||
+            node.matrix[15] != 1;
+        if (moved || !r.allFinite() || !(r.transpose() * r).isIdentity(1e-6) ||
+            std::abs(r.determinant() - 1) > 1e-6)
+            return {};
+    } else if (node.rotation.size() == 4 && node.translation.empty() && node.scale.empty()) {
+        const Eigen::Quaterniond q(node.rotation[3], node.rotation[0], node.rotation[1],
+                                   node.rotation[2]);
+        if (!(std::abs(q.norm() - 1) < 1e-6)) return {};
+        r = q.toRotationMatrix();
+    } else {
+        return {};
+    }
+    return r.transpose() * Eigen::Vector3d::UnitY();
 }
 
 TexturedMesh read_glb(const fs::path& path) {
@@ -513,6 +552,7 @@ TexturedMesh read_glb(const fs::path& path) {
             }
         }
     RGBD_CHECK(!m.faces.empty(), name + ": no triangles");
+    m.up = root_up(model);
     if (!textured || m.atlases.empty()) {
         m.face_uvs.clear();
         m.face_atlas.clear();
@@ -524,6 +564,12 @@ TexturedMesh read_glb(const fs::path& path) {
 }
 
 }  // namespace
+
+Eigen::Matrix3d gltf_up_rotation(const Eigen::Vector3d& up) {
+    RGBD_CHECK(up.allFinite() && up.norm() > 0, "the up direction must be finite and non-zero");
+    return Eigen::Quaterniond::FromTwoVectors(up.normalized(), Eigen::Vector3d::UnitY())
+        .toRotationMatrix();
+}
 
 bool is_textured_format(const fs::path& path) {
     const std::string ext = lower_extension(path);

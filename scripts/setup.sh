@@ -10,7 +10,7 @@ PACKAGES=(build-essential cmake ninja-build pkg-config
   libboost-dev libboost-program-options-dev libnanoflann-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libzmq3-dev cppzmq-dev zlib1g-dev libpng-dev libopenni2-dev iproute2 libdraco-dev libtinygltf-dev
-  libjs-three curl libcgal-demo python3-open3d python3-numpy pybind11-dev chromium snakemake
+  libjs-three curl libcgal-demo python3-open3d python3-numpy pybind11-dev chromium snakemake assimp-utils
   slurm-wlm munge)
 
 SUDO=""

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "toolkit/error.hpp"
@@ -24,6 +25,10 @@ struct TexturedMesh {
     std::vector<std::array<int, 3>> face_uvs;  ///< per face, indices into `uvs` (empty: untextured)
     std::vector<int> face_atlas;               ///< per face, index into `atlases`
     std::vector<cv::Mat> atlases;              ///< CV_8UC3, BGR
+    /// The world's up direction (unit), e.g. sensors_up() of the colour cameras, or none. A .glb
+    /// stores it as its root node's rotation taking it to glTF's +Y (io/textured_mesh_io.hpp);
+    /// the vertices stay in the world frame.
+    std::optional<Eigen::Vector3d> up;
 
     bool has_texture() const { return !atlases.empty() && face_uvs.size() == faces.size(); }
 };

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
+#include "algorithms/internal/ring_dilation.hpp"
 #include "algorithms/texture/seam_levelling.hpp"
 #include "toolkit/error.hpp"
 
@@ -108,34 +109,7 @@ cv::Mat chart_mask(cv::Size size, const std::vector<std::array<int, 3>>& faces,
 /// it, which at the chart's silhouette in its image are the background (light specks along the
 /// charts' borders under bilinear lookups and mip-mapping). Texels further out keep the image.
 void pad_from_chart(cv::Mat& target, cv::Mat mask, int rings) {
-    for (int ring = 0; ring < rings; ++ring) {
-        cv::Mat next = mask.clone();
-        bool grown = false;
-        for (int y = 0; y < target.rows; ++y)
-            for (int x = 0; x < target.cols; ++x) {
-                if (mask.at<uchar>(y, x)) continue;
-                cv::Vec3i sum(0, 0, 0);
-                int count = 0;
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int yy = y + dy, xx = x + dx;
-                        if (yy < 0 || xx < 0 || yy >= target.rows || xx >= target.cols ||
-                            !mask.at<uchar>(yy, xx))
-                            continue;
-                        const cv::Vec3b& p = target.at<cv::Vec3b>(yy, xx);
-                        sum += cv::Vec3i(p[0], p[1], p[2]);
-                        ++count;
-                    }
-                if (count == 0) continue;
-                cv::Vec3b& q = target.at<cv::Vec3b>(y, x);
-                for (int ch = 0; ch < 3; ++ch)
-                    q[ch] = static_cast<uchar>((sum[ch] + count / 2) / count);
-                next.at<uchar>(y, x) = 1;
-                grown = true;
-            }
-        mask = next;
-        if (!grown) break;
-    }
+    rgbd::internal::dilate_covered<uchar>(target, mask, rings);
 }
 
 }  // namespace

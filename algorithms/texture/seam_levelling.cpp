@@ -6,6 +6,7 @@
 #include <cmath>
 #include <set>
 
+#include "algorithms/internal/ring_dilation.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::texture {
@@ -218,30 +219,7 @@ void add_chart_correction(cv::Mat& target, const std::vector<std::array<int, 3>>
     }
     // Texels next to the faces (read by bilinear lookups and mip-mapping): the mean of their
     // covered 8-neighbours, ring by ring.
-    for (int ring = 0; ring < reach; ++ring) {
-        cv::Mat next = covered.clone();
-        bool grown = false;
-        for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x) {
-                if (covered.at<uchar>(y, x)) continue;
-                cv::Vec3f sum(0, 0, 0);
-                int count = 0;
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int yy = y + dy, xx = x + dx;
-                        if (yy < 0 || xx < 0 || yy >= h || xx >= w || !covered.at<uchar>(yy, xx))
-                            continue;
-                        sum += corr.at<cv::Vec3f>(yy, xx);
-                        ++count;
-                    }
-                if (count == 0) continue;
-                corr.at<cv::Vec3f>(y, x) = sum / count;
-                next.at<uchar>(y, x) = 1;
-                grown = true;
-            }
-        covered = next;
-        if (!grown) break;
-    }
+    rgbd::internal::dilate_covered<float>(corr, covered, reach);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const cv::Vec3f c = covered.at<uchar>(y, x) ? corr.at<cv::Vec3f>(y, x)

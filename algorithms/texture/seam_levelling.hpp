@@ -21,8 +21,9 @@
 // the colours ten faces away within 2 levels (tests/algorithms/texture/seam_levelling_test.cpp).
 // Seam pairs whose colours differ by more than outlier_levels in a channel are left out (an
 // occluder, not a brightness step). The corrections are interpolated over each face's texels
-// (barycentric) when the atlas is written (add_chart_correction), and extended by nearest filling
-// to the padding around the chart.
+// (barycentric) when the atlas is written (add_chart_correction), and extended to the padding
+// around the chart ring by ring, each texel the mean of its covered neighbours
+// (algorithms/internal/ring_dilation.hpp, the dilation the atlas pads charts with).
 #pragma once
 
 #include <Eigen/Core>

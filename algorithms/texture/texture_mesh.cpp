@@ -1,6 +1,7 @@
 #include "algorithms/texture/texture_mesh.hpp"
 
 #include "toolkit/error.hpp"
+#include "toolkit/pose.hpp"
 
 namespace rgbd::texture {
 
@@ -92,6 +93,12 @@ TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& view
     atlas["time_s"] = atlas_watch.seconds();
     report["atlas"] = atlas;
     out.vertex_colors = plain.vertex_colors;
+    // The world's up as the colour cameras see it (a .glb turns it to +Y), as the pipeline's
+    // closure finds it (pipeline/stages.cpp): none when the cameras disagree.
+    std::vector<Pose> cameras;
+    for (const auto& v : views) cameras.push_back(v.world_from_camera);
+    out.up = sensors_up(cameras, 0.7);
+    if (out.up) report["up"] = {out.up->x(), out.up->y(), out.up->z()};
     report["time_s"] = watch.seconds();
     report_progress(progress, 1.0);
     return out;

@@ -220,6 +220,70 @@ TEST(RgbdView, ShowsATexturedModel) {
     }
 }
 
+/// A 0.4 m square standing in the x = 0 plane of a z-up world, facing +x, textured top half
+/// red (z > 0) and bottom half green, with up = +z (as the texture stage records a ring's up).
+rgbd::TexturedMesh standing_square() {
+    rgbd::TexturedMesh m;
+    m.vertices = {{0, -0.2, -0.2}, {0, 0.2, -0.2}, {0, 0.2, 0.2}, {0, -0.2, 0.2}};
+    m.faces = {{{0, 1, 2}}, {{0, 2, 3}}};
+    m.uvs = {{0.f, 1.f}, {1.f, 1.f}, {1.f, 0.f}, {0.f, 0.f}};  // v down: z = +0.2 is v = 0
+    m.face_uvs = m.faces;
+    m.face_atlas = {0, 0};
+    cv::Mat atlas(64, 64, CV_8UC3, cv::Scalar(30, 200, 30));       // BGR green
+    atlas(cv::Rect(0, 0, 64, 32)).setTo(cv::Scalar(30, 30, 230));  // red top half
+    m.atlases = {atlas};
+    m.up = Eigen::Vector3d::UnitZ();
+    return m;
+}
+
+// The .glb's root node turns its z up to glTF's +Y: three.js (a glTF viewer) shows the square
+// upright, red above green, with rgbd-view's default --up (the file's) and with --up z (the
+// model's coordinates, turned alike).
+TEST(RgbdView, AGlbWithAnUpStandsUpright) {
+    if (!fs::exists("/usr/share/javascript/three/examples/js/loaders/GLTFLoader.js"))
+        GTEST_SKIP() << "libjs-three (with its GLTFLoader) is not installed";
+    if (std::system("command -v curl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no curl";
+    if (std::system("command -v chromium >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "chromium is not installed: the browser check is skipped";
+    const fs::path dir = temp_root();
+    rgbd::io::write_textured_mesh(dir / "standing.glb", standing_square());
+    for (const std::string up : {"", " --up z"}) {
+        SCOPED_TRACE("rgbd-view standing.glb" + up);
+        const int port = free_port();
+        start(dir, "upright",
+              "$BIN/rgbd-view standing.glb --port " + std::to_string(port) + " --duration-s 120" +
+                  up);
+        std::string page;
+        for (int i = 0; i < 200 && page.find("GLTFLoader.js") == std::string::npos; ++i) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            page = curl(port, "/");
+        }
+        ASSERT_NE(page.find("GLTFLoader.js"), std::string::npos) << slurp(dir / "upright.err");
+        const json info = json::parse(curl(port, "/api/info"));
+        EXPECT_NEAR(info["up"][1].get<double>(), 1.0, 1e-9) << info.dump();
+        const fs::path png_path = dir / "upright.png";
+        fs::remove(png_path);
+        Outcome shot = run("timeout 120 " + kChromium +
+                           "--virtual-time-budget=5000 --screenshot=" + png_path.string() +
+                           " http://127.0.0.1:" + std::to_string(port) + "/ 2>/dev/null");
+        ::kill(pid_of(dir, "upright"), SIGTERM);
+        EXPECT_EQ(wait_for(dir, "upright", 30), 0) << slurp(dir / "upright.err");
+        ASSERT_TRUE(fs::exists(png_path)) << shot.err;
+        const cv::Mat png = cv::imread(png_path.string(), cv::IMREAD_COLOR);
+        ASSERT_FALSE(png.empty());
+        cv::Mat red, green;
+        cv::inRange(png, cv::Scalar(0, 0, 140), cv::Scalar(80, 80, 255), red);
+        cv::inRange(png, cv::Scalar(0, 120, 0), cv::Scalar(80, 255, 80), green);
+        ASSERT_GT(cv::countNonZero(red), 2000) << "no red half in the screenshot";
+        ASSERT_GT(cv::countNonZero(green), 2000) << "no green half in the screenshot";
+        const cv::Moments mr = cv::moments(red, true), mg = cv::moments(green, true);
+        const double dy = mg.m01 / mg.m00 - mr.m01 / mr.m00;  // rows grow downwards
+        const double dx = std::abs(mg.m10 / mg.m00 - mr.m10 / mr.m00);
+        EXPECT_GT(dy, 40) << "red is not above green";
+        EXPECT_GT(dy, 2 * dx) << "the square is not upright";
+    }
+}
+
 TEST(RgbdView, UsageAndBadFolder) {
     Outcome r = run("$BIN/rgbd-view --help");
     EXPECT_EQ(r.code, 0);

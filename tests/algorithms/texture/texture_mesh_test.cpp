@@ -1,13 +1,18 @@
 // Texturing (algorithms/texture/) on a sphere with a fine procedural checker seen by six
 // cameras: the textured model reproduces the images far better than vertex colours at the
-// mesh's spacing; OBJ and glb round trips; bad input.
+// mesh's spacing; OBJ and glb round trips; the .glb's up (root node rotation); assimp reads both
+// files (when installed); bad input.
 #include "algorithms/texture/texture_mesh.hpp"
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "algorithms/render/rasterizer.hpp"
@@ -249,5 +254,139 @@ TEST_F(Fixture, UnwritableOutputLeavesNoFile) {
     const fs::path obj = dir / "no" / "model.obj";
     EXPECT_THROW(io::write_textured_mesh(obj, *model_), IoError);
     EXPECT_FALSE(fs::exists(dir / "no"));
+    fs::remove_all(dir);
+}
+
+namespace {
+
+/// The JSON chunk of a glTF binary (the first chunk, after the 12-byte header).
+nlohmann::json glb_json(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::uint32_t header[5] = {};
+    in.read(reinterpret_cast<char*>(header), sizeof header);
+    EXPECT_EQ(header[4], 0x4E4F534Au) << "the first chunk is not JSON";
+    std::string text(header[3], '\0');
+    in.read(text.data(), static_cast<std::streamsize>(text.size()));
+    return nlohmann::json::parse(text);
+}
+
+/// stdout of a shell command.
+std::string output_of(const std::string& command) {
+    std::string out;
+    if (FILE* pipe = ::popen(command.c_str(), "r")) {
+        char buffer[4096];
+        std::size_t n;
+        while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+        ::pclose(pipe);
+    }
+    return out;
+}
+
+/// The number after "<label>:" on a line of `assimp info`, or -1.
+long assimp_count(const std::string& info, const std::string& label) {
+    std::istringstream lines(info);
+    std::string line;
+    while (std::getline(lines, line))
+        if (line.rfind(label + ":", 0) == 0) return std::stol(line.substr(label.size() + 1));
+    return -1;
+}
+
+/// The point after "<label>" on a line of `assimp info` ("Minimum point      (x y z)").
+Eigen::Vector3d assimp_point(const std::string& info, const std::string& label) {
+    const std::size_t at = info.find(label);
+    Eigen::Vector3d p = Eigen::Vector3d::Constant(NAN);
+    if (at == std::string::npos) return p;
+    std::istringstream in(info.substr(info.find('(', at) + 1));
+    in >> p.x() >> p.y() >> p.z();
+    return p;
+}
+
+}  // namespace
+
+// The six cameras alternate 0.25 m above and below the sphere's equator, image rows along -z:
+// the model's up is +z. A .glb stores it as a root node rotation taking it to glTF's +Y (so that
+// a viewer shows the model upright) and reads it back; the vertices stay in the world frame. A
+// mesh without up gets no node transform.
+TEST_F(Fixture, GlbRootNodeTurnsTheCamerasUpToY) {
+    ASSERT_TRUE(model_->up.has_value());
+    EXPECT_NEAR(model_->up->z(), 1.0, 1e-9);
+    EXPECT_NEAR((*report_)["up"][2].get<double>(), 1.0, 1e-9);
+    const fs::path dir = temp_dir("glb_up");
+    io::write_textured_mesh(dir / "up.glb", *model_);
+    const nlohmann::json gltf = glb_json(dir / "up.glb");
+    const auto& root = gltf["nodes"][gltf["scenes"][0]["nodes"][0].get<int>()];
+    ASSERT_TRUE(root.contains("matrix"));
+    Eigen::Matrix4d m;
+    for (int i = 0; i < 16; ++i) m(i % 4, i / 4) = root["matrix"][i].get<double>();  // by column
+    const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+    EXPECT_LT((r.transpose() * r - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+    EXPECT_NEAR(r.determinant(), 1.0, 1e-9);
+    EXPECT_LT((r * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitY()).norm(), 1e-9);
+    EXPECT_LT(m.col(3).head<3>().norm(), 1e-12) << "no translation";
+    // z up becomes glTF's (x, z, -y): the smallest turn, about x.
+    EXPECT_LT((r * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-9);
+
+    const TexturedMesh back = io::read_textured_mesh(dir / "up.glb");
+    ASSERT_TRUE(back.up.has_value());
+    EXPECT_LT((*back.up - *model_->up).norm(), 1e-9);
+    ASSERT_EQ(back.faces.size(), model_->faces.size());
+    for (std::size_t f = 0; f < back.faces.size(); f += 97)
+        for (int j = 0; j < 3; ++j)
+            EXPECT_LT(
+                (back.vertices[back.faces[f][j]] - model_->vertices[model_->faces[f][j]]).norm(),
+                1e-6);
+
+    TexturedMesh plain = *model_;
+    plain.up.reset();
+    io::write_textured_mesh(dir / "plain.glb", plain);
+    const nlohmann::json flat = glb_json(dir / "plain.glb");
+    EXPECT_FALSE(flat["nodes"][0].contains("matrix"));
+    EXPECT_FALSE(io::read_textured_mesh(dir / "plain.glb").up.has_value());
+    EXPECT_THROW(io::gltf_up_rotation(Eigen::Vector3d::Zero()), InputError);
+    // -Y up (a camera's image-up in the OpenCV frame) turns half around.
+    EXPECT_LT((io::gltf_up_rotation(-Eigen::Vector3d::UnitY()) * -Eigen::Vector3d::UnitY() -
+               Eigen::Vector3d::UnitY())
+                  .norm(),
+              1e-9);
+    fs::remove_all(dir);
+}
+
+// Issue 36: "the OBJ in MeshLab and Blender (assimp reads it)". Open Asset Import (Debian's
+// assimp-utils), the importer behind many tools, reads our OBJ + MTL + PNG and our .glb with
+// every triangle, one material per atlas with the atlas as its diffuse (base colour) texture,
+// and the .glb's root rotation (its bounds come out turned, z up to +Y). Skipped without assimp.
+TEST_F(Fixture, AssimpReadsObjAndGlb) {
+    if (std::system("command -v assimp >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "assimp is not installed (apt-get install assimp-utils): not checked";
+    const fs::path dir = temp_dir("assimp");
+    io::write_textured_mesh(dir / "model.obj", *model_, "test");
+    io::write_textured_mesh(dir / "model.glb", *model_, "test");
+    const long faces = static_cast<long>(model_->faces.size());
+    const long atlases = static_cast<long>(model_->atlases.size());
+
+    // --raw: no post-processing, so the counts are the file's (an OBJ corner is a vertex).
+    const std::string obj =
+        output_of("assimp info " + (dir / "model.obj").string() + " --raw --verbose 2>&1");
+    EXPECT_EQ(assimp_count(obj, "Faces"), faces) << obj;
+    EXPECT_EQ(assimp_count(obj, "Vertices"), 3 * faces) << obj;
+    EXPECT_EQ(assimp_count(obj, "Meshes"), atlases) << obj;
+    EXPECT_GE(assimp_count(obj, "Materials"), atlases) << obj;
+    EXPECT_NE(obj.find("($tex.file): [0 / "), std::string::npos) << obj;
+    EXPECT_NE(obj.find("| Diffuse]"), std::string::npos) << "no diffuse texture: " << obj;
+    EXPECT_NE(obj.find("'model.png'"), std::string::npos) << "texture reference: " << obj;
+
+    const std::string glb =
+        output_of("assimp info " + (dir / "model.glb").string() + " --raw --verbose 2>&1");
+    EXPECT_EQ(assimp_count(glb, "Faces"), faces) << glb;
+    EXPECT_EQ(assimp_count(glb, "Textures (embed.)"), atlases) << glb;
+    EXPECT_EQ(assimp_count(glb, "Meshes"), atlases) << glb;
+    EXPECT_NE(glb.find("| Diffuse]"), std::string::npos) << "no base colour texture: " << glb;
+    // assimp applies the root node: the .glb's bounds are the OBJ's turned, (x, y, z) ->
+    // (x, z, -y), so the model's up (+z, from the cameras) is +Y.
+    const Eigen::Vector3d lo = assimp_point(obj, "Minimum point"),
+                          hi = assimp_point(obj, "Maximum point");
+    const Eigen::Vector3d turned_lo(lo.x(), lo.z(), -hi.y()), turned_hi(hi.x(), hi.z(), -lo.y());
+    EXPECT_LT((assimp_point(glb, "Minimum point") - turned_lo).norm(), 1e-4) << glb;
+    EXPECT_LT((assimp_point(glb, "Maximum point") - turned_hi).norm(), 1e-4) << glb;
     fs::remove_all(dir);
 }
