@@ -330,9 +330,15 @@ int refine_level(const render::RenderScene& scene, const Samples& samples, const
             const double d =
                 std::hypot(xi0.head<3>().norm() / sigma_rot, xi0.tail<3>().norm() / sigma_t);
             const double weight = kappa * (d <= 1 ? 1.0 : 1.0 / d);
+            // Plus a quadratic term for the weakly observed directions (a shift along the
+            // optical axis changes the image only by its scale): 1 degree or 10 mm cost
+            // `prior_levels` grey levels at every point.
+            const double quad = options.prior_levels * options.prior_levels *
+                                static_cast<double>(ne.n) / (255.0 * 255.0);
             Eigen::Matrix<double, 6, 1> prior;
-            prior << Eigen::Vector3d::Constant(weight / (sigma_rot * sigma_rot)),
-                Eigen::Vector3d::Constant(weight / (sigma_t * sigma_t));
+            prior << Eigen::Vector3d::Constant(weight / (sigma_rot * sigma_rot) +
+                                               quad / (kDeg * kDeg)),
+                Eigen::Vector3d::Constant(weight / (sigma_t * sigma_t) + quad / (0.01 * 0.01));
             ne.h.diagonal() += prior;
             ne.g += prior.cwiseProduct(xi0);
             // Levenberg-Marquardt damping, light: the Huber weights already bound outliers.
@@ -373,6 +379,8 @@ void RefineOptions::check() const {
                "texture: colour refinement depth tolerances must be in [0, 1]");
     RGBD_CHECK(edge_px >= 0 && edge_px <= 50 && std::isfinite(edge_jump_m) && edge_jump_m > 0,
                "texture: colour refinement edge window must be in [0, 50] px, jump > 0 m");
+    RGBD_CHECK(std::isfinite(prior_levels) && prior_levels >= 0 && prior_levels <= 255,
+               "texture: colour refinement prior must be in [0, 255] grey levels");
     RGBD_CHECK(std::isfinite(huber) && huber > 0,
                "texture: colour refinement Huber threshold must be > 0");
     RGBD_CHECK(std::isfinite(max_rotation_deg) && max_rotation_deg > 0 && max_rotation_deg <= 45,

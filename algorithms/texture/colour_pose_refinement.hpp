@@ -44,6 +44,9 @@ struct RefineOptions {
     int edge_px = 2;
     double edge_jump_m = 0.02;
     double huber = 0.05;  ///< Huber threshold on the residual, grey level / 255
+    /// Quadratic prior towards the initial pose: a correction of 1 degree or 10 mm costs this
+    /// many grey levels (RMS) at every point the camera sees.
+    double prior_levels = 0.3;
     /// Corrections above these are refused: the camera keeps its pose.
     double max_rotation_deg = 3.0;
     double max_translation_m = 0.03;
