@@ -10,14 +10,15 @@
 // C(p), the mean of the cameras' grey levels at their projections; the refinement alternates
 // (a) C(p) and (b) one Gauss-Newton step per camera (in parallel) on its pose T, minimising
 // sum_p rho(I(pi(T p)) - C(p)) with I the camera's slightly blurred grey image, its gradient
-// from a Sobel filter, rho a Huber norm, and a weak prior towards the initial pose that fixes
-// the motions of all cameras together which the photometric cost does not see (on a sphere: a
-// common rotation about its centre). It runs coarse to fine over an image pyramid (the basin of
-// a 1-degree error is several pixels at full resolution) and stops at a level when no camera
-// moves by more than 0.001 degree / 0.01 mm. A camera whose correction exceeds max_rotation_deg
-// or max_translation_m, or whose residual does not decrease, keeps its original pose (refused,
-// with the reason in the report); a camera with fewer than min_samples shared points is left
-// alone. See also: view_selection.hpp (visibility), texture_mesh.hpp (the chain).
+// from a Sobel filter, rho a Huber norm, and priors towards the initial pose: a Huber one, stiff
+// near 0, that holds the motions of all cameras together which the photometric cost does not see
+// (on a sphere: a common rotation about its centre), and a weak quadratic one against the drift
+// of the weakly observed shift along the optical axis. It runs coarse to fine over an image pyramid
+// (the basin of a 1-degree error is several pixels at full resolution) and stops at a level when no
+// camera moves by more than 0.001 degree / 0.01 mm. A camera whose correction exceeds
+// max_rotation_deg or max_translation_m, or whose residual does not decrease, keeps its original
+// pose (refused, with the reason in the report); a camera with fewer than min_samples shared points
+// is left alone. See also: view_selection.hpp (visibility), texture_mesh.hpp (the chain).
 #pragma once
 
 #include <vector>
