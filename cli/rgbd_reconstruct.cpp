@@ -104,6 +104,8 @@ cli::ReportPage report_page(const Report& report) {
 void run_reconstruct(cli::Context& ctx) {
     if (ctx.inputs().size() != 1) throw cli::UsageError("expected exactly one capture folder");
     if (ctx.output_path().empty()) throw cli::UsageError("give the mesh file with -o MESH");
+    if (ctx.options().count("refine-colour") && !io::is_textured_format(ctx.output_path()))
+        throw cli::UsageError("--refine-colour applies only to a textured model (-o .obj or .glb)");
     const std::string root = ctx.inputs().front();
     const fs::path mesh_path = ctx.output_path();
     const fs::path report_dir =
@@ -195,9 +197,13 @@ void run_reconstruct(cli::Context& ctx) {
         {
             auto texture_bar = ctx.progress("texture");
             const auto colour_views = pipeline::load_texture_views(capture, jobs, &result.poses);
-            textured = texture::texture_mesh(mesh, colour_views, texture::TextureOptions{},
-                                             texture_report, texture_bar.callback());
+            texture::TextureOptions texture_options;
+            texture_options.refine.enabled = ctx.options().count("refine-colour") > 0;
+            texture_options.refine.iterations = ctx.get<int>("refine-colour-iterations");
+            textured = texture::texture_mesh(mesh, colour_views, texture_options, texture_report,
+                                             texture_bar.callback());
         }
+        cli::warn_refused_colour_poses(ctx, texture_report);
         report["texture"] = texture_report;
         result.stages.push_back({"texture",
                                  watch.seconds(),
@@ -308,8 +314,10 @@ const cli::ToolSpec kSpec{
     .writes_stream = false,
     .reads_stream = false,
     .writes_file = true,
-    .ranges = {{"crop-radius-m", Range::closed(0, 100), "m"}},
-    .scopes = {{{"open"}, {"no-carve-closure"}, /*not_with=*/true}},
+    .ranges = {{"crop-radius-m", Range::closed(0, 100), "m"},
+               {"refine-colour-iterations", Range::closed(1, 1000)}},
+    .scopes = {{{"open"}, {"no-carve-closure"}, /*not_with=*/true},
+               {{"refine-colour"}, {"refine-colour-iterations"}}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("report", cli::value<std::string>("DIR"),
                         "report folder (default: MESH without extension + _report)")(
@@ -345,6 +353,11 @@ const cli::ToolSpec kSpec{
             "no-carve-closure",
             "keep the closed holes' faired patches as they are (default: carved back out of the "
             "space at least two sensors saw empty, as rgbd-mesh)")(
+            "refine-colour",
+            "-o .obj/.glb: refine the colour cameras' poses against the mesh by photometric "
+            "consistency before texturing (as rgbd-texture --refine-colour)")(
+            "refine-colour-iterations", cli::value(texture::RefineOptions{}.iterations, "N"),
+            "most Gauss-Newton iterations per pyramid level of --refine-colour")(
             "upsample", cli::value(pipeline::ReconstructOptions{}.upsample.neighbors, "4|8"),
             "super-resolution: new points per depth point, 4 or 8 colour-pixel neighbours (0 = "
             "--skip upsample)");

@@ -470,6 +470,8 @@ py::object texture(const py::object& mesh_arg, const py::object& capture_arg,
     options.selection.min_cos = std::cos(angle_deg * M_PI / 180.0);
     if (o.flag("no_consistency")) options.consistency.enabled = false;
     if (o.flag("no_levelling")) options.levelling.enabled = false;
+    if (o.flag("refine_colour")) options.refine.enabled = true;
+    o.get("refine_colour_iterations", options.refine.iterations);
     ProgressBridge bridge(o.object("progress"));
     o.done();
     options.check();
@@ -682,7 +684,9 @@ void bind_stages(py::module_& m) {
           "to `output` (.obj with .mtl and .png, or .glb). Options: views=None (aligned views: "
           "their frames and refined poses; else frameset=0 / frames='A:B[:STEP]' of the "
           "capture's own poses), max_angle_deg, no_consistency=False, no_levelling=False, "
-          "progress. Returns the report dict (selection, atlas, adjustment, levelling).");
+          "refine_colour=False (refine the colour cameras' poses against the mesh first, as "
+          "rgbd-texture --refine-colour), refine_colour_iterations=50, progress. Returns the "
+          "report dict (selection, atlas, adjustment, levelling; refine with refine_colour).");
     m.def("evaluate", &evaluate, "result"_a, "reference"_a,
           "Surface metrics of a result (Mesh or list of views) against a reference (Mesh or "
           "path), as rgbd-eval --reference: tau_mm=[2, 5], invented_tau_mm=5, samples=200000, "

@@ -6,6 +6,7 @@
 namespace rgbd::texture {
 
 void TextureOptions::check() const {
+    refine.check();
     selection.check();
     adjust.check();
     consistency.check();
@@ -13,16 +14,27 @@ void TextureOptions::check() const {
     atlas.check();
 }
 
-TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& views,
+TexturedMesh texture_mesh(const Mesh& mesh, const std::vector<TextureView>& input_views,
                           const TextureOptions& options, Report& report, const Progress& progress) {
     options.check();
-    RGBD_CHECK(!views.empty(), "texture: no colour images");
+    RGBD_CHECK(!input_views.empty(), "texture: no colour images");
     Stopwatch watch;
     const TexturedMesh plain = untextured(mesh);
     const render::RenderScene scene(plain.vertices, plain.faces);
     const auto& tris = scene.triangles();
     report["faces"] = tris.size();
-    report["views"] = views.size();
+    report["views"] = input_views.size();
+    // The colour cameras' poses refined against the mesh (shallow copies of the images).
+    std::vector<TextureView> refined;
+    if (options.refine.enabled) {
+        Report refine;
+        const std::vector<Pose> poses =
+            refine_colour_poses(scene, input_views, options.refine, refine);
+        refined = input_views;
+        for (std::size_t v = 0; v < refined.size(); ++v) refined[v].world_from_camera = poses[v];
+        report["refine"] = refine;
+    }
+    const std::vector<TextureView>& views = options.refine.enabled ? refined : input_views;
 
     FaceQuality quality = face_quality(scene, views, options.selection, [&](double f) {
         return report_progress(progress, 0.7 * f);

@@ -76,4 +76,18 @@ std::vector<PointCloud> read_point_views(Context& context) {
     return views;
 }
 
+void warn_refused_colour_poses(Context& context, const Report& texture_report) {
+    if (!texture_report.contains("refine")) return;
+    const Report& refine = texture_report["refine"];
+    for (const auto& c : refine["cameras"])
+        if (c["status"] == "refused")
+            context.warn(c["view"].get<std::string>() + ": colour pose refinement refused (" +
+                         c["reason"].get<std::string>() + "); the original pose is kept");
+    context.note(
+        formatted("colour poses: %d refined, %d refused; photometric residual %.2f -> "
+                  "%.2f grey levels",
+                  refine["refined"].get<int>(), refine["refused"].get<int>(),
+                  refine["residual_before"].get<double>(), refine["residual_after"].get<double>()));
+}
+
 }  // namespace rgbd::cli

@@ -42,4 +42,8 @@ std::vector<std::pair<std::string, std::size_t>> select_frames(
 /// InputError naming the tool and the document.
 std::vector<PointCloud> read_point_views(Context& context);
 
+/// Warnings for the colour cameras whose pose refinement a texture report (texture_mesh's, with
+/// --refine-colour) refused, and a note of the photometric residual before and after.
+void warn_refused_colour_poses(Context& context, const Report& texture_report);
+
 }  // namespace rgbd::cli
