@@ -386,7 +386,7 @@ void build_points(const Element& v, PointCloud& cloud, const DocumentParser& par
     if (c.nx) points.add_normal_map();
     points.resize(v.count);
     // Fast paths for the common layouts: three consecutive doubles or floats.
-    const auto triple = [&v](const Property* a, const Property* b, const Property* d) {
+    const auto triple = [](const Property* a, const Property* b, const Property* d) {
         if (a->type != b->type || b->type != d->type) return 0;
         const std::size_t n = type_size(a->type);
         if (b->offset != a->offset + n || d->offset != b->offset + n) return 0;

@@ -31,6 +31,8 @@
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/internal/poisson_solver.hpp"
+#include "algorithms/reconstruction/closure_carving.hpp"
+#include "algorithms/reconstruction/mesh_colour.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/reconstruction/smooth_points.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
@@ -164,9 +166,6 @@ namespace {
 
 using Pwn = std::pair<Point_3, Vector_3>;
 
-/// Point flag of rgbd::frames::kUncoloured (depth_to_cloud.hpp): the colour camera did not see
-/// the point; its colour was copied from the nearest seen point of its view, or is grey.
-constexpr const char* kUncolouredFlag = "uncoloured";
 using PointOf = CGAL::First_of_pair_property_map<Pwn>;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
@@ -472,99 +471,6 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["front_time_s"] = af_watch.seconds();
 }
 
-/// The coloured points the mesh's colours come from, and their searches: all of them, and the
-/// observed ones (measured, and coloured by the colour camera: neither `synthetic` nor
-/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) on their own.
-struct ColourSources {
-    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
-    std::vector<Rgb> all_rgb, orig_rgb;
-    bool separate = false;
-    std::optional<rgbd::internal::PointSearch> all_tree, orig_tree;
-};
-
-/// Fills `s` from the cloud's coloured points; false when the cloud has no colours. Independent
-/// of the mesh: runs while the surface is reconstructed.
-bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
-    if (!cloud.has_colors()) return false;
-    const auto colors = cloud.colors();
-    const auto synthetic = cloud.flag(prop::kSynthetic);
-    const auto uncoloured = cloud.flag(kUncolouredFlag);
-    s.all_xyz.reserve(cloud.size());
-    s.all_rgb.reserve(cloud.size());
-    const bool flagged = synthetic.has_value() || uncoloured.has_value();
-    for (auto idx : cloud.points) {
-        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
-        s.all_xyz.push_back(p);
-        s.all_rgb.push_back(colors.get(idx));
-        if (flagged && (!synthetic || (*synthetic)[idx] == 0) &&
-            (!uncoloured || (*uncoloured)[idx] == 0)) {
-            s.orig_xyz.push_back(p);
-            s.orig_rgb.push_back(colors.get(idx));
-        }
-    }
-    // The measured points searched on their own only when some points are not measured (with
-    // all of them measured, both searches would find the same neighbours).
-    s.separate = !s.orig_xyz.empty() && s.orig_xyz.size() < s.all_xyz.size();
-    // Cell grids, not kd-trees: millions of points on a dense sequence against the mesh's
-    // vertices, and a kd-tree's build is sequential.
-    s.all_tree.emplace(s.all_xyz);
-    if (s.separate) s.orig_tree.emplace(s.orig_xyz);
-    return true;
-}
-
-/// IDW colours of the mesh's vertices from the k nearest coloured points of `s`; observed
-/// points win when one is near.
-void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o, double spacing) {
-    const bool separate = s.separate;
-    const rgbd::internal::PointSearch& all_tree = *s.all_tree;
-    const auto& orig_tree = s.orig_tree;
-    const std::vector<Rgb>& all_rgb = s.all_rgb;
-    const std::vector<Rgb>& orig_rgb = s.orig_rgb;
-    const double near = o.color_original_radius * spacing;
-    const std::size_t k = static_cast<std::size_t>(o.color_k);
-
-    std::vector<Mesh::Vertex_index> vertices(mesh.vertices().begin(), mesh.vertices().end());
-    std::vector<MeshColor> result(vertices.size());
-    const double floor_d = std::max(1e-3 * spacing, 1e-12);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vertices.size(), 1024),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          std::vector<std::uint32_t> nn(k);
-                          std::vector<double> sq(k);
-                          for (std::size_t v = r.begin(); v != r.end(); ++v) {
-                              const Eigen::Vector3d q = to_eigen(mesh.point(vertices[v]));
-                              const rgbd::internal::PointSearch* tree = &all_tree;
-                              const std::vector<Rgb>* rgb = &all_rgb;
-                              if (separate) {
-                                  std::uint32_t i;
-                                  double d2;
-                                  if (orig_tree->knn(q, 1, &i, &d2) == 1 && std::sqrt(d2) <= near) {
-                                      tree = &*orig_tree;
-                                      rgb = &orig_rgb;
-                                  }
-                              }
-                              const std::size_t found = tree->knn(q, k, nn.data(), sq.data());
-                              double w_sum = 0, rs = 0, gs = 0, bs = 0;
-                              for (std::size_t j = 0; j < found; ++j) {
-                                  const double d = std::max(std::sqrt(sq[j]), floor_d);
-                                  const double w = 1.0 / (d * d);
-                                  const Rgb& c = (*rgb)[nn[j]];
-                                  w_sum += w;
-                                  rs += w * c.r;
-                                  gs += w * c.g;
-                                  bs += w * c.b;
-                              }
-                              auto channel = [w_sum](double s) {
-                                  return static_cast<unsigned char>(
-                                      std::lround(std::clamp(s / w_sum, 0.0, 255.0)));
-                              };
-                              result[v] = found ? MeshColor(channel(rs), channel(gs), channel(bs))
-                                                : MeshColor(128, 128, 128);
-                          }
-                      });
-    VertexColorMap map = add_vertex_colors(mesh);
-    for (std::size_t v = 0; v < vertices.size(); ++v) map[vertices[v]] = result[v];
-}
-
 }  // namespace
 
 Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& options,
@@ -611,13 +517,13 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     // The colour sources do not depend on the mesh: prepared in a task beside the surface (the
     // advancing front is a sequential step), which stays on this thread (its CGAL random
     // generator is this thread's, seeded above).
-    ColourSources colour_sources;
+    internal::ColourSources colour_sources;
     bool colored = false;
     double colour_prepare_time = 0.0;
     tbb::task_group colour_task;
     colour_task.run([&] {
         Stopwatch prepare_watch;
-        colored = prepare_colours(cloud, colour_sources);
+        colored = internal::prepare_colours(cloud, colour_sources);
         colour_prepare_time = prepare_watch.seconds();
     });
     double mesh_time = 0.0;
@@ -673,6 +579,10 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
             steps["holes"] = internal::close_holes(
                 mesh, options.up, options.fair_max_edges, &added, options.ground,
                 options.ground_margin_m, seen_empty, options.seen_through_max, options.carve_steps);
+        } else {
+            // Closed components the front closed by itself (or every component when the
+            // closure is not asked for) face outward too: close_holes orients what it closed.
+            steps["components_reversed"] = internal::orient_outward(mesh);
         }
         if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
@@ -686,7 +596,7 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     }
     colour_task.wait();
     Stopwatch color_watch;
-    if (colored) colorize(mesh, colour_sources, options, spacing);
+    if (colored) internal::colorize(mesh, colour_sources, options, spacing);
     report_progress(progress, 1.0);
 
     if (report) {

@@ -267,6 +267,10 @@ const Refused kRefused[] = {
     {"rgbd-synth garbage.off --board-blur-px 1 -o out_capture",
      "--board-blur-px applies only with --target charuco"},
     {"rgbd-synth garbage.off --seed -1 -o out_capture", "--seed must be >= 0, got -1"},
+    {"rgbd-mesh small.ply --no-carve-closure -o out.ply",
+     "--no-carve-closure applies only with --watertight"},
+    {"rgbd-reconstruct badcap --open --no-carve-closure -o out.ply",
+     "--no-carve-closure does not apply with --open"},
 };
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/manifoldness.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
@@ -608,4 +609,32 @@ TEST(ReconstructSurface, ClosedMeshIsOrientedOutwardBeforeCarving) {
     EXPECT_EQ(report["components_reversed"], 1) << report.dump();
     EXPECT_GT(signed_volume(mesh), 0.8 * 4.0 / 3.0 * M_PI * std::pow(kRadius, 3));
     EXPECT_LT(highest(mesh), 0.085 + 0.005) << report.dump();
+}
+
+// Two closed surfaces the front closes by itself (densely sampled spheres: no hole for
+// close_holes), one with its normals turned inward, as from a flipped normal estimate: every
+// closed component faces outward (positive signed volume), without --watertight. The front's
+// own check (PMP::is_outward_oriented) judges the mesh by one component only.
+TEST(ReconstructSurface, EveryComponentTheFrontClosesIsOrientedOutward) {
+    PointCloud cloud = rgbd::test::coloured_sphere(10000, kRadius);
+    const PointCloud second = rgbd::test::coloured_sphere(10000, kRadius);
+    for (auto idx : second.points) {
+        auto it = cloud.points.insert(second.points.point(idx) + rgbd::Vector_3(0.5, 0, 0));
+        cloud.points.normal(*it) = -second.points.normal(idx);
+    }
+    rgbd::Report report;
+    Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, {}, &report);
+    ASSERT_TRUE(CGAL::is_closed(mesh)) << report.dump();
+    auto component = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:test", 0).first;
+    ASSERT_EQ(CGAL::Polygon_mesh_processing::connected_components(mesh, component), 2u);
+    double volume[2] = {0, 0};
+    for (auto f : mesh.faces()) {
+        std::vector<Eigen::Vector3d> q;
+        for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh))
+            q.push_back(rgbd::to_eigen(mesh.point(v)));
+        volume[component[f]] += q[0].dot(q[1].cross(q[2])) / 6.0;
+    }
+    const double ball = 4.0 / 3.0 * M_PI * std::pow(kRadius, 3);
+    EXPECT_GT(volume[0], 0.9 * ball) << report.dump();
+    EXPECT_GT(volume[1], 0.9 * ball) << report.dump();
 }

@@ -1,0 +1,37 @@
+// Vertex colours of a reconstructed mesh (docs/algorithms.md, stage 8 colouring): each vertex
+// takes the inverse-distance-squared mean colour of its k nearest coloured input points; the
+// points the colour cameras observed (neither filled nor uncoloured) win where one lies within
+// color_original_radius spacings, so that fill and copied colours do not tint observed surface.
+// See also: algorithms/texture/ (textured models from the colour images).
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <vector>
+
+#include "algorithms/internal/cell_grid.hpp"
+#include "algorithms/reconstruction/reconstruct_surface.hpp"
+#include "toolkit/point_cloud.hpp"
+
+namespace rgbd::reconstruction::internal {
+
+/// The coloured points the mesh's colours come from, and their searches: all of them, and the
+/// observed ones (measured, and coloured by the colour camera: neither `synthetic` nor
+/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) on their own.
+struct ColourSources {
+    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
+    std::vector<Rgb> all_rgb, orig_rgb;
+    bool separate = false;
+    std::optional<rgbd::internal::PointSearch> all_tree, orig_tree;
+};
+
+/// Fills `s` from the cloud's coloured points; false when the cloud has no colours. Independent
+/// of the mesh: runs while the surface is reconstructed (cell-grid searches).
+bool prepare_colours(const PointCloud& cloud, ColourSources& s);
+
+/// IDW colours (weights 1 / d^2, o.color_k neighbours) of the mesh's vertices from the coloured
+/// points of `s`, observed points first when one lies within o.color_original_radius x `spacing`
+/// (metres); grey (128) when nothing is found. Adds or overwrites the vertex colour map.
+void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o, double spacing);
+
+}  // namespace rgbd::reconstruction::internal
