@@ -181,11 +181,13 @@ struct MultiViewOptions {
 struct PairAlignment {
     std::size_t target = 0, source = 0;  ///< positions in the input
     Pose target_from_source = Pose::Identity();
-    std::string method;        ///< "initial" or "global": which start won
-    double fitness = 0.0;      ///< matched share of the source working points (within 2ŝ)
-    double inlier_rmse = 0.0;  ///< m
-    double colour_rmse = 0.0;  ///< intensity residual (Park's model) over matched pairs
-    std::size_t ransac_inliers = 0;
+    std::string method;              ///< "initial" or "global": which start won
+    double fitness = 0.0;            ///< matched share of the source working points (within 2ŝ)
+    double inlier_rmse = 0.0;        ///< m
+    double colour_rmse = 0.0;        ///< intensity residual (Park's model) over matched pairs
+    std::size_t ransac_inliers = 0;  ///< of the global hypothesis; 0 when not tried
+    /// Whether the global hypothesis was tried (see MultiViewOptions::global_always).
+    bool global_tried = false;
     int candidates = 1;  ///< distinct poses considered (initial, global)
     /// Disagreement with the final poses: rotation and translation of
     /// measured^-1 * (final relative pose), translation at the source's centroid.

@@ -200,6 +200,7 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
         const auto [a, b] = selected[k];  // target a, source b
         if (!try_global[k] || feats[a].empty() || feats[b].empty()) return;
         PairAlignment& pa = result.pairs[k];
+        pa.global_tried = true;
         const Pose prior = work[a].initial.inverse() * work[b].initial;
         const bool bounded = bounded_pair(a, b);
         const Eigen::Vector3d& c = work[b].reg.centroid;
