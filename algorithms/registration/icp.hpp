@@ -158,9 +158,10 @@ struct MultiViewOptions {
     double max_prior_translation_m = 0.5;
     double global_min_gain = 0.02;
     /// The global hypothesis is tried on every pair (true), or (false) only on pairs whose
-    /// start from the initial poses did not settle it: poses unknown or bounds off, or the
-    /// initial start's result left the bounds or would not PASS (pair_warn_fitness). With
-    /// known poses a passing pair then costs no features and no RANSAC.
+    /// start from the initial poses did not settle it: poses unknown (or all alike, as with
+    /// --ignore-poses) or bounds off, or the initial start's result left the bounds or would
+    /// not PASS (pair_warn_fitness). With known poses a passing pair then costs no features
+    /// and no RANSAC.
     bool global_always = false;
     /// Weight of the colour term (Park et al. 2017, intensity residuals scaled by
     /// colour_sigma, geometric ones by ŝ) in the pairwise and joint stages; 0 = geometry only.

@@ -112,8 +112,8 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
         const char* method;
     };
     std::vector<std::vector<Candidate>> cands(selected.size());
-    // Whether pair k tries a global hypothesis: unless the poses bound the pair and the
-    // initial start's result stayed within the bounds and passes (MultiViewOptions::
+    // Whether pair k tries a global hypothesis: unless the poses are known and bound the pair and
+    // the initial start's result stayed within the bounds and passes (MultiViewOptions::
     // global_always).
     std::vector<char> try_global(selected.size(), 0);
     const auto bounded_pair = [&](std::size_t a, std::size_t b) {
@@ -165,8 +165,8 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
         const bool passes =
             first.correspondences >= 30 &&
             std::min(1.0, double(first.correspondences) / smaller) >= options.pair_warn_fitness;
-        try_global[k] = options.global_registration &&
-                                (options.global_always || !bounded || !first_ok || !passes)
+        try_global[k] = options.global_registration && (options.global_always || !in.poses_known ||
+                                                        !bounded || !first_ok || !passes)
                             ? 1
                             : 0;
         cands[k].push_back({std::move(first), "initial"});

@@ -116,6 +116,10 @@ TEST(AlignViews, PairsSettledByTheInitialPosesTryNoGlobalHypothesis) {
             lean.views[v].world_from_sensor.isApprox(full.views[v].world_from_sensor, 1e-12))
             << v;
     expect_close(ring, lean, 0.3, 0.002);
+    std::vector<PointCloud> unposed = ring.views;
+    for (PointCloud& v : unposed) v.view.world_from_sensor = Pose::Identity();
+    for (const auto& p : rgbd::registration::align_views(unposed, {}).pairs)
+        EXPECT_TRUE(p.global_tried) << p.target << "-" << p.source;
     // The large error of LargeCalibrationErrorIsRecoveredByThePairwiseStage: pairs that leave
     // the bounds or do not pass still try it (that test checks the recovery).
 }
