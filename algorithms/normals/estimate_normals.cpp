@@ -150,6 +150,38 @@ std::optional<PixelBuckets> organised_grid(const PointCloud& cloud,
     return b;
 }
 
+/// The min(k, window.size()) points of `window` nearest to q, nearest first, ties by index:
+/// the first entries of the window sorted by (squared distance, index), as a partial sort of
+/// all (distance, index) pairs gives them, written to nn. The k-th smallest distance is
+/// selected on the plain distances first (nth_element), so that only the pairs at or below it
+/// are sorted. `sq`, `order` and `candidates` are reused buffers. Returns the count.
+std::size_t nearest_in_window(const std::vector<Eigen::Vector3d>& xyz,
+                              const std::vector<std::uint32_t>& window, const Eigen::Vector3d& q,
+                              std::size_t k, std::vector<double>& sq, std::vector<double>& order,
+                              std::vector<std::pair<double, std::uint32_t>>& candidates,
+                              std::vector<std::uint32_t>& nn) {
+    const std::size_t m = window.size(), found = std::min(k, m);
+    nn.resize(found);
+    if (found == 0) return 0;
+    sq.resize(m);
+    for (std::size_t j = 0; j < m; ++j) sq[j] = (xyz[window[j]] - q).squaredNorm();
+    candidates.clear();
+    if (found < m) {
+        order.assign(sq.begin(), sq.end());
+        std::nth_element(order.begin(), order.begin() + (found - 1), order.end());
+        const double kth = order[found - 1];
+        // Every pair below the k-th distance, and those at it (ties: the sort by index below
+        // keeps the smallest indices, as the full sort would).
+        for (std::size_t j = 0; j < m; ++j)
+            if (sq[j] <= kth) candidates.emplace_back(sq[j], window[j]);
+    } else {
+        for (std::size_t j = 0; j < m; ++j) candidates.emplace_back(sq[j], window[j]);
+    }
+    std::sort(candidates.begin(), candidates.end());
+    for (std::size_t j = 0; j < found; ++j) nn[j] = candidates[j].second;
+    return found;
+}
+
 /// Organised views: the neighbours of a depth pixel are the k points nearest (in 3D) to its
 /// first point among the points of the (2 h + 1)^2 pixels around it (the window sized from the
 /// points per pixel, so that the nearest k are inside it as with a kd-tree's kNN on the
@@ -169,6 +201,7 @@ Report grid_normals(const PixelBuckets& b, const std::vector<Eigen::Vector3d>& x
         if (cancelled.load(std::memory_order_relaxed)) return;
         std::vector<std::pair<double, std::uint32_t>> candidates;
         std::vector<std::uint32_t> nn, window;
+        std::vector<double> sq, order;
         const std::size_t begin = c * kChunk, end = std::min(count, begin + kChunk);
         for (std::size_t o = begin; o < end; ++o) {
             const std::uint32_t p = b.occupied[o];
@@ -187,13 +220,8 @@ Report grid_normals(const PixelBuckets& b, const std::vector<Eigen::Vector3d>& x
             // One PCA per pixel: the k points of the window nearest to the pixel's first
             // (measured) point; the pixel's other points (super-resolution's) share it.
             const Eigen::Vector3d& q = xyz[b.point[b.start[p]]];
-            candidates.clear();
-            for (const std::uint32_t j : window)
-                candidates.emplace_back((xyz[j] - q).squaredNorm(), j);
-            const std::size_t found = std::min(k, candidates.size());
-            std::partial_sort(candidates.begin(), candidates.begin() + found, candidates.end());
-            nn.resize(found);
-            for (std::size_t j = 0; j < found; ++j) nn[j] = candidates[j].second;
+            const std::size_t found =
+                nearest_in_window(xyz, window, q, k, sq, order, candidates, nn);
             char degenerate_pixel = 0;
             const Eigen::Vector3d normal = pca_normal(xyz, nn.data(), found, degenerate_pixel);
             for (std::uint32_t a = b.start[p]; a < b.start[p + 1]; ++a) {

@@ -99,6 +99,7 @@ Report MultiViewResult::to_json() const {
         j["target_from_source"] = pose_to_3x4(p.target_from_source);
         j["colour_rmse"] = p.colour_rmse;
         j["ransac_inliers"] = p.ransac_inliers;
+        j["global_tried"] = p.global_tried;
         j["candidates"] = p.candidates;
         j["in_graph"] = p.in_graph;
         r["pairs"].push_back(j);

@@ -157,6 +157,12 @@ struct MultiViewOptions {
     double max_prior_rotation_deg = 20.0;
     double max_prior_translation_m = 0.5;
     double global_min_gain = 0.02;
+    /// The global hypothesis is tried on every pair (true), or (false) only on pairs whose
+    /// start from the initial poses did not settle it: poses unknown (or all alike, as with
+    /// --ignore-poses) or bounds off, or the initial start's result left the bounds or would
+    /// not PASS (pair_warn_fitness). With known poses a passing pair then costs no features
+    /// and no RANSAC.
+    bool global_always = false;
     /// Weight of the colour term (Park et al. 2017, intensity residuals scaled by
     /// colour_sigma, geometric ones by ŝ) in the pairwise and joint stages; 0 = geometry only.
     double colour_weight = 0.1;
@@ -176,11 +182,13 @@ struct MultiViewOptions {
 struct PairAlignment {
     std::size_t target = 0, source = 0;  ///< positions in the input
     Pose target_from_source = Pose::Identity();
-    std::string method;        ///< "initial" or "global": which start won
-    double fitness = 0.0;      ///< matched share of the source working points (within 2ŝ)
-    double inlier_rmse = 0.0;  ///< m
-    double colour_rmse = 0.0;  ///< intensity residual (Park's model) over matched pairs
-    std::size_t ransac_inliers = 0;
+    std::string method;              ///< "initial" or "global": which start won
+    double fitness = 0.0;            ///< matched share of the source working points (within 2ŝ)
+    double inlier_rmse = 0.0;        ///< m
+    double colour_rmse = 0.0;        ///< intensity residual (Park's model) over matched pairs
+    std::size_t ransac_inliers = 0;  ///< of the global hypothesis; 0 when not tried
+    /// Whether the global hypothesis was tried (see MultiViewOptions::global_always).
+    bool global_tried = false;
     int candidates = 1;  ///< distinct poses considered (initial, global)
     /// Disagreement with the final poses: rotation and translation of
     /// measured^-1 * (final relative pose), translation at the source's centroid.

@@ -104,23 +104,6 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
     normals::NormalOptions nopt;
     nopt.k = in.normal_k;
     const auto selected = select_pairs(work, options, in.poses_known);
-    // Feature copies (coarser voxel) for the global hypotheses.
-    std::vector<std::vector<Eigen::Vector3d>> fxyz(nv);
-    std::vector<std::vector<Fpfh>> feats(nv);
-    if (options.global_registration) {
-        const double fvoxel = options.feature_voxel_factor * voxel;
-        tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t v) {
-            PointCloud fc = sampling::voxel_downsample(*measured[v], fvoxel);
-            if (fc.size() < 10) return;
-            normals::estimate_normals(fc, nopt);
-            std::vector<Eigen::Vector3d> fn;
-            for (auto idx : fc.points) {
-                fxyz[v].push_back(to_eigen(fc.points.point(idx)));
-                fn.push_back(to_eigen(fc.points.normal(idx)).normalized());
-            }
-            feats[v] = compute_fpfh(fxyz[v], fn, options.feature_radius_factor * fvoxel);
-        });
-    }
     result.pairs.resize(selected.size());
     // Candidate outcomes per pair: from the initial pose, and from the global hypothesis
     // when it ends elsewhere (and within the prior's bounds). Index 0 = the default choice.
@@ -129,14 +112,20 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
         const char* method;
     };
     std::vector<std::vector<Candidate>> cands(selected.size());
+    // Whether pair k tries a global hypothesis: unless the poses are known and bound the pair and
+    // the initial start's result stayed within the bounds and passes (MultiViewOptions::
+    // global_always).
+    std::vector<char> try_global(selected.size(), 0);
+    const auto bounded_pair = [&](std::size_t a, std::size_t b) {
+        return work[a].direction && work[b].direction && options.max_prior_rotation_deg < 180;
+    };
     tbb::parallel_for(std::size_t{0}, selected.size(), [&](std::size_t k) {
         const auto [a, b] = selected[k];  // target a, source b
         PairAlignment& pa = result.pairs[k];
         pa.target = a;
         pa.source = b;
         const Pose prior = work[a].initial.inverse() * work[b].initial;
-        const bool bounded =
-            work[a].direction && work[b].direction && options.max_prior_rotation_deg < 180;
+        const bool bounded = bounded_pair(a, b);
         const Eigen::Vector3d& c = work[b].reg.centroid;
         // A result that left the calibration's bounds slid into a wrong basin (a head is
         // nearly a surface of revolution).
@@ -146,7 +135,6 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
             return prot <= options.max_prior_rotation_deg &&
                    ptrans <= options.max_prior_translation_m;
         };
-        auto& list = cands[k];
         // From the initial pose: the full coarse-to-fine schedule, and (when the poses are
         // known) the finest two distances alone, which cannot slide far on smooth, nearly
         // symmetric shapes; the one with more colour-consistent matches within the bounds.
@@ -171,8 +159,58 @@ void pairwise_stage(std::vector<Working>& work, const MultiViewOptions& options,
             first = internal::pair_icp(work[b].reg, work[a].reg, *work[a].tree, prior, fine,
                                        eval_distance);
         }
-        list.push_back({std::move(first), "initial"});
-        if (!options.global_registration || feats[a].empty() || feats[b].empty()) return;
+        // The pair verdict's PASS test (see fill() below) on the initial start's result.
+        const double smaller =
+            static_cast<double>(std::min(work[a].reg.xyz.size(), work[b].reg.xyz.size()));
+        const bool passes =
+            first.correspondences >= 30 &&
+            std::min(1.0, double(first.correspondences) / smaller) >= options.pair_warn_fitness;
+        try_global[k] = options.global_registration && (options.global_always || !in.poses_known ||
+                                                        !bounded || !first_ok || !passes)
+                            ? 1
+                            : 0;
+        cands[k].push_back({std::move(first), "initial"});
+    });
+
+    // Feature copies (coarser voxel) for the global hypotheses, of the views of the pairs
+    // that try one.
+    std::vector<char> needs_features(nv, 0);
+    for (std::size_t k = 0; k < selected.size(); ++k)
+        if (try_global[k])
+            needs_features[selected[k].first] = needs_features[selected[k].second] = 1;
+    std::vector<std::vector<Eigen::Vector3d>> fxyz(nv);
+    std::vector<std::vector<Fpfh>> feats(nv);
+    if (options.global_registration) {
+        const double fvoxel = options.feature_voxel_factor * voxel;
+        tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t v) {
+            if (!needs_features[v]) return;
+            PointCloud fc = sampling::voxel_downsample(*measured[v], fvoxel);
+            if (fc.size() < 10) return;
+            normals::estimate_normals(fc, nopt);
+            std::vector<Eigen::Vector3d> fn;
+            for (auto idx : fc.points) {
+                fxyz[v].push_back(to_eigen(fc.points.point(idx)));
+                fn.push_back(to_eigen(fc.points.normal(idx)).normalized());
+            }
+            feats[v] = compute_fpfh(fxyz[v], fn, options.feature_radius_factor * fvoxel);
+        });
+    }
+    // Global hypotheses of the pairs that try one.
+    tbb::parallel_for(std::size_t{0}, selected.size(), [&](std::size_t k) {
+        const auto [a, b] = selected[k];  // target a, source b
+        if (!try_global[k] || feats[a].empty() || feats[b].empty()) return;
+        PairAlignment& pa = result.pairs[k];
+        pa.global_tried = true;
+        const Pose prior = work[a].initial.inverse() * work[b].initial;
+        const bool bounded = bounded_pair(a, b);
+        const Eigen::Vector3d& c = work[b].reg.centroid;
+        auto within = [&](const Pose& z) {
+            if (!bounded) return true;
+            const auto [prot, ptrans] = motion_at(prior.inverse() * z, c);
+            return prot <= options.max_prior_rotation_deg &&
+                   ptrans <= options.max_prior_translation_m;
+        };
+        auto& list = cands[k];
         RansacOptions ro;
         ro.iterations = options.ransac_iterations;
         ro.inlier_distance = 1.5 * options.feature_voxel_factor * voxel;

@@ -94,6 +94,36 @@ TEST(AlignViews, LargeCalibrationErrorIsRecoveredByThePairwiseStage) {
     EXPECT_LE(result.loop.after_rotation_deg, result.loop.before_rotation_deg + 1e-9);
 }
 
+TEST(AlignViews, PairsSettledByTheInitialPosesTryNoGlobalHypothesis) {
+    // 1.5 degrees and 15 mm of calibration error: every pair's start from the initial poses
+    // stays within the bounds and passes, so no pair computes features or runs RANSAC, and the
+    // poses are those of trying the hypothesis on every pair (global_always). With the poses
+    // ignored every pair tries it.
+    const Ring ring = make_ring(8, 1, 7);
+    const auto lean = rgbd::registration::align_views(ring.views, {});
+    rgbd::registration::MultiViewOptions always;
+    always.global_always = true;
+    const auto full = rgbd::registration::align_views(ring.views, always);
+    ASSERT_EQ(lean.pairs.size(), full.pairs.size());
+    for (std::size_t k = 0; k < lean.pairs.size(); ++k) {
+        EXPECT_FALSE(lean.pairs[k].global_tried) << k;
+        EXPECT_EQ(lean.pairs[k].ransac_inliers, 0u) << k;
+        EXPECT_TRUE(full.pairs[k].global_tried) << k;
+        EXPECT_EQ(full.pairs[k].method, "initial") << k;
+    }
+    for (std::size_t v = 0; v < ring.views.size(); ++v)
+        EXPECT_TRUE(
+            lean.views[v].world_from_sensor.isApprox(full.views[v].world_from_sensor, 1e-12))
+            << v;
+    expect_close(ring, lean, 0.3, 0.002);
+    std::vector<PointCloud> unposed = ring.views;
+    for (PointCloud& v : unposed) v.view.world_from_sensor = Pose::Identity();
+    for (const auto& p : rgbd::registration::align_views(unposed, {}).pairs)
+        EXPECT_TRUE(p.global_tried) << p.target << "-" << p.source;
+    // The large error of LargeCalibrationErrorIsRecoveredByThePairwiseStage: pairs that leave
+    // the bounds or do not pass still try it (that test checks the recovery).
+}
+
 TEST(AlignViews, TexturedCylinderIsLockedByColour) {
     // Two views 40 degrees apart of a textured cylinder seen side-on: the second view's pose is
     // off by 5 degrees about the axis, which geometry cannot see (docs/algorithms.md §6 test).
