@@ -392,25 +392,101 @@ std::optional<double> camera_density(const Camera& c, const Eigen::Vector3d& p,
     return cos_theta / (s_d * s_d);
 }
 
+/// Whether camera c surely contributes nothing to every point inside the box [lo, hi] (world
+/// frame): the box lies in front of c and every point of it projects to a window of c's depth
+/// map whose returns are all nearer than the point by more than its occlusion tolerance, so
+/// camera_density() would find it occluded. Conservative: false whenever unsure (a lens
+/// distortion, the box crossing the image plane or the map's box, a missing return at a
+/// window's centre, a return within the tolerance). Bounds: the box in camera coordinates from
+/// its centre and half extents; x / z and y / z over that box from its corners (the pinhole
+/// projection keeps a box in front of the camera within their range); the tolerance at the box's
+/// nearest and farthest depth (dz_max(z) is convex in z for every noise model, so its maximum
+/// over the range is at an end); margins of 1e-6 px and 1e-7 m absorb rounding.
+bool surely_occluded(const Camera& c, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                     NoiseModel noise_model, double tan_max) {
+    if (!c.undistorted || c.bw == 0) return false;
+    const Eigen::Vector3d centre = c.rotation * (0.5 * (lo + hi)) + c.translation;
+    const Eigen::Vector3d half = c.rotation.cwiseAbs() * (0.5 * (hi - lo));
+    const Eigen::Vector3d qlo = centre - half, qhi = centre + half;
+    if (!(qlo.z() > 1e-3)) return false;
+    const double xz0 = std::min(qlo.x() / qlo.z(), qlo.x() / qhi.z()),
+                 xz1 = std::max(qhi.x() / qlo.z(), qhi.x() / qhi.z()),
+                 yz0 = std::min(qlo.y() / qlo.z(), qlo.y() / qhi.z()),
+                 yz1 = std::max(qhi.y() / qlo.z(), qhi.y() / qhi.z());
+    const PinholeIntrinsics& k = c.intrinsics;
+    // Pixel (col, row) = (int(u + 0.5), int(v + 0.5)) of every point of the box.
+    constexpr double kPx = 1e-6;
+    const double u0 = k.fx * xz0 + k.cx + 0.5 - kPx, u1 = k.fx * xz1 + k.cx + 0.5 + kPx;
+    const double v0 = k.fy * yz0 + k.cy + 0.5 - kPx, v1 = k.fy * yz1 + k.cy + 0.5 + kPx;
+    if (!(u0 >= double(c.x0) && v0 >= double(c.y0) && u1 < double(c.x0 + c.bw) &&
+          v1 < double(c.y0 + c.bh)))
+        return false;  // a centre pixel outside the map's box (or outside the image)
+    const int col0 = int(u0), col1 = int(u1), row0 = int(v0), row1 = int(v1);
+    const auto tol = [&](double z) {
+        return z / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, z, 0.0);
+    };
+    const double limit = qlo.z() - std::max(tol(qlo.z()), tol(qhi.z())) - 1e-7;
+    // Centre pixels: a return nearer than the limit; the rest of each 3 x 3 window: that or none.
+    for (int rr = std::max(row0 - 1, c.y0); rr <= std::min(row1 + 1, c.y0 + c.bh - 1); ++rr) {
+        const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
+        const bool centre_row = rr >= row0 && rr <= row1;
+        for (int cc = std::max(col0 - 1, c.x0); cc <= std::min(col1 + 1, c.x0 + c.bw - 1); ++cc) {
+            const double d = line[cc - c.x0];
+            if (d < limit) continue;
+            if (centre_row && cc >= col0 && cc <= col1) return false;
+            if (d != std::numeric_limits<double>::infinity()) return false;
+        }
+    }
+    return true;
+}
+
 /// Expected density, sensors reference: what the sensors that see p_i should have produced
-/// there, the sum of camera_density() over the cameras, into `expected`.
+/// there, the sum of camera_density() over the cameras (in camera order), into `expected`. On
+/// the counting grid, cell by cell: the cameras that surely find the whole cell occluded
+/// (surely_occluded(): about half of them for an object seen all round) are left out of its
+/// points' sums, which changes no sum (those cameras add nothing) and saves their projections.
 void expect_sensor_density(const std::vector<Camera>& cameras, const WorldPoints& all,
-                           const std::vector<Eigen::Vector3d>& normal, NoiseModel noise_model,
-                           double tan_max, std::vector<double>& expected) {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, all.world.size(), 256),
-        [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                const Eigen::Vector3d nrm = normal[i].normalized();
-                double sum = 0.0;
-                for (const Camera& c : cameras) {
-                    if (!c.active) continue;
-                    if (const auto add = camera_density(c, all.world[i], nrm, noise_model, tan_max))
-                        sum += *add;
-                }
-                expected[i] = sum;
-            }
-        });
+                           const Neighbourhoods& hood, NoiseModel noise_model, double tan_max,
+                           std::vector<double>& expected) {
+    const std::vector<Eigen::Vector3d>& normal = hood.normal;
+    std::vector<std::uint32_t> active;
+    for (std::size_t v = 0; v < cameras.size(); ++v)
+        if (cameras[v].active) active.push_back(std::uint32_t(v));
+    const auto expect = [&](std::size_t i, const std::vector<std::uint32_t>& seeing) {
+        const Eigen::Vector3d nrm = normal[i].normalized();
+        double sum = 0.0;
+        for (const std::uint32_t v : seeing)
+            if (const auto add =
+                    camera_density(cameras[v], all.world[i], nrm, noise_model, tan_max))
+                sum += *add;
+        expected[i] = sum;
+    };
+    if (!hood.gridded) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, all.world.size(), 256),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              for (std::size_t i = r.begin(); i != r.end(); ++i) expect(i, active);
+                          });
+        return;
+    }
+    const internal::CellGrid& grid = hood.grid;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.cells(), 16),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::vector<std::uint32_t> seeing;
+                          seeing.reserve(active.size());
+                          for (std::size_t ca = r.begin(); ca != r.end(); ++ca) {
+                              const std::uint32_t b0 = grid.start[ca], b1 = grid.start[ca + 1];
+                              Eigen::Vector3d lo = all.world[grid.point[b0]], hi = lo;
+                              for (std::uint32_t b = b0 + 1; b < b1; ++b) {
+                                  lo = lo.cwiseMin(all.world[grid.point[b]]);
+                                  hi = hi.cwiseMax(all.world[grid.point[b]]);
+                              }
+                              seeing.clear();
+                              for (const std::uint32_t v : active)
+                                  if (!surely_occluded(cameras[v], lo, hi, noise_model, tan_max))
+                                      seeing.push_back(v);
+                              for (std::uint32_t b = b0; b < b1; ++b) expect(grid.point[b], seeing);
+                          }
+                      });
 }
 
 /// Measured density, local reference: rho_i = k / (pi d_k^2) from the k nearest other points.
@@ -639,7 +715,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         report["radius_m"] = hood.radius;
         stage("measured");
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
-        expect_sensor_density(cameras, all, hood.normal, options.noise_model, std::tan(theta_max),
+        expect_sensor_density(cameras, all, hood, options.noise_model, std::tan(theta_max),
                               expected);
     } else {
         const internal::KdTree tree(world);
