@@ -19,6 +19,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "algorithms/denoise/density_clusters.hpp"
 #include "algorithms/denoise/outlier_common.hpp"
@@ -224,8 +227,8 @@ struct Neighbourhoods {
 /// test dx * dx + dy * dy + dz * dz <= r2, two points at a time with SSE2 (the same IEEE
 /// operations in the same order as the scalar test, so the same answer; the compiler does not
 /// vectorise the scalar loop).
-inline std::size_t count_within(const double* xs, const double* ys, const double* zs, std::size_t m,
-                                double px, double py, double pz, double r2) {
+inline std::size_t count_within_sse2(const double* xs, const double* ys, const double* zs,
+                                     std::size_t m, double px, double py, double pz, double r2) {
     std::size_t j = 0, count = 0;
 #if defined(__SSE2__)
     const __m128d vx = _mm_set1_pd(px), vy = _mm_set1_pd(py), vz = _mm_set1_pd(pz),
@@ -248,6 +251,43 @@ inline std::size_t count_within(const double* xs, const double* ys, const double
         count += dx * dx + dy * dy + dz * dz <= r2;
     }
     return count;
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#define RGBD_DENSITY_AVX2 1
+/// count_within_sse2() four points at a time with AVX2 (not FMA: separate multiplies and adds,
+/// so the same answers), for CPUs that have it.
+__attribute__((target("avx2"))) std::size_t count_within_avx2(const double* xs, const double* ys,
+                                                              const double* zs, std::size_t m,
+                                                              double px, double py, double pz,
+                                                              double r2) {
+    std::size_t j = 0;
+    const __m256d vx = _mm256_set1_pd(px), vy = _mm256_set1_pd(py), vz = _mm256_set1_pd(pz),
+                  vr = _mm256_set1_pd(r2);
+    __m256i lanes = _mm256_setzero_si256();  // minus the number of hits in each lane
+    for (; j + 4 <= m; j += 4) {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + j), vx);
+        const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + j), vy);
+        const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + j), vz);
+        const __m256d d2 = _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+        lanes = _mm256_add_epi64(lanes, _mm256_castpd_si256(_mm256_cmp_pd(d2, vr, _CMP_LE_OQ)));
+    }
+    alignas(32) std::int64_t sums[4];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(sums), lanes);
+    return std::size_t(-(sums[0] + sums[1] + sums[2] + sums[3])) +
+           count_within_sse2(xs + j, ys + j, zs + j, m - j, px, py, pz, r2);
+}
+#endif
+
+/// count_within_sse2() with AVX2 when the CPU has it.
+inline std::size_t count_within(const double* xs, const double* ys, const double* zs, std::size_t m,
+                                double px, double py, double pz, double r2) {
+#if defined(RGBD_DENSITY_AVX2)
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    if (avx2) return count_within_avx2(xs, ys, zs, m, px, py, pz, r2);
+#endif
+    return count_within_sse2(xs, ys, zs, m, px, py, pz, r2);
 }
 
 /// Calls finish(i, count, sum, outer) for every point i of `world` with the number of points
