@@ -342,24 +342,37 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
         return ground;
     }
     // Each view refits the plane in its own frame (its pose may be centimetres off before
-    // alignment). The plane is the ground when the views see it flat (the median of their
-    // fits' RMS under a seventh of the band: not the curved bottom of an object standing on
-    // nothing) and as the lowest large surface (at most 15% of the points more than half a
-    // band below it, and fewer below than above it: a cap or a ring of an object's surface has
-    // its object below it).
+    // alignment). The plane is the ground when the views see it flat (half the views hold 50
+    // points facing it, and the median of their robust deviations about it is at most
+    // ground_flat_sigmas of the sensor's own depth noise at those points' depth and incidence:
+    // not the curved bottom of an object standing on nothing) and as the lowest large surface (at
+    // most 15% of the points more than half a band below it, and fewer below than above it: a cap
+    // or a ring of an object's surface has its object below it).
     std::vector<detail::ViewGroundFit> fits(views.size());
-    std::vector<double> fitted;
+    std::vector<double> fitted, flatness;
     std::size_t below = 0, above = 0, points = 0;
     for (std::size_t v = 0; v < views.size(); ++v) {
         const Pose& pose = *views[v].view.world_from_sensor;
         const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
                                       plane->d + plane->n.dot(pose.translation())};
-        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, options, options.seed + 2 + v);
+        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+        std::vector<Eigen::Vector3d> normals;
+        if (!vps[v].at.empty()) {
+            normals.resize(vps[v].g.xyz.size());
+            for (std::size_t i = 0; i < normals.size(); ++i)
+                normals[i] = vps[v].grid_normal(i, Pose::Identity());
+        }
+        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, normals, model, options,
+                                            options.seed + 2 + v);
+        if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
         if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
         below += fits[v].below, above += fits[v].above, points += fits[v].points;
     }
     const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+    const double median_flatness = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
     ground["fit_rms_m"] = median_rms;
+    ground["flatness_sigmas"] = median_flatness;
+    ground["flat_views"] = flatness.size();
     ground["below_share"] = points ? double(below) / double(points) : 0.0;
     ground["above_share"] = points ? double(above) / double(points) : 0.0;
     ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
@@ -367,8 +380,15 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     ground["sample_inliers"] = inliers;
     ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
     const double n = static_cast<double>(points);
-    if (median_rms > options.ground_band_m / 7.0) {
-        ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
+    if (flatness.size() * 2 < views.size()) {
+        ground["note"] =
+            "the lowest plane facing up is not seen facing up in half the views "
+            "(too few points on it face it): no ground";
+        return ground;
+    }
+    if (median_flatness > options.ground_flat_sigmas) {
+        ground["note"] = "the lowest plane facing up is not flat (median robust deviation " +
+                         std::to_string(median_flatness) + " sigma_z, " +
                          std::to_string(median_rms * 1000.0) + " mm): no ground";
         return ground;
     }
@@ -397,7 +417,9 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
         per_view.push_back({{"view", views[v].view.id},
                             {"removed", cut.cut},
                             {"margin_m", g.margin_m},
-                            {"rms_m", fits[v].rms_m}});
+                            {"rms_m", fits[v].rms_m},
+                            {"facing", fits[v].facing},
+                            {"flatness_sigmas", fits[v].normalized}});
     }
     ground["removed"] = removed;
     ground["views"] = per_view;
@@ -411,6 +433,7 @@ void SubjectOptions::check() const {
     check_range("extraction: ground band", ground_band_m, Range::open(0, 1), "m");
     check_range("extraction: ground min share", ground_min_share, Range::open(0, 1));
     check_range("extraction: ground sigmas", ground_sigmas, Range::closed_open(0, 100));
+    check_range("extraction: ground flat sigmas", ground_flat_sigmas, Range::open(0, 100));
     check_range("extraction: ground min margin", ground_min_margin_m, Range::closed_open(0, 1),
                 "m");
     check_range("extraction: voxel", voxel_m, Range::closed_open(0, 1), "m");

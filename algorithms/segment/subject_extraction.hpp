@@ -44,8 +44,11 @@ struct SubjectOptions {
     /// RANSAC inlier band of the pooled plane, metres: wide enough for calibration error between
     /// views (1.5 deg at 2 m is 5 cm); each view then refits its own plane within it.
     double ground_band_m = 0.05;
-    double ground_min_share = 0.02;      ///< the plane holds at least this share of all points
-    double ground_sigmas = 3.0;          ///< cut margin in sigma_z of the sensor noise at the point
+    double ground_min_share = 0.02;  ///< the plane holds at least this share of all points
+    double ground_sigmas = 3.0;      ///< cut margin in sigma_z of the sensor noise at the point
+    /// The ground is flat: the views' median robust deviation of the points facing it, in
+    /// sigma_z(z, theta) of the sensor at each point, is at most this.
+    double ground_flat_sigmas = 3.0;
     double ground_min_margin_m = 0.003;  ///< the margin is never less than this, metres
     double voxel_m = 0.0;                ///< connectivity voxel, metres; 0 = 3 pixel footprints at
                                          ///< the median depth, at least 5 mm
@@ -90,10 +93,10 @@ std::optional<ViewGround> world_ground(const std::vector<PointCloud>& views);
 /// Views without a pose are left as they are (noted in the report). Throws InputError when
 /// nothing is left above the ground ("nothing above the ground") and for non-finite points.
 /// Report: ground {found, normal, offset_m, tilt_deg, sample_inliers, removed, views: [{view,
-/// removed, margin_m, rms_m}]}, crop {radius_m, removed}, voxel_m, core_views, regions,
-/// subject_regions, removed, kept, views [{view, removed, kept}], note, time_s.
-/// `removed_world`, when given, receives the removed points in the world frame (at most
-/// 200,000, evenly strided).
+/// removed, margin_m, rms_m, facing, flatness_sigmas}], fit_rms_m, flatness_sigmas, flat_views},
+/// crop {radius_m, removed}, voxel_m, core_views, regions, subject_regions, removed, kept, views
+/// [{view, removed, kept}], note, time_s. `removed_world`, when given, receives the removed points
+/// in the world frame (at most 200,000, evenly strided).
 Report extract_subject(std::vector<PointCloud>& views,
                        const std::vector<denoise::NoiseModel>& noise,
                        const SubjectOptions& options = {}, bool mark = false,
