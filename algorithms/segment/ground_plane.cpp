@@ -110,6 +110,64 @@ std::optional<Plane> pooled_ground(const std::vector<GroundSample>& all_samples,
     return best;
 }
 
+std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samples,
+                                           std::vector<std::uint8_t>& used,
+                                           const Eigen::Vector3d& cameras, const SubjectOptions& o,
+                                           std::uint64_t seed, std::size_t& inliers,
+                                           std::size_t& behind) {
+    inliers = behind = 0;
+    // The samples with a grid normal vote for a plane when they lie within half a band of it
+    // and face it (within ground_max_tilt_deg): one surface, not a slice through several.
+    std::vector<std::size_t> open;
+    for (std::size_t i = 0; i < samples.size(); ++i)
+        if (!used[i] && !samples[i].n.isZero()) open.push_back(i);
+    const double n_all = static_cast<double>(samples.size());
+    if (open.size() < 100 || open.size() < o.ground_min_share * n_all) return std::nullopt;
+    const double inlier = 0.5 * o.ground_band_m;
+    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    auto votes = [&](const Plane& p, double band, std::vector<Eigen::Vector3d>* in) {
+        std::size_t count = 0;
+        for (const std::size_t i : open)
+            if (std::abs(p.height(samples[i].p)) <= band &&
+                std::abs(samples[i].n.dot(p.n)) >= cos_tilt) {
+                ++count;
+                if (in) in->push_back(samples[i].p);
+            }
+        return count;
+    };
+    Plane best;
+    std::size_t score = 0;
+    std::uint64_t state = seed;
+    for (int it = 0; it < o.iterations; ++it) {
+        const Eigen::Vector3d& a = samples[open[splitmix64_next(state) % open.size()]].p;
+        const Eigen::Vector3d& b = samples[open[splitmix64_next(state) % open.size()]].p;
+        const Eigen::Vector3d& c = samples[open[splitmix64_next(state) % open.size()]].p;
+        Eigen::Vector3d n = (b - a).cross(c - a);
+        if (n.norm() < 1e-12) continue;
+        const Plane p{n.normalized(), -n.normalized().dot(a)};
+        const std::size_t count = votes(p, inlier, nullptr);
+        if (count > score) score = count, best = p;
+    }
+    if (score < 3) return std::nullopt;
+    for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
+        std::vector<Eigen::Vector3d> in;
+        votes(best, band, &in);
+        Plane refined;
+        if (!fit_plane(in, best.n, refined)) break;
+        best = refined;
+    }
+    if (best.height(cameras) < 0) best.n = -best.n, best.d = -best.d;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        const double h = best.height(samples[i].p);
+        behind += h < -o.ground_band_m;
+        if (!used[i] && std::abs(h) <= inlier &&
+            (samples[i].n.isZero() || std::abs(samples[i].n.dot(best.n)) >= cos_tilt))
+            ++inliers, used[i] = 1;
+    }
+    if (inliers < o.ground_min_share * n_all) return std::nullopt;
+    return best;
+}
+
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
                                 const std::vector<Eigen::Vector3d>& normals,
                                 denoise::NoiseModel model, const SubjectOptions& o,

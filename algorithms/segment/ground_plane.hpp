@@ -43,6 +43,18 @@ std::optional<Plane> pooled_ground(const std::vector<GroundSample>& samples,
                                    const Eigen::Vector3d& up, const SubjectOptions& options,
                                    std::size_t& inliers);
 
+/// A bounding plane (world frame), docs/algorithms.md §3 step 1b: RANSAC over the samples not
+/// `used` yet, any orientation, for the plane holding the most within half a band, its normal
+/// turned towards the mean of `cameras` (the sensors' centres), refined by least squares on a
+/// band that shrinks to an eighth; its samples within half a band are then marked `used`.
+/// nullopt when it holds fewer than ground_min_share of all samples. `behind`: the samples
+/// more than a band behind it (the far side from the cameras).
+std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samples,
+                                           std::vector<std::uint8_t>& used,
+                                           const Eigen::Vector3d& cameras,
+                                           const SubjectOptions& options, std::uint64_t seed,
+                                           std::size_t& inliers, std::size_t& behind);
+
 /// One view's refit of the pooled plane in its sensor frame.
 struct ViewGroundFit {
     Plane plane;            ///< the view's plane (the pooled one when it could not refit)

@@ -49,6 +49,10 @@ struct SubjectOptions {
     /// The ground is flat: the views' median robust deviation of the points facing it, in
     /// sigma_z(z, theta) of the sensor at each point, is at most this.
     double ground_flat_sigmas = 3.0;
+    /// Walls (step 1b): large flat planes with every sensor in front of them and at most this
+    /// share of the points more than a band behind them are cut like the ground.
+    bool remove_walls = true;
+    double wall_max_behind_share = 0.05;
     double ground_min_margin_m = 0.003;  ///< the margin is never less than this, metres
     double voxel_m = 0.0;                ///< connectivity voxel, metres; 0 = 3 pixel footprints at
                                          ///< the median depth, at least 5 mm

@@ -111,6 +111,8 @@ TEST(ExtractionScene, KeepsTheSubjectAndDropsFloorWallsClutterAndPeople) {
     const double kept_total = kept[1] + kept[2] + kept[3] + kept[4];
     // Stray returns (flying pixels) carry their pixel's surface label; the distance cleaning
     // removes them next, so the precision is judged after it too.
+    std::cout << "room: precision " << kept[1] / kept_total << ", recall "
+              << static_cast<double>(kept[1]) / all[1] << "\n";
     EXPECT_GE(kept[1] / kept_total, 0.95) << "precision";
     ASSERT_EQ(run("$BIN/rgbd-clean --distance kept.ply -o kept_clean.ply -q").code, 0);
     const auto clean = count_labels(temp_root() / "kept_clean.ply", temp_root() / "room");
@@ -139,7 +141,8 @@ TEST(ExtractionScene, KeepGroundKeepsTheFloor) {
 // Real data (issue 35 item 6): 15 views of a shelf bin by a RealSense F200 on a robot arm
 // (../shared/data/multiview/apc_realsense_f200_shelf, exact arm poses). The bin's floor is seen
 // at 73-83 deg incidence; its flatness, judged in units of the sensor's own noise there, makes
-// it the ground: it is removed and the four objects on it are kept.
+// it the ground: it is removed, the back wall too, and the four objects on it are kept (the
+// toolbox's object masks tell which pixels are objects).
 TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
     const fs::path cap = fs::path(RGBD_SHARED_DATA) / "multiview/apc_realsense_f200_shelf";
     if (!fs::exists(cap / "cam.info.txt")) GTEST_SKIP() << "no " << cap;
@@ -161,8 +164,13 @@ TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
     std::cout << "APC: object points kept " << object_kept << ", other points removed "
               << rest_removed << "\n";
     // The floor's cut takes the objects' lowest centimetre or two (the margin at grazing
-    // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes; the bin's walls stay (74% and
-    // 33% measured; before: the floor kept, 6% of all points removed).
+    // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes. The back wall is a wall (flat,
+    // nothing behind it, every sensor in front of it) and is cut; the side walls are not flat
+    // within 3 sigma_z and stay (measured: 73% kept, 54% removed; before this change the floor
+    // was kept too and 6% of all points were removed).
     EXPECT_GE(object_kept, 0.7);
-    EXPECT_GE(rest_removed, 0.3);
+    EXPECT_GE(rest_removed, 0.5);
+    std::size_t walls = 0;
+    for (const auto& w : m["extraction"]["walls"]) walls += w["found"].get<bool>();
+    EXPECT_GE(walls, 1u) << m["extraction"]["walls"].dump();
 }
