@@ -19,6 +19,49 @@ bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d
     return internal::fit_plane(points, up, out.n, out.d, rms);
 }
 
+/// The surface facing the plane: the points within half a band of `fit.plane` whose grid
+/// normal lies within ground_max_tilt_deg of it (all of them without normals). Least squares on
+/// them, then on those within 3 robust deviations (at least 5 mm); their robust deviation
+/// (1.4826 x the median |height|) in metres and in units of the sensor's sigma_z at each point's
+/// depth and incidence. The plane and fit.rms_m become this fit's when it holds 50 points.
+void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
+                      const std::vector<Eigen::Vector3d>& normals, denoise::NoiseModel model,
+                      const SubjectOptions& o, ViewGroundFit& fit) {
+    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    std::vector<Eigen::Vector3d> facing;
+    for (std::size_t i = 0; i < xyz.size(); ++i)
+        if (std::abs(fit.plane.height(xyz[i])) <= 0.5 * o.ground_band_m && xyz[i].z() > 0 &&
+            (normals.empty() || normals[i].dot(fit.plane.n) >= cos_tilt))
+            facing.push_back(xyz[i]);
+    Plane plane = fit.plane;
+    double band = 0.5 * o.ground_band_m;
+    std::vector<double> abs_h, norm_h;
+    for (int round = 0; round < 2; ++round) {
+        std::vector<Eigen::Vector3d> in;
+        for (const auto& q : facing)
+            if (std::abs(plane.height(q)) <= band) in.push_back(q);
+        Plane refined;
+        if (in.size() < 50 || !fit_plane(in, fit.plane.n, refined) ||
+            refined.n.dot(fit.plane.n) < cos_tilt)
+            return;
+        plane = refined;
+        abs_h.clear(), norm_h.clear();
+        for (const auto& q : in) {
+            const double h = std::abs(plane.height(q));
+            const double cos_theta = std::clamp(std::abs(q.normalized().dot(plane.n)), 0.0, 1.0);
+            const double theta = std::min(std::acos(cos_theta), 80.0 * kDeg);
+            abs_h.push_back(h);
+            norm_h.push_back(h / denoise::sigma_z_m(model, q.z(), theta));
+        }
+        band = std::max(3.0 * 1.4826 * rank_quantile(abs_h, 0.5), 0.005);
+    }
+    fit.plane = plane;
+    fit.facing = abs_h.size();
+    fit.robust_m = 1.4826 * rank_quantile(abs_h, 0.5);
+    fit.normalized = 1.4826 * rank_quantile(norm_h, 0.5);
+    fit.rms_m = fit.robust_m;
+}
+
 }  // namespace
 
 bool ransac_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up,
@@ -67,8 +110,68 @@ std::optional<Plane> pooled_ground(const std::vector<GroundSample>& all_samples,
     return best;
 }
 
+std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samples,
+                                           std::vector<std::uint8_t>& used,
+                                           const Eigen::Vector3d& cameras, const SubjectOptions& o,
+                                           std::uint64_t seed, std::size_t& inliers,
+                                           std::size_t& behind) {
+    inliers = behind = 0;
+    // The samples with a grid normal vote for a plane when they lie within half a band of it
+    // and face it (within ground_max_tilt_deg): one surface, not a slice through several.
+    std::vector<std::size_t> open;
+    for (std::size_t i = 0; i < samples.size(); ++i)
+        if (!used[i] && !samples[i].n.isZero()) open.push_back(i);
+    const double n_all = static_cast<double>(samples.size());
+    if (open.size() < 100 || open.size() < o.ground_min_share * n_all) return std::nullopt;
+    const double inlier = 0.5 * o.ground_band_m;
+    const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    auto votes = [&](const Plane& p, double band, std::vector<Eigen::Vector3d>* in) {
+        std::size_t count = 0;
+        for (const std::size_t i : open)
+            if (std::abs(p.height(samples[i].p)) <= band &&
+                std::abs(samples[i].n.dot(p.n)) >= cos_tilt) {
+                ++count;
+                if (in) in->push_back(samples[i].p);
+            }
+        return count;
+    };
+    Plane best;
+    std::size_t score = 0;
+    std::uint64_t state = seed;
+    for (int it = 0; it < o.iterations; ++it) {
+        const Eigen::Vector3d& a = samples[open[splitmix64_next(state) % open.size()]].p;
+        const Eigen::Vector3d& b = samples[open[splitmix64_next(state) % open.size()]].p;
+        const Eigen::Vector3d& c = samples[open[splitmix64_next(state) % open.size()]].p;
+        Eigen::Vector3d n = (b - a).cross(c - a);
+        if (n.norm() < 1e-12) continue;
+        const Plane p{n.normalized(), -n.normalized().dot(a)};
+        const std::size_t count = votes(p, inlier, nullptr);
+        if (count > score) score = count, best = p;
+    }
+    if (score < 3) return std::nullopt;
+    for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
+        std::vector<Eigen::Vector3d> in;
+        votes(best, band, &in);
+        Plane refined;
+        if (!fit_plane(in, best.n, refined)) break;
+        best = refined;
+    }
+    if (best.height(cameras) < 0) best.n = -best.n, best.d = -best.d;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        const double h = best.height(samples[i].p);
+        behind += h < -o.ground_band_m;
+        if (!used[i] && std::abs(h) <= inlier &&
+            (samples[i].n.isZero() || std::abs(samples[i].n.dot(best.n)) >= cos_tilt))
+            ++inliers, used[i] = 1;
+    }
+    if (inliers < o.ground_min_share * n_all) return std::nullopt;
+    return best;
+}
+
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
-                                const SubjectOptions& o, std::uint64_t seed) {
+                                const std::vector<Eigen::Vector3d>& normals,
+                                denoise::NoiseModel model, const SubjectOptions& o,
+                                std::uint64_t seed) {
     ViewGroundFit fit;
     fit.plane = pooled;
     fit.points = xyz.size();
@@ -101,6 +204,7 @@ ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const P
             }
         }
     }
+    if (fit.rms_m > 0) measure_flatness(xyz, normals, model, o, fit);
     for (const auto& q : xyz) {
         const double h = fit.plane.height(q);
         fit.below += h < -half;

@@ -43,6 +43,18 @@ std::optional<Plane> pooled_ground(const std::vector<GroundSample>& samples,
                                    const Eigen::Vector3d& up, const SubjectOptions& options,
                                    std::size_t& inliers);
 
+/// A bounding plane (world frame), docs/algorithms.md §3 step 1b: RANSAC over the samples not
+/// `used` yet, any orientation, for the plane holding the most within half a band, its normal
+/// turned towards the mean of `cameras` (the sensors' centres), refined by least squares on a
+/// band that shrinks to an eighth; its samples within half a band are then marked `used`.
+/// nullopt when it holds fewer than ground_min_share of all samples. `behind`: the samples
+/// more than a band behind it (the far side from the cameras).
+std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samples,
+                                           std::vector<std::uint8_t>& used,
+                                           const Eigen::Vector3d& cameras,
+                                           const SubjectOptions& options, std::uint64_t seed,
+                                           std::size_t& inliers, std::size_t& behind);
+
 /// One view's refit of the pooled plane in its sensor frame.
 struct ViewGroundFit {
     Plane plane;            ///< the view's plane (the pooled one when it could not refit)
@@ -50,16 +62,25 @@ struct ViewGroundFit {
     std::size_t below = 0;  ///< the view's points more than half a band below the plane
     std::size_t above = 0;  ///< ... and more than half a band above it
     std::size_t points = 0;
+    std::size_t facing = 0;  ///< the points facing the plane its flatness is measured on
+    double robust_m = 0;     ///< their robust deviation about it (1.4826 x median |h|), m
+    double normalized = 0;   ///< the same in units of the sensor's sigma_z at each point
 };
 
 /// Refits `pooled` (sensor frame) on one view's points `xyz` (sensor frame, metres): RANSAC
 /// among the points within a band of it for the plane within 5 degrees of it that holds the
 /// most within a fifth of a band (the view's own offset and tilt: a pose a few centimetres or a
 /// degree off), least squares on its points within half a band, then on those within 3 RMS
-/// (at least 5 mm). The RMS of that fit judges flatness (a floor: the sensor's noise; the
-/// curved bottom of an object: much more).
+/// (at least 5 mm). Then its flatness, on the points facing it (grid normals `normals`, sensor
+/// frame, one per point or none; within ground_max_tilt_deg of its normal) within half a band:
+/// least squares on them, then on those within 3 robust deviations; their robust deviation in
+/// metres and in units of sigma_z(z, theta) of `model` at each point's depth and incidence
+/// (a floor: about the sensor's noise; the curved bottom of an object: many times it). With 50
+/// such points the plane and rms_m (then the robust deviation) are that fit's.
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
-                                const SubjectOptions& options, std::uint64_t seed);
+                                const std::vector<Eigen::Vector3d>& normals,
+                                denoise::NoiseModel model, const SubjectOptions& options,
+                                std::uint64_t seed);
 
 /// What cut_above_ground did in one view.
 struct GroundCut {

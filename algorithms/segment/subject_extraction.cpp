@@ -28,7 +28,18 @@ struct ViewPoints {
     std::vector<std::uint8_t> removed;   ///< per point: 1 = not the subject
     std::vector<int> at;                 ///< pixel -> position in g (-1: none); empty: no grid
     int width = 0, height = 0;
-    std::vector<std::uint32_t> pixel;  ///< per point: its pixel
+    std::vector<std::uint32_t> pixel;      ///< per point: its pixel
+    std::vector<Eigen::Vector3d> normals;  ///< sensor-frame grid normals (sensor_normals)
+
+    /// The grid normals of all points in the sensor frame, computed once; empty without a grid.
+    const std::vector<Eigen::Vector3d>& sensor_normals() {
+        if (normals.empty() && !at.empty()) {
+            normals.resize(g.xyz.size());
+            for (std::size_t i = 0; i < normals.size(); ++i)
+                normals[i] = grid_normal(i, Pose::Identity());
+        }
+        return normals;
+    }
 
     /// The unit normal of point i in the world frame from its pixel neighbours (central
     /// differences, depth-continuous within 5%), oriented towards the sensor; zero when the
@@ -342,24 +353,31 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
         return ground;
     }
     // Each view refits the plane in its own frame (its pose may be centimetres off before
-    // alignment). The plane is the ground when the views see it flat (the median of their
-    // fits' RMS under a seventh of the band: not the curved bottom of an object standing on
-    // nothing) and as the lowest large surface (at most 15% of the points more than half a
-    // band below it, and fewer below than above it: a cap or a ring of an object's surface has
-    // its object below it).
+    // alignment). The plane is the ground when the views see it flat (half the views hold 50
+    // points facing it, and the median of their robust deviations about it is at most
+    // ground_flat_sigmas of the sensor's own depth noise at those points' depth and incidence:
+    // not the curved bottom of an object standing on nothing) and as the lowest large surface (at
+    // most 15% of the points more than half a band below it, and fewer below than above it: a cap
+    // or a ring of an object's surface has its object below it).
     std::vector<detail::ViewGroundFit> fits(views.size());
-    std::vector<double> fitted;
+    std::vector<double> fitted, flatness;
     std::size_t below = 0, above = 0, points = 0;
     for (std::size_t v = 0; v < views.size(); ++v) {
         const Pose& pose = *views[v].view.world_from_sensor;
         const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
                                       plane->d + plane->n.dot(pose.translation())};
-        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, options, options.seed + 2 + v);
+        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model,
+                                            options, options.seed + 2 + v);
+        if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
         if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
         below += fits[v].below, above += fits[v].above, points += fits[v].points;
     }
     const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+    const double median_flatness = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
     ground["fit_rms_m"] = median_rms;
+    ground["flatness_sigmas"] = median_flatness;
+    ground["flat_views"] = flatness.size();
     ground["below_share"] = points ? double(below) / double(points) : 0.0;
     ground["above_share"] = points ? double(above) / double(points) : 0.0;
     ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
@@ -367,8 +385,15 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     ground["sample_inliers"] = inliers;
     ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
     const double n = static_cast<double>(points);
-    if (median_rms > options.ground_band_m / 7.0) {
-        ground["note"] = "the lowest plane facing up is not flat (median fit RMS " +
+    if (flatness.size() * 2 < views.size()) {
+        ground["note"] =
+            "the lowest plane facing up is not seen facing up in half the views "
+            "(too few points on it face it): no ground";
+        return ground;
+    }
+    if (median_flatness > options.ground_flat_sigmas) {
+        ground["note"] = "the lowest plane facing up is not flat (median robust deviation " +
+                         std::to_string(median_flatness) + " sigma_z, " +
                          std::to_string(median_rms * 1000.0) + " mm): no ground";
         return ground;
     }
@@ -397,11 +422,96 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
         per_view.push_back({{"view", views[v].view.id},
                             {"removed", cut.cut},
                             {"margin_m", g.margin_m},
-                            {"rms_m", fits[v].rms_m}});
+                            {"rms_m", fits[v].rms_m},
+                            {"facing", fits[v].facing},
+                            {"flatness_sigmas", fits[v].normalized}});
     }
     ground["removed"] = removed;
     ground["views"] = per_view;
     return ground;
+}
+
+/// Step 1b: the walls, the large planes that bound what the sensors see (docs/algorithms.md
+/// §3): among the points left after the ground, up to 6 planes of any orientation
+/// (detail::pooled_bounding_plane), each a wall when at most wall_max_behind_share of the
+/// points lie more than a band behind it, every sensor lies in front of it (it bounds the space
+/// the sensors are in: a face of a subject seen from around has sensors behind it), and half
+/// the views see it flat in units of their sensor's noise (detail::refit_view_ground, the
+/// ground's test);
+/// each view then cuts it with the ground's noise margin (detail::cut_above_ground). An object's
+/// face has the rest of the scene behind its plane; a wall has (almost) nothing.
+Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views,
+                    const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& o) {
+    Report walls = Report::array();
+    std::size_t total = 0;
+    for (const auto& vp : vps)
+        for (auto r : vp.removed) total += !r;
+    if (!o.remove_walls || total == 0) return walls;
+    const std::size_t stride =
+        std::max<std::size_t>(1, total / static_cast<std::size_t>(o.max_samples));
+    std::vector<detail::GroundSample> samples;
+    std::size_t k = 0;
+    for (std::size_t v = 0; v < vps.size(); ++v)
+        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+            if (!vps[v].removed[i] && k++ % stride == 0)
+                samples.push_back(
+                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    Eigen::Vector3d cameras = Eigen::Vector3d::Zero();
+    for (const auto& v : views) cameras += v.view.world_from_sensor->translation();
+    cameras /= static_cast<double>(views.size());
+    std::vector<std::uint8_t> used(samples.size(), 0);
+    for (int round = 0; round < 6; ++round) {
+        std::size_t inliers = 0, behind = 0;
+        const auto plane = detail::pooled_bounding_plane(samples, used, cameras, o,
+                                                         o.seed + 100 + round, inliers, behind);
+        if (!plane) break;
+        Report wall = {{"normal", {plane->n.x(), plane->n.y(), plane->n.z()}},
+                       {"offset_m", plane->d},
+                       {"sample_inliers", inliers},
+                       {"behind_share", double(behind) / double(samples.size())},
+                       {"found", false}};
+        if (behind > o.wall_max_behind_share * samples.size()) {
+            wall["note"] = "points behind it";
+            walls.push_back(wall);
+            continue;
+        }
+        std::vector<detail::ViewGroundFit> fits(views.size());
+        std::vector<double> flatness;
+        bool in_front = true;
+        for (std::size_t v = 0; v < views.size(); ++v) {
+            const Pose& pose = *views[v].view.world_from_sensor;
+            const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
+                                          plane->d + plane->n.dot(pose.translation())};
+            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+            fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(),
+                                                model, o, o.seed + 200 + v);
+            if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
+            in_front = in_front && plane->height(pose.translation()) > 0;
+        }
+        if (!in_front) {
+            wall["note"] = "sensors on both sides";
+            walls.push_back(wall);
+            continue;
+        }
+        const double median = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
+        wall["flatness_sigmas"] = median;
+        wall["flat_views"] = flatness.size();
+        if (flatness.size() * 2 < views.size() || median > o.ground_flat_sigmas) {
+            wall["note"] = "not flat in half the views";
+            walls.push_back(wall);
+            continue;
+        }
+        std::size_t removed = 0;
+        for (std::size_t v = 0; v < views.size(); ++v) {
+            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+            removed +=
+                detail::cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed).cut;
+        }
+        wall["found"] = true;
+        wall["removed"] = removed;
+        walls.push_back(wall);
+    }
+    return walls;
 }
 
 }  // namespace
@@ -411,6 +521,8 @@ void SubjectOptions::check() const {
     check_range("extraction: ground band", ground_band_m, Range::open(0, 1), "m");
     check_range("extraction: ground min share", ground_min_share, Range::open(0, 1));
     check_range("extraction: ground sigmas", ground_sigmas, Range::closed_open(0, 100));
+    check_range("extraction: wall max behind share", wall_max_behind_share, Range::closed(0, 1));
+    check_range("extraction: ground flat sigmas", ground_flat_sigmas, Range::open(0, 100));
     check_range("extraction: ground min margin", ground_min_margin_m, Range::closed_open(0, 1),
                 "m");
     check_range("extraction: voxel", voxel_m, Range::closed_open(0, 1), "m");
@@ -520,6 +632,9 @@ Report extract_subject(std::vector<PointCloud>& views,
 
     // 1. The ground.
     report["ground"] = remove_ground(vps, views, noise, options, total);
+    // The walls belong to the selection of the subject (ground only: the ground alone).
+    if (options.remove_ground && options.select_subject && !crop)
+        report["walls"] = remove_walls(vps, views, noise, options);
     report_progress(progress, 0.4);
     std::size_t left = 0;
     for (const auto& vp : vps)

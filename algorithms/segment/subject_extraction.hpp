@@ -6,7 +6,10 @@
 //     less than a noise margin above its plane removed: ground_sigmas x the sensor's sigma_z at
 //     the point's depth and incidence angle, plus the plane fit's RMS residual. A turntable's
 //     platter or a table top under the object is found the same way when it is the lowest large
-//     plane in view.
+//     plane in view. Flat means: the points facing the plane lie about it within
+//     ground_flat_sigmas of the sensor's own sigma_z at their depth and incidence (robust).
+// 1b. Walls: large planes of any orientation, equally flat, with every sensor in front of them
+//     and (almost) nothing behind them, cut the same way (the bin a subject stands in).
 //  2. Connected regions of what is left, pooled over the views in the world frame: a voxel grid
 //     (edge from the sensors' pixel footprint at the scene's median depth), voxels holding at
 //     least `solid_points` points linked by 26-adjacency (sparse flying-pixel streaks link
@@ -44,8 +47,15 @@ struct SubjectOptions {
     /// RANSAC inlier band of the pooled plane, metres: wide enough for calibration error between
     /// views (1.5 deg at 2 m is 5 cm); each view then refits its own plane within it.
     double ground_band_m = 0.05;
-    double ground_min_share = 0.02;      ///< the plane holds at least this share of all points
-    double ground_sigmas = 3.0;          ///< cut margin in sigma_z of the sensor noise at the point
+    double ground_min_share = 0.02;  ///< the plane holds at least this share of all points
+    double ground_sigmas = 3.0;      ///< cut margin in sigma_z of the sensor noise at the point
+    /// The ground is flat: the views' median robust deviation of the points facing it, in
+    /// sigma_z(z, theta) of the sensor at each point, is at most this.
+    double ground_flat_sigmas = 3.0;
+    /// Walls (step 1b): large flat planes with every sensor in front of them and at most this
+    /// share of the points more than a band behind them are cut like the ground.
+    bool remove_walls = true;
+    double wall_max_behind_share = 0.05;
     double ground_min_margin_m = 0.003;  ///< the margin is never less than this, metres
     double voxel_m = 0.0;                ///< connectivity voxel, metres; 0 = 3 pixel footprints at
                                          ///< the median depth, at least 5 mm
@@ -90,10 +100,12 @@ std::optional<ViewGround> world_ground(const std::vector<PointCloud>& views);
 /// Views without a pose are left as they are (noted in the report). Throws InputError when
 /// nothing is left above the ground ("nothing above the ground") and for non-finite points.
 /// Report: ground {found, normal, offset_m, tilt_deg, sample_inliers, removed, views: [{view,
-/// removed, margin_m, rms_m}]}, crop {radius_m, removed}, voxel_m, core_views, regions,
-/// subject_regions, removed, kept, views [{view, removed, kept}], note, time_s.
-/// `removed_world`, when given, receives the removed points in the world frame (at most
-/// 200,000, evenly strided).
+/// removed, margin_m, rms_m, facing, flatness_sigmas}], fit_rms_m, flatness_sigmas, flat_views},
+/// walls [{normal, offset_m, sample_inliers, behind_share, flatness_sigmas, flat_views, found,
+/// removed, note}] (step 1b, with the subject's selection),
+/// crop {radius_m, removed}, voxel_m, core_views, regions, subject_regions, removed, kept, views
+/// [{view, removed, kept}], note, time_s. `removed_world`, when given, receives the removed points
+/// in the world frame (at most 200,000, evenly strided).
 Report extract_subject(std::vector<PointCloud>& views,
                        const std::vector<denoise::NoiseModel>& noise,
                        const SubjectOptions& options = {}, bool mark = false,

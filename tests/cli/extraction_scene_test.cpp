@@ -9,6 +9,7 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "io/ply_stream.hpp"
@@ -51,6 +52,46 @@ std::array<std::size_t, 5> count_labels(const fs::path& stream, const fs::path& 
     return counts;
 }
 
+/// Points of a view stream of the APC shelf capture on (first) and off (second) the toolbox's
+/// object masks of their pixels: masks/frame-NNNNNN.<object>.mask.png, 16-bit confidence, the
+/// object where it reaches <object>.thresh.txt (a fraction of 65535).
+std::pair<std::size_t, std::size_t> count_on_masks(const fs::path& stream, const fs::path& cap) {
+    std::size_t on = 0, off = 0;
+    std::ifstream in(stream, std::ios::binary);
+    rgbd::io::PlyStreamReader reader(in, stream.string());
+    rgbd::io::Document doc;
+    while (reader.next(doc)) {
+        const rgbd::PointCloud& view = doc.cloud;
+        // rgbd:view.source is CAP/frame-NNNNNN.depth.png.
+        const std::string frame = fs::path(view.view.source).filename().string().substr(0, 12);
+        cv::Mat objects;
+        for (const auto& e : fs::directory_iterator(cap / "masks")) {
+            const std::string name = e.path().filename().string();
+            if (name.rfind(frame + ".", 0) != 0 || name.find(".mask.png") == std::string::npos)
+                continue;
+            const cv::Mat m = cv::imread(e.path().string(), cv::IMREAD_UNCHANGED);
+            const std::string object =
+                name.substr(frame.size() + 1, name.size() - frame.size() - 1 - 9);  // .mask.png
+            double thresh = -1;
+            std::ifstream(cap / "masks" / (object + ".thresh.txt")) >> thresh;
+            EXPECT_TRUE(!m.empty() && thresh > 0 && thresh < 1) << e.path();
+            if (m.empty() || !(thresh > 0)) continue;
+            if (objects.empty()) objects = cv::Mat::zeros(m.size(), CV_8U);
+            objects.setTo(1, m >= thresh * 65535.0);
+        }
+        EXPECT_FALSE(objects.empty()) << "no masks of " << frame;
+        const auto pixels = view.pixel_map();
+        EXPECT_TRUE(pixels.has_value());
+        if (objects.empty() || !pixels) return {on, off};
+        for (auto i : view.points) {
+            const bool object = objects.ptr<std::uint8_t>(0)[(*pixels)[i]] != 0;
+            on += object, off += !object;
+        }
+        doc = rgbd::io::Document{};
+    }
+    return {on, off};
+}
+
 }  // namespace
 
 TEST(ExtractionScene, KeepsTheSubjectAndDropsFloorWallsClutterAndPeople) {
@@ -70,6 +111,8 @@ TEST(ExtractionScene, KeepsTheSubjectAndDropsFloorWallsClutterAndPeople) {
     const double kept_total = kept[1] + kept[2] + kept[3] + kept[4];
     // Stray returns (flying pixels) carry their pixel's surface label; the distance cleaning
     // removes them next, so the precision is judged after it too.
+    std::cout << "room: precision " << kept[1] / kept_total << ", recall "
+              << static_cast<double>(kept[1]) / all[1] << "\n";
     EXPECT_GE(kept[1] / kept_total, 0.95) << "precision";
     ASSERT_EQ(run("$BIN/rgbd-clean --distance kept.ply -o kept_clean.ply -q").code, 0);
     const auto clean = count_labels(temp_root() / "kept_clean.ply", temp_root() / "room");
@@ -93,4 +136,41 @@ TEST(ExtractionScene, KeepGroundKeepsTheFloor) {
     ASSERT_EQ(run("$BIN/rgbd-cloud floor --keep-ground -o with_floor.ply -q").code, 0);
     const auto with_floor = count_labels(temp_root() / "with_floor.ply", temp_root() / "floor");
     EXPECT_GT(with_floor[2], 1000u) << "--keep-ground keeps the floor";
+}
+
+// Real data (issue 35 item 6): 15 views of a shelf bin by a RealSense F200 on a robot arm
+// (../shared/data/multiview/apc_realsense_f200_shelf, exact arm poses). The bin's floor is seen
+// at 73-83 deg incidence; its flatness, judged in units of the sensor's own noise there, makes
+// it the ground: it is removed, the back wall too, and the four objects on it are kept (the
+// toolbox's object masks tell which pixels are objects).
+TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
+    const fs::path cap = fs::path(RGBD_SHARED_DATA) / "multiview/apc_realsense_f200_shelf";
+    if (!fs::exists(cap / "cam.info.txt")) GTEST_SKIP() << "no " << cap;
+    ASSERT_EQ(run("$BIN/rgbd-cloud " + cap.string() + " --no-extract -o apc_all.ply -q").code, 0);
+    ASSERT_EQ(
+        run("$BIN/rgbd-cloud " + cap.string() + " -o apc_kept.ply --metrics apc.json -q").code, 0);
+    const auto m = read_json(temp_root() / "apc.json");
+    const auto& ground = m["extraction"]["ground"];
+    ASSERT_TRUE(ground["found"].get<bool>()) << ground.dump();
+    EXPECT_LE(ground["flatness_sigmas"].get<double>(), 3.0) << ground.dump();
+    const auto all = count_on_masks(temp_root() / "apc_all.ply", cap);
+    const auto kept = count_on_masks(temp_root() / "apc_kept.ply", cap);
+    std::cout << "APC points on / off the object masks: all " << all.first << " / " << all.second
+              << ", kept " << kept.first << " / " << kept.second << "\n";
+    ASSERT_GT(all.first, 100000u);
+    ASSERT_GT(all.second, 100000u);
+    const double object_kept = static_cast<double>(kept.first) / all.first;
+    const double rest_removed = 1.0 - static_cast<double>(kept.second) / all.second;
+    std::cout << "APC: object points kept " << object_kept << ", other points removed "
+              << rest_removed << "\n";
+    // The floor's cut takes the objects' lowest centimetre or two (the margin at grazing
+    // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes. The back wall is a wall (flat,
+    // nothing behind it, every sensor in front of it) and is cut; the side walls are not flat
+    // within 3 sigma_z and stay (measured: 73% kept, 54% removed; before this change the floor
+    // was kept too and 6% of all points were removed).
+    EXPECT_GE(object_kept, 0.7);
+    EXPECT_GE(rest_removed, 0.5);
+    std::size_t walls = 0;
+    for (const auto& w : m["extraction"]["walls"]) walls += w["found"].get<bool>();
+    EXPECT_GE(walls, 1u) << m["extraction"]["walls"].dump();
 }
