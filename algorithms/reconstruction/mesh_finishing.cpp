@@ -331,7 +331,9 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
         std::vector<Mesh::Face_index> faces;
         std::vector<Mesh::Vertex_index> vertices;
     };
-    std::vector<Patch> patches;  // faired or refined (not cuts), carved once all are closed
+    // Faired or refined patches, and bases not on the ground: carved once all are closed.
+    std::vector<Patch> patches;
+    std::size_t carvable_cuts = 0;
     const std::size_t faces_before = mesh.number_of_faces();
     SupportPlane support;
     std::vector<Eigen::Vector3d> rim;
@@ -403,6 +405,13 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
                                              std::back_inserter(vertices), np);
             ok = !faces.empty();
             if (ok) ++flat;
+            // A base at the rim's own height (not on the detected ground) is a guess like a
+            // faired patch: carved alike where the sensors saw through it (a rounded underside,
+            // the bear's). A base on the ground rests on measured support: it stays.
+            if (ok && base.value("kind", std::string()) != "ground") {
+                patches.push_back({std::move(faces), std::move(vertices)});
+                ++carvable_cuts;
+            }
         } else {
             if (edges <= fair_max_edges) {
                 PMP::triangulate_refine_and_fair_hole(mesh, h, std::back_inserter(faces),
@@ -448,6 +457,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     r["faired"] = faired;
     r["refined"] = refined;
     r["flat_cuts"] = flat;
+    r["flat_cuts_carvable"] = carvable_cuts;
     r["fans"] = fans;
     r["seen_through"] = left_open;
     r["carved_patches"] = carved;

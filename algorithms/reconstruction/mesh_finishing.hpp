@@ -43,7 +43,8 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// (never lower than the rim's lowest vertex: no skirt below what the sensors saw).
 /// Once every loop is closed, each closed connected component with a negative signed volume
 /// (inside out) is reversed (report: components_reversed). With `seen_empty` (whether a sensor
-/// saw the point with that outward normal as empty space), every faired or refined patch is
+/// saw the point with that outward normal as empty space), every faired or refined patch, and
+/// the flat base of a cut that does not rest on the ground (report: flat_cuts_carvable), is
 /// carved back out of that space, for at most `carve_steps` steps (0 = not carved; report:
 /// carved_patches, carved_vertices): displaced inward along its normals where it was seen
 /// empty, smoothly, no deeper than half a vertex's distance to the rim; then the patches with

@@ -638,3 +638,39 @@ TEST(ReconstructSurface, EveryComponentTheFrontClosesIsOrientedOutward) {
     EXPECT_GT(volume[0], 0.9 * ball) << report.dump();
     EXPECT_GT(volume[1], 0.9 * ball) << report.dump();
 }
+
+// The flat base of a cut that does not rest on the ground is a guess like a faired patch: where
+// the sensors saw through it (the middle of the base of a sphere whose crown, with up = -z, is
+// its unseen underside) it is carved inward; on the detected ground it stays flat.
+TEST(ReconstructSurface, BaseOffTheGroundIsCarvedBaseOnTheGroundIsNot) {
+    const Eigen::Vector3d up(0, 0, -1);
+    const double rim_z = kRadius * std::cos(40.0 * M_PI / 180.0);
+    const rgbd::reconstruction::internal::SeenEmpty through_middle = [](const Eigen::Vector3d& p,
+                                                                        const Eigen::Vector3d&) {
+        return p.z() > 0.06 && std::hypot(p.x(), p.y()) < 0.045;
+    };
+    auto middle = [](const Mesh& mesh) {  // the base's lowest reach along -up near its axis
+        double z = 1;
+        for (auto v : mesh.vertices()) {
+            const auto& p = mesh.point(v);
+            if (std::hypot(p.x(), p.y()) < 0.01 && p.z() > 0) z = std::min(z, p.z());
+        }
+        return z;
+    };
+    Mesh rim_base = sphere_with_crown_hole(40, false);
+    const rgbd::Report rim_report = rgbd::reconstruction::internal::close_holes(
+        rim_base, up, 1000, nullptr, std::nullopt, 0.0, through_middle, 0.5, 40);
+    EXPECT_TRUE(CGAL::is_closed(rim_base));
+    EXPECT_EQ(rim_report["flat_cuts"], 1) << rim_report.dump();
+    EXPECT_EQ(rim_report["flat_cuts_carvable"], 1) << rim_report.dump();
+    EXPECT_LT(middle(rim_base), 0.062) << rim_report.dump();
+    EXPECT_GT(signed_volume(rim_base), 0.0);
+
+    Mesh ground_base = sphere_with_crown_hole(40, false);
+    const Eigen::Vector4d ground(up.x(), up.y(), up.z(), rim_z);  // height 0 at the rim
+    const rgbd::Report ground_report = rgbd::reconstruction::internal::close_holes(
+        ground_base, up, 1000, nullptr, ground, 0.003, through_middle, 0.5, 40);
+    EXPECT_EQ(ground_report["base"]["kind"], "ground") << ground_report.dump();
+    EXPECT_EQ(ground_report["flat_cuts_carvable"], 0) << ground_report.dump();
+    EXPECT_GT(middle(ground_base), rim_z - 0.002) << ground_report.dump();
+}
