@@ -1,8 +1,11 @@
 #include "algorithms/segment/ground_plane.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "algorithms/internal/plane_fit.hpp"
 #include "toolkit/order_statistics.hpp"
@@ -135,8 +138,9 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
             }
         return count;
     };
-    Plane best;
-    std::size_t score = 0;
+    // The hypotheses are drawn in sequence (the seed's stream), scored in parallel, and the
+    // first of the highest score wins: the choice of a sequential loop.
+    std::vector<Plane> hypotheses;
     std::uint64_t state = seed;
     for (int it = 0; it < o.iterations; ++it) {
         const Eigen::Vector3d& a = samples[open[splitmix64_next(state) % open.size()]].p;
@@ -144,10 +148,15 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
         const Eigen::Vector3d& c = samples[open[splitmix64_next(state) % open.size()]].p;
         Eigen::Vector3d n = (b - a).cross(c - a);
         if (n.norm() < 1e-12) continue;
-        const Plane p{n.normalized(), -n.normalized().dot(a)};
-        const std::size_t count = votes(p, inlier, nullptr);
-        if (count > score) score = count, best = p;
+        hypotheses.push_back({n.normalized(), -n.normalized().dot(a)});
     }
+    std::vector<std::size_t> counts(hypotheses.size());
+    tbb::parallel_for(std::size_t(0), hypotheses.size(),
+                      [&](std::size_t h) { counts[h] = votes(hypotheses[h], inlier, nullptr); });
+    Plane best;
+    std::size_t score = 0;
+    for (std::size_t h = 0; h < hypotheses.size(); ++h)
+        if (counts[h] > score) score = counts[h], best = hypotheses[h];
     if (score < 3) return std::nullopt;
     for (const double band : {inlier, 0.5 * inlier, 0.25 * inlier}) {
         std::vector<Eigen::Vector3d> in;

@@ -475,9 +475,17 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
             walls.push_back(wall);
             continue;
         }
+        // Sensors on both sides first (cheap); the views' refits only for a candidate wall.
+        bool in_front = true;
+        for (const auto& view : views)
+            in_front = in_front && plane->height(view.view.world_from_sensor->translation()) > 0;
+        if (!in_front) {
+            wall["note"] = "sensors on both sides";
+            walls.push_back(wall);
+            continue;
+        }
         std::vector<detail::ViewGroundFit> fits(views.size());
         std::vector<double> flatness;
-        bool in_front = true;
         for (std::size_t v = 0; v < views.size(); ++v) {
             const Pose& pose = *views[v].view.world_from_sensor;
             const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
@@ -486,12 +494,6 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
             fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(),
                                                 model, o, o.seed + 200 + v);
             if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
-            in_front = in_front && plane->height(pose.translation()) > 0;
-        }
-        if (!in_front) {
-            wall["note"] = "sensors on both sides";
-            walls.push_back(wall);
-            continue;
         }
         const double median = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
         wall["flatness_sigmas"] = median;
