@@ -12,6 +12,7 @@
 #include "algorithms/render/rasterizer.hpp"
 #include "algorithms/texture/surface_colour.hpp"
 #include "algorithms/texture/texture_mesh.hpp"
+#include "tests/algorithms/texture/uv_sphere.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -32,31 +33,12 @@ Rgb pattern(const Eigen::Vector3d& p) {
 
 /// A bumpy sphere of radius about r at the origin.
 Mesh blob(double r, int rings, int segments) {
-    Mesh m;
-    std::vector<Mesh::Vertex_index> v;
-    const auto top = m.add_vertex(Point_3(0, 0, r));
-    for (int i = 1; i < rings; ++i)
-        for (int j = 0; j < segments; ++j) {
-            const double th = M_PI * i / rings, ph = 2 * M_PI * j / segments;
-            // Bumps (up to 25% of the radius) break the sphere's symmetry: a common rotation of
-            // all cameras about its centre would leave a sphere's colours consistent.
-            const double rr = r * (1 + 0.15 * std::sin(2 * th) * std::cos(3 * ph + 0.4) +
-                                   0.1 * std::cos(3 * th) * std::sin(2 * ph));
-            v.push_back(m.add_vertex(Point_3(rr * std::sin(th) * std::cos(ph),
-                                             rr * std::sin(th) * std::sin(ph), rr * std::cos(th))));
-        }
-    const auto bottom = m.add_vertex(Point_3(0, 0, -r));
-    auto at = [&](int i, int j) { return v[(i - 1) * segments + (j % segments)]; };
-    for (int j = 0; j < segments; ++j) {
-        m.add_face(top, at(1, j), at(1, j + 1));
-        m.add_face(bottom, at(rings - 1, j + 1), at(rings - 1, j));
-    }
-    for (int i = 1; i + 1 < rings; ++i)
-        for (int j = 0; j < segments; ++j) {
-            m.add_face(at(i, j), at(i + 1, j), at(i + 1, j + 1));
-            m.add_face(at(i, j), at(i + 1, j + 1), at(i, j + 1));
-        }
-    return m;
+    // Bumps (up to 25% of the radius) break the sphere's symmetry: a common rotation of all
+    // cameras about its centre would leave a sphere's colours consistent.
+    return test::uv_sphere(rings, segments, [r](double th, double ph) {
+        return r * (1 + 0.15 * std::sin(2 * th) * std::cos(3 * ph + 0.4) +
+                    0.1 * std::cos(3 * th) * std::sin(2 * ph));
+    });
 }
 
 /// Eight cameras on a ring at 0.7 m, alternately 0.2 m above and below, looking at the centre.

@@ -18,6 +18,7 @@
 #include "algorithms/render/rasterizer.hpp"
 #include "algorithms/texture/surface_colour.hpp"
 #include "io/textured_mesh_io.hpp"
+#include "tests/algorithms/texture/uv_sphere.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -34,26 +35,7 @@ Rgb checker(const Eigen::Vector3d& p) {
 
 /// A UV sphere of radius r at the origin with vertex colours from the checker.
 Mesh sphere(double r, int rings, int segments) {
-    Mesh m;
-    std::vector<Mesh::Vertex_index> v;
-    const auto top = m.add_vertex(Point_3(0, 0, r));
-    for (int i = 1; i < rings; ++i)
-        for (int j = 0; j < segments; ++j) {
-            const double th = M_PI * i / rings, ph = 2 * M_PI * j / segments;
-            v.push_back(m.add_vertex(Point_3(r * std::sin(th) * std::cos(ph),
-                                             r * std::sin(th) * std::sin(ph), r * std::cos(th))));
-        }
-    const auto bottom = m.add_vertex(Point_3(0, 0, -r));
-    auto at = [&](int i, int j) { return v[(i - 1) * segments + (j % segments)]; };
-    for (int j = 0; j < segments; ++j) {
-        m.add_face(top, at(1, j), at(1, j + 1));
-        m.add_face(bottom, at(rings - 1, j + 1), at(rings - 1, j));
-    }
-    for (int i = 1; i + 1 < rings; ++i)
-        for (int j = 0; j < segments; ++j) {
-            m.add_face(at(i, j), at(i + 1, j), at(i + 1, j + 1));
-            m.add_face(at(i, j), at(i + 1, j + 1), at(i, j + 1));
-        }
+    Mesh m = test::uv_sphere(rings, segments, [r](double, double) { return r; });
     auto colours = add_vertex_colors(m);
     for (const auto vi : m.vertices()) {
         const auto& p = m.point(vi);
