@@ -271,6 +271,8 @@ const Refused kRefused[] = {
      "--no-carve-closure applies only with --watertight"},
     {"rgbd-reconstruct badcap --open --no-carve-closure -o out.ply",
      "--no-carve-closure does not apply with --open"},
+    {"rgbd-reconstruct badcap --refine-colour -o out.ply",
+     "--refine-colour applies only to a textured model (-o .obj or .glb)"},
 };
 
 }  // namespace
