@@ -526,6 +526,22 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         colored = internal::prepare_colours(cloud, colour_sources);
         colour_prepare_time = prepare_watch.seconds();
     });
+    // The space the sensors saw empty, from the measured input points, for the watertight
+    // closure: it does not depend on the mesh either, so its maps are built beside the front
+    // too (when the front closes the surface by itself, they are not used).
+    std::optional<holes::FreeSpace> free;
+    tbb::task_group evidence_task;
+    if (options.watertight && !options.sensors.empty())
+        evidence_task.run([&] {
+            std::vector<Eigen::Vector3d> measured;
+            const auto synthetic = cloud.flag(prop::kSynthetic);
+            for (auto idx : cloud.points)
+                if (!synthetic || !(*synthetic)[idx])
+                    measured.push_back(to_eigen(cloud.points.point(idx)));
+            holes::FreeSpaceOptions evidence;
+            evidence.background_window = 3;
+            free.emplace(measured, options.sensors, spacing, evidence);
+        });
     double mesh_time = 0.0;
     try {
         if (options.method == "poisson") {
@@ -559,18 +575,9 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
                                                                options.min_component_fraction);
         std::vector<Mesh::Face_index> added;
         if (options.watertight && !CGAL::is_closed(mesh)) {
-            // The space the sensors saw empty, from the measured input points.
-            std::optional<holes::FreeSpace> free;
+            evidence_task.wait();  // the free-space maps, built beside the front
             internal::SeenEmpty seen_empty;
-            if (!options.sensors.empty()) {
-                std::vector<Eigen::Vector3d> measured;
-                const auto synthetic = cloud.flag(prop::kSynthetic);
-                for (auto idx : cloud.points)
-                    if (!synthetic || !(*synthetic)[idx])
-                        measured.push_back(to_eigen(cloud.points.point(idx)));
-                holes::FreeSpaceOptions evidence;
-                evidence.background_window = 3;
-                free.emplace(measured, options.sensors, spacing, evidence);
+            if (free) {
                 seen_empty = [&free, votes = options.carve_votes](const Eigen::Vector3d& p,
                                                                   const Eigen::Vector3d& n) {
                     return free->count_seen_empty(p, n) >= votes;
@@ -592,9 +599,11 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         mesh_time = watch.seconds();
     } catch (...) {
         colour_task.wait();
+        evidence_task.wait();
         throw;
     }
     colour_task.wait();
+    evidence_task.wait();
     Stopwatch color_watch;
     if (colored) internal::colorize(mesh, colour_sources, options, spacing);
     report_progress(progress, 1.0);

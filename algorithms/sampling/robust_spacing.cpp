@@ -101,7 +101,7 @@ std::size_t nearest_other(const Search& search, const std::vector<Eigen::Vector3
 bool grid_nearest_for_median(const std::vector<Eigen::Vector3d>& pts,
                              const std::vector<std::uint32_t>& queries, std::vector<double>& dist) {
     constexpr std::int64_t kCapRings = 2;
-    internal::CellNeighbours near(pts, 1.0, kCapRings);
+    internal::CellNeighbours near(pts, 1.0, kCapRings, false);  // few queries: no copy
     if (!near.ok()) return false;
     const std::size_t capped =
         nearest_other(near, pts, queries, double(kCapRings) * near.cell(), dist);
