@@ -151,33 +151,22 @@ std::optional<PixelBuckets> organised_grid(const PointCloud& cloud,
 }
 
 /// The min(k, window.size()) points of `window` nearest to q, nearest first, ties by index:
-/// the first entries of the window sorted by (squared distance, index), as a partial sort of
-/// all (distance, index) pairs gives them, written to nn. The k-th smallest distance is
-/// selected on the plain distances first (nth_element), so that only the pairs at or below it
-/// are sorted. `sq`, `order` and `candidates` are reused buffers. Returns the count.
+/// the smallest (squared distance, index) pairs, selected in one pass (nth_element) and only
+/// those sorted, written to nn. `candidates` is a reused buffer. Returns the count.
 std::size_t nearest_in_window(const std::vector<Eigen::Vector3d>& xyz,
                               const std::vector<std::uint32_t>& window, const Eigen::Vector3d& q,
-                              std::size_t k, std::vector<double>& sq, std::vector<double>& order,
+                              std::size_t k,
                               std::vector<std::pair<double, std::uint32_t>>& candidates,
                               std::vector<std::uint32_t>& nn) {
     const std::size_t m = window.size(), found = std::min(k, m);
     nn.resize(found);
     if (found == 0) return 0;
-    sq.resize(m);
-    for (std::size_t j = 0; j < m; ++j) sq[j] = (xyz[window[j]] - q).squaredNorm();
-    candidates.clear();
-    if (found < m) {
-        order.assign(sq.begin(), sq.end());
-        std::nth_element(order.begin(), order.begin() + (found - 1), order.end());
-        const double kth = order[found - 1];
-        // Every pair below the k-th distance, and those at it (ties: the sort by index below
-        // keeps the smallest indices, as the full sort would).
-        for (std::size_t j = 0; j < m; ++j)
-            if (sq[j] <= kth) candidates.emplace_back(sq[j], window[j]);
-    } else {
-        for (std::size_t j = 0; j < m; ++j) candidates.emplace_back(sq[j], window[j]);
-    }
-    std::sort(candidates.begin(), candidates.end());
+    candidates.resize(m);
+    for (std::size_t j = 0; j < m; ++j)
+        candidates[j] = {(xyz[window[j]] - q).squaredNorm(), window[j]};
+    if (found < m)
+        std::nth_element(candidates.begin(), candidates.begin() + (found - 1), candidates.end());
+    std::sort(candidates.begin(), candidates.begin() + found);
     for (std::size_t j = 0; j < found; ++j) nn[j] = candidates[j].second;
     return found;
 }
@@ -201,7 +190,6 @@ Report grid_normals(const PixelBuckets& b, const std::vector<Eigen::Vector3d>& x
         if (cancelled.load(std::memory_order_relaxed)) return;
         std::vector<std::pair<double, std::uint32_t>> candidates;
         std::vector<std::uint32_t> nn, window;
-        std::vector<double> sq, order;
         const std::size_t begin = c * kChunk, end = std::min(count, begin + kChunk);
         for (std::size_t o = begin; o < end; ++o) {
             const std::uint32_t p = b.occupied[o];
@@ -221,7 +209,7 @@ Report grid_normals(const PixelBuckets& b, const std::vector<Eigen::Vector3d>& x
             // (measured) point; the pixel's other points (super-resolution's) share it.
             const Eigen::Vector3d& q = xyz[b.point[b.start[p]]];
             const std::size_t found =
-                nearest_in_window(xyz, window, q, k, sq, order, candidates, nn);
+                nearest_in_window(xyz, window, q, k, candidates, nn);
             char degenerate_pixel = 0;
             const Eigen::Vector3d normal = pca_normal(xyz, nn.data(), found, degenerate_pixel);
             for (std::uint32_t a = b.start[p]; a < b.start[p + 1]; ++a) {
