@@ -199,10 +199,10 @@ Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_
             "far_area_fraction_" + number_key(options.far_tau_m * 1e3, "mm");
         if (total_area > 0.0) {
             const auto samples = sample_surface(mesh, options.samples, options.seed);
-            const auto d = distances_to_points(samples, *input_points);
+            const auto near = within_distance(samples, *input_points, options.far_tau_m);
             std::size_t far = 0;
-            for (double x : d) far += x > options.far_tau_m;
-            out[far_key] = double(far) / double(d.size());
+            for (char x : near) far += x == 0;
+            out[far_key] = double(far) / double(near.size());
         } else {
             out[far_key] = nullptr;
         }
@@ -220,8 +220,8 @@ Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_
             }
             std::size_t observed = 0;
             if (!grey.empty())
-                for (double x : distances_to_points(grey, *input_points))
-                    observed += x <= options.grey_tau_m;
+                for (char x : within_distance(grey, *input_points, options.grey_tau_m))
+                    observed += x != 0;
             out["grey_vertices"] = observed;
             out["grey_vertex_fraction"] = double(observed) / double(vertices.size());
         } else {

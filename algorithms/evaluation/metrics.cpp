@@ -484,4 +484,43 @@ std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& poin
     return out;
 }
 
+std::vector<char> within_distance(const std::vector<Eigen::Vector3d>& points,
+                                  const std::vector<Eigen::Vector3d>& cloud, double tau) {
+    RGBD_CHECK(!cloud.empty(), "distance query against an empty cloud");
+    RGBD_CHECK(std::isfinite(tau) && tau > 0, "distance query: the distance must be positive");
+    for (const auto& p : points) RGBD_CHECK(p.allFinite(), "distance query of a non-finite point");
+    for (const auto& p : cloud) RGBD_CHECK(p.allFinite(), "cloud has a non-finite point");
+    std::vector<char> out(points.size(), 0);
+    internal::CellGrid grid;
+    if (!grid.build(cloud, tau)) {  // an extent beyond 21 bits of cells of tau
+        const std::vector<double> d = distances_to_points(points, cloud);
+        for (std::size_t i = 0; i < d.size(); ++i) out[i] = d[i] <= tau;
+        return out;
+    }
+    const std::vector<std::uint32_t> order = spatial_order(points);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, points.size(), 1024),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                const std::size_t i = order[k];
+                const Eigen::Vector3d& q = points[i];
+                if (!(((q - grid.lowest()) / tau).cwiseAbs().maxCoeff() < 1e15)) continue;
+                const auto c = grid.cell_of(q);
+                bool found = false;
+                for (std::int64_t x = c.x() - 1; x <= c.x() + 1 && !found; ++x)
+                    for (std::int64_t y = c.y() - 1; y <= c.y() + 1 && !found; ++y) {
+                        const auto [c0, c1] = grid.column(x, y, c.z() - 1, c.z() + 1);
+                        for (std::uint32_t a = grid.start[c0]; a < grid.start[c1]; ++a)
+                            // sqrt as distances_to_points takes it: the same answer at tau
+                            if (std::sqrt((cloud[grid.point[a]] - q).squaredNorm()) <= tau) {
+                                found = true;
+                                break;
+                            }
+                    }
+                out[i] = found ? 1 : 0;
+            }
+        });
+    return out;
+}
+
 }  // namespace rgbd::evaluation

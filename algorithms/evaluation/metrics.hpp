@@ -103,10 +103,19 @@ SurfaceMetrics compare_to_reference(const Mesh* result_mesh, const PointCloud* r
 std::vector<double> distances_to_surface(const std::vector<Eigen::Vector3d>& points,
                                          const Mesh& reference);
 
-/// Distance (metres) from every point to the nearest point of `cloud` (kd-tree), in parallel.
+/// Distance (metres) from every point to the nearest point of `cloud` (exact, cell grids), in
+/// parallel.
 /// @throws InputError for an empty cloud or a non-finite point.
 std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& points,
                                         const std::vector<Eigen::Vector3d>& cloud);
+
+/// For every point, 1 when some point of `cloud` lies within `tau` metres of it (the same
+/// answer as distances_to_points(...)[i] <= tau), else 0; in parallel. A cell grid of side tau
+/// answers from the 27 cells around the point and stops at the first point found, so points
+/// far from the cloud cost no more than near ones (a mesh's closure, far-area shares).
+/// @throws InputError for an empty cloud, a non-finite point or tau not positive and finite.
+std::vector<char> within_distance(const std::vector<Eigen::Vector3d>& points,
+                                  const std::vector<Eigen::Vector3d>& cloud, double tau);
 
 /// Pose error of one sensor.
 struct PoseError {

@@ -159,6 +159,43 @@ TEST(Metrics, SameResultForOneAndManyThreads) {
     EXPECT_EQ(one, many);
 }
 
+/// within_distance answers as distances_to_points(...) <= tau for every query: near the cloud,
+/// at about tau (both sides of it), far from it, and outside the cloud's bounding box.
+TEST(Metrics, WithinDistanceAgreesWithTheNearestDistance) {
+    std::vector<Eigen::Vector3d> cloud, queries;
+    std::uint64_t s = 7;
+    const auto uniform = [&s] {
+        s = s * 6364136223846793005ull + 1442695040888963407ull;
+        return double(s >> 11) / double(1ull << 53);
+    };
+    for (int i = 0; i < 20000; ++i) {  // a noisy unit sphere
+        const Eigen::Vector3d d(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
+        if (d.norm() > 1e-3) cloud.push_back(d.normalized() * (1.0 + 0.002 * uniform()));
+    }
+    for (int i = 0; i < 5000; ++i) {  // from the centre to twice the radius
+        const Eigen::Vector3d d(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
+        if (d.norm() > 1e-3) queries.push_back(d.normalized() * (2.0 * uniform()));
+    }
+    queries.push_back(cloud[5]);                                // on a point
+    queries.push_back(cloud[9] + Eigen::Vector3d(0.01, 0, 0));  // exactly tau off, or less
+    queries.push_back(Eigen::Vector3d(-50.0, 3.0, 1e3));        // far outside the grid
+    const std::vector<double> d = distances_to_points(queries, cloud);
+    for (double tau : {0.002, 0.01, 0.05}) {
+        const std::vector<char> near = within_distance(queries, cloud, tau);
+        ASSERT_EQ(near.size(), queries.size());
+        std::size_t yes = 0;
+        for (std::size_t i = 0; i < queries.size(); ++i) {
+            EXPECT_EQ(near[i] != 0, d[i] <= tau) << "query " << i << " at " << d[i] << " m";
+            yes += near[i] != 0;
+        }
+        EXPECT_GT(yes, 0u);  // both answers occur
+        EXPECT_LT(yes, queries.size());
+    }
+    EXPECT_THROW(within_distance(queries, {}, 0.01), InputError);
+    EXPECT_THROW(within_distance(queries, cloud, 0.0), InputError);
+    EXPECT_THROW(within_distance(queries, cloud, std::nan("")), InputError);
+}
+
 std::map<std::string, Pose> ring(int n) {
     std::map<std::string, Pose> poses;
     for (int i = 0; i < n; ++i) {
