@@ -23,6 +23,7 @@
 #include <immintrin.h>
 #endif
 
+#include "algorithms/denoise/density_camera.hpp"
 #include "algorithms/denoise/density_clusters.hpp"
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/internal/cell_grid.hpp"
@@ -53,21 +54,9 @@ void DensityOptions::check() const {
 
 namespace {
 
-/// Depth map of one view in its own camera, for the visibility test.
-struct Camera {
-    Pose sensor_from_world;
-    Eigen::Matrix3d rotation;  ///< sensor_from_world's, for the hot loop
-    Eigen::Vector3d translation;
-    bool undistorted = true;  ///< no lens distortion: project() is the plain pinhole
-    PinholeIntrinsics intrinsics;
-    double focal = 0.0;
-    bool active = false;  ///< the view has points (an empty view sees nothing)
-    /// Depth map over the bounding box [x0, x0 + bw) x [y0, y0 + bh) of the view's returns,
-    /// row-major; every pixel outside it, like a pixel without a return inside, is +inf. The
-    /// object fills a small part of the image: a few hundred kB instead of width * height.
-    int x0 = 0, y0 = 0, bw = 0, bh = 0;
-    std::vector<float> depth;
-};
+using detail::Camera;
+using detail::camera_density;
+using detail::surely_occluded;
 
 /// The live points of all views, in the world frame, concatenated in view order.
 struct WorldPoints {
@@ -414,104 +403,6 @@ void measure_sensor_density(const std::vector<PointCloud>& views, const WorldPoi
         count_on_grid(hood.grid, all.world, r2, view_normals, finish);
     else
         count_with_tree(all.world, hood.radius, finish);
-}
-
-/// What camera c contributes to the expected density at world point p with unit normal `nrm`:
-/// cos(theta) / s_d^2, the samples per unit area of a surface at incidence theta (unclamped: a
-/// view that grazes the surface adds almost nothing); none when p lies outside c's image or
-/// behind c's surface (occluded: c could not have measured it).
-std::optional<double> camera_density(const Camera& c, const Eigen::Vector3d& p,
-                                     const Eigen::Vector3d& nrm, NoiseModel noise_model,
-                                     double tan_max) {
-    const Eigen::Vector3d q = c.rotation * p + c.translation;
-    if (q.z() <= 0.0) return std::nullopt;
-    const Eigen::Vector2d uv =
-        c.undistorted ? Eigen::Vector2d(c.intrinsics.fx * (q.x() / q.z()) + c.intrinsics.cx,
-                                        c.intrinsics.fy * (q.y() / q.z()) + c.intrinsics.cy)
-                      : c.intrinsics.project(q);
-    if (!c.intrinsics.contains(uv)) return std::nullopt;
-    // lround() of coordinates > -0.5.
-    const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
-    // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
-    const double tol = q.z() / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, q.z(), 0.0);
-    // The 3 x 3 window: a missing return is +inf (never NaN), which changes neither the minimum
-    // nor the "seen" test; pixels outside the map's box have no return either, so are skipped.
-    // The centre pixel first: a return there within tol shows the point (most points, for the
-    // views that face them), and then the rest of the window cannot change the outcome.
-    // Otherwise the whole window, branch-free.
-    bool seen = false;
-    double nearest = std::numeric_limits<double>::infinity();
-    if (row >= c.y0 && row < c.y0 + c.bh && col >= c.x0 && col < c.x0 + c.bw)
-        seen = std::abs(double(c.depth[std::size_t(row - c.y0) * c.bw + std::size_t(col - c.x0)]) -
-                        q.z()) <= tol;
-    if (!seen) {
-        const int r0 = std::max(row - 1, c.y0), r1 = std::min(row + 1, c.y0 + c.bh - 1);
-        const int c0 = std::max(col - 1, c.x0), c1 = std::min(col + 1, c.x0 + c.bw - 1);
-        for (int rr = r0; rr <= r1; ++rr) {
-            const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
-            for (int cc = c0; cc <= c1; ++cc) {
-                const double d = line[cc - c.x0];
-                nearest = std::min(nearest, d);
-                seen |= std::abs(d - q.z()) <= tol;
-            }
-        }
-    }
-    const bool any = nearest < std::numeric_limits<double>::infinity();
-    // Occluded: behind v's surface, so v could not have measured it.
-    if (any && !seen && q.z() > nearest + tol) return std::nullopt;
-    // Ray from camera v to the point, in the world frame.
-    const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
-    const double cos_theta = std::abs(nrm.dot(ray));
-    const double s_d = q.z() / c.focal;
-    return cos_theta / (s_d * s_d);
-}
-
-/// Whether camera c surely contributes nothing to every point inside the box [lo, hi] (world
-/// frame): the box lies in front of c and every point of it projects to a window of c's depth
-/// map whose returns are all nearer than the point by more than its occlusion tolerance, so
-/// camera_density() would find it occluded. Conservative: false whenever unsure (a lens
-/// distortion, the box crossing the image plane or the map's box, a missing return at a
-/// window's centre, a return within the tolerance). Bounds: the box in camera coordinates from
-/// its centre and half extents; x / z and y / z over that box from its corners (the pinhole
-/// projection keeps a box in front of the camera within their range); the tolerance at the box's
-/// nearest and farthest depth (dz_max(z) is convex in z for every noise model, so its maximum
-/// over the range is at an end); margins of 1e-6 px and 1e-7 m absorb rounding.
-bool surely_occluded(const Camera& c, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
-                     NoiseModel noise_model, double tan_max) {
-    if (!c.undistorted || c.bw == 0) return false;
-    const Eigen::Vector3d centre = c.rotation * (0.5 * (lo + hi)) + c.translation;
-    const Eigen::Vector3d half = c.rotation.cwiseAbs() * (0.5 * (hi - lo));
-    const Eigen::Vector3d qlo = centre - half, qhi = centre + half;
-    if (!(qlo.z() > 1e-3)) return false;
-    const double xz0 = std::min(qlo.x() / qlo.z(), qlo.x() / qhi.z()),
-                 xz1 = std::max(qhi.x() / qlo.z(), qhi.x() / qhi.z()),
-                 yz0 = std::min(qlo.y() / qlo.z(), qlo.y() / qhi.z()),
-                 yz1 = std::max(qhi.y() / qlo.z(), qhi.y() / qhi.z());
-    const PinholeIntrinsics& k = c.intrinsics;
-    // Pixel (col, row) = (int(u + 0.5), int(v + 0.5)) of every point of the box.
-    constexpr double kPx = 1e-6;
-    const double u0 = k.fx * xz0 + k.cx + 0.5 - kPx, u1 = k.fx * xz1 + k.cx + 0.5 + kPx;
-    const double v0 = k.fy * yz0 + k.cy + 0.5 - kPx, v1 = k.fy * yz1 + k.cy + 0.5 + kPx;
-    if (!(u0 >= double(c.x0) && v0 >= double(c.y0) && u1 < double(c.x0 + c.bw) &&
-          v1 < double(c.y0 + c.bh)))
-        return false;  // a centre pixel outside the map's box (or outside the image)
-    const int col0 = int(u0), col1 = int(u1), row0 = int(v0), row1 = int(v1);
-    const auto tol = [&](double z) {
-        return z / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, z, 0.0);
-    };
-    const double limit = qlo.z() - std::max(tol(qlo.z()), tol(qhi.z())) - 1e-7;
-    // Centre pixels: a return nearer than the limit; the rest of each 3 x 3 window: that or none.
-    for (int rr = std::max(row0 - 1, c.y0); rr <= std::min(row1 + 1, c.y0 + c.bh - 1); ++rr) {
-        const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;
-        const bool centre_row = rr >= row0 && rr <= row1;
-        for (int cc = std::max(col0 - 1, c.x0); cc <= std::min(col1 + 1, c.x0 + c.bw - 1); ++cc) {
-            const double d = line[cc - c.x0];
-            if (d < limit) continue;
-            if (centre_row && cc >= col0 && cc <= col1) return false;
-            if (d != std::numeric_limits<double>::infinity()) return false;
-        }
-    }
-    return true;
 }
 
 /// Expected density, sensors reference: what the sensors that see p_i should have produced
