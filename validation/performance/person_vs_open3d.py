@@ -33,6 +33,9 @@ Two runs, each side started alike in each (the results file says how, a line per
     _mask.jpg (>= 128, as rgbd-cloud reads it, so both sides fuse the subject's pixels), at the
     registered pose; extract_triangle_mesh (marching cubes).
   Each Open3D pipeline runs in its own child process under /usr/bin/time -v (wall, peak RSS).
+  --repeat N (default 3) timing rounds, the three jobs in turn each round: the ratios use each
+  side's median wall time, and every round's times are printed (a shared machine's slow minute
+  then falls on every side alike).
 - POSE-ACCURACY run: both sides start WITHOUT the poses. Ours: the pipe equivalent of the
   default job's stages up to the alignment, `rgbd-cloud CAP --frames SEL | rgbd-clean
   --distance | rgbd-align --ignore-poses --metrics m.json` (rgbd-reconstruct has no option to
@@ -340,8 +343,14 @@ def main():
     ap.add_argument("--scaling", action="store_true", help="also 10 and 25 frames (0:50:5, 0:50:2)")
     ap.add_argument("--points-scaling", action="store_true",
                     help="also ours on views thinned to 25%% and 50%% of their points")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="timing rounds of the main comparison, each running ours, "
+                    "Open3D-Poisson and Open3D-TSDF in turn; the table gives each side's median "
+                    "wall time and the rounds' ratios (default 3)")
     ap.add_argument("--o3d-child", nargs=5, help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.repeat < 1:
+        sys.exit(f"person_vs_open3d: --repeat {a.repeat}: at least one round is needed")
     if a.o3d_child:
         o3d_job(*a.o3d_child)
         return
@@ -378,6 +387,17 @@ def main():
     views = f"{work}/main_views.ply"
     stamp(f"frames {frames}: Open3D-TSDF, from the poses")
     tsdf = run_o3d(views, work, "main", "poses", "tsdf")
+    # More timing rounds, the three in turn, so that a slow minute of a shared machine falls
+    # on every side alike; each side's median wall time goes to the table (the first round's
+    # stages and poses are kept).
+    rounds = [(ours["wall_s"], poisson["wall_s"], tsdf["wall_s"])]
+    for r in range(1, a.repeat):
+        stamp(f"frames {frames}: timing round {r + 1} of {a.repeat}")
+        rounds.append((run_ours(b, frames, work, f"round{r}")["wall_s"],
+                       run_o3d(views, work, f"round{r}", "poses", "poisson")["wall_s"],
+                       run_o3d(views, work, f"round{r}", "poses", "tsdf")["wall_s"]))
+    for side, col in ((ours, 0), (poisson, 1), (tsdf, 2)):
+        side["wall_s"] = float(np.median([w[col] for w in rounds]))
     stamp(f"frames {frames}: ours, without the poses")
     ours_np = run_ours_no_poses(b, frames, work, "main", ours["upsampled_views"] > 0)
     stamp(f"frames {frames}: Open3D registration, from the identity")
@@ -392,6 +412,11 @@ def main():
     say("- Open3D-Poisson and Open3D-TSDF: the same Open3D registration; each consecutive pair "
         "started from the camera.xml relative pose inv(pose_i) @ pose_j, the pose graph nodes "
         "at the camera.xml poses.")
+    say("")
+    say(f"Wall times: the median of {len(rounds)} round(s), ours, Open3D-Poisson and "
+        "Open3D-TSDF in turn each round; the rounds (s): " +
+        "; ".join(f"{o:.1f} / {p:.1f} / {t:.1f} (ratios {o / p:.2f}, {o / t:.2f})"
+                  for o, p, t in rounds) + ".")
     say("")
     say("| | wall s | peak RSS MB | mesh faces |")
     say("|---|---|---|---|")
