@@ -39,9 +39,9 @@ struct Camera {
 /// What camera c contributes to the expected density at world point p with unit normal `nrm`:
 /// cos(theta) / s_d^2, the samples per unit area of a surface at incidence theta (unclamped: a
 /// view that grazes the surface adds almost nothing); none when p lies outside c's image or
-/// behind c's surface (occluded: c could not have measured it).
-// Always inlined: its caller's loop over the cameras is the filter's hottest (a call per camera
-// and point costs a third of the stage).
+/// behind c's surface (occluded: c could not have measured it). Always inlined: its caller's
+/// loop over the cameras is the filter's hottest (called out of line, the calls cost a third of
+/// the stage).
 [[gnu::always_inline]] inline std::optional<double> camera_density(const Camera& c,
                                                                    const Eigen::Vector3d& p,
                                                                    const Eigen::Vector3d& nrm,

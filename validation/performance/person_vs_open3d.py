@@ -416,7 +416,8 @@ def main():
     say(f"Wall times: the median of {len(rounds)} round(s), ours, Open3D-Poisson and "
         "Open3D-TSDF in turn each round; the rounds (s): " +
         "; ".join(f"{o:.1f} / {p:.1f} / {t:.1f} (ratios {o / p:.2f}, {o / t:.2f})"
-                  for o, p, t in rounds) + ".")
+                  for o, p, t in rounds) + ". Peak RSS, mesh faces and stage times: the "
+        "first round.")
     say("")
     say("| | wall s | peak RSS MB | mesh faces |")
     say("|---|---|---|---|")
