@@ -2,8 +2,13 @@
 
 #include <tbb/parallel_for.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <vector>
 
@@ -63,6 +68,44 @@ void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
     fit.robust_m = 1.4826 * rank_quantile(abs_h, 0.5);
     fit.normalized = 1.4826 * rank_quantile(norm_h, 0.5);
     fit.rms_m = fit.robust_m;
+}
+
+/// The number of the m samples (px, py, pz) with normal (nx, ny, nz) within `band` of `plane`
+/// and facing it: |n . p + d| <= band and |n . n_j| >= cos_tilt. Two samples at a time with SSE2:
+/// the same IEEE operations in the same order as Plane::height and Eigen's dot, so the same
+/// count as the scalar test (which the compiler does not vectorise).
+std::size_t count_plane_votes(const double* px, const double* py, const double* pz,
+                              const double* nx, const double* ny, const double* nz, std::size_t m,
+                              const Plane& plane, double band, double cos_tilt) {
+    const double a = plane.n.x(), b = plane.n.y(), c = plane.n.z(), d = plane.d;
+    std::size_t j = 0, count = 0;
+#if defined(__SSE2__)
+    const __m128d va = _mm_set1_pd(a), vb = _mm_set1_pd(b), vc = _mm_set1_pd(c),
+                  vd = _mm_set1_pd(d), vband = _mm_set1_pd(band), vcos = _mm_set1_pd(cos_tilt),
+                  sign = _mm_set1_pd(-0.0);
+    __m128i lanes = _mm_setzero_si128();  // minus the number of votes in each lane
+    for (; j + 2 <= m; j += 2) {
+        const __m128d h = _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_loadu_pd(px + j), va),
+                                                           _mm_mul_pd(_mm_loadu_pd(py + j), vb)),
+                                                _mm_mul_pd(_mm_loadu_pd(pz + j), vc)),
+                                     vd);
+        const __m128d t = _mm_add_pd(
+            _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(nx + j), va), _mm_mul_pd(_mm_loadu_pd(ny + j), vb)),
+            _mm_mul_pd(_mm_loadu_pd(nz + j), vc));
+        const __m128d in = _mm_and_pd(_mm_cmple_pd(_mm_andnot_pd(sign, h), vband),
+                                      _mm_cmpge_pd(_mm_andnot_pd(sign, t), vcos));
+        lanes = _mm_add_epi64(lanes, _mm_castpd_si128(in));
+    }
+    alignas(16) std::int64_t sums[2];
+    _mm_store_si128(reinterpret_cast<__m128i*>(sums), lanes);
+    count = static_cast<std::size_t>(-(sums[0] + sums[1]));
+#endif
+    for (; j < m; ++j) {
+        const double h = px[j] * a + py[j] * b + pz[j] * c + d;
+        const double t = nx[j] * a + ny[j] * b + nz[j] * c;
+        count += std::abs(h) <= band && std::abs(t) >= cos_tilt;
+    }
+    return count;
 }
 
 }  // namespace
@@ -128,13 +171,28 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
     if (open.size() < 100 || open.size() < o.ground_min_share * n_all) return std::nullopt;
     const double inlier = 0.5 * o.ground_band_m;
     const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
+    // The open samples by coordinate (structure of arrays): the hypotheses' scoring loop,
+    // 500 planes x up to 80000 samples, then compiles to vector instructions. The same
+    // operations in the same order as Plane::height and Eigen's dot, so the same votes.
+    const std::size_t m = open.size();
+    std::vector<double> soa(6 * m);
+    double *px = soa.data(), *py = px + m, *pz = py + m, *nx = pz + m, *ny = nx + m, *nz = ny + m;
+    for (std::size_t j = 0; j < m; ++j) {
+        const GroundSample& s = samples[open[j]];
+        px[j] = s.p.x(), py[j] = s.p.y(), pz[j] = s.p.z();
+        nx[j] = s.n.x(), ny[j] = s.n.y(), nz[j] = s.n.z();
+    }
+    auto count_votes = [&](const Plane& p, double band) {
+        return count_plane_votes(px, py, pz, nx, ny, nz, m, p, band, cos_tilt);
+    };
     auto votes = [&](const Plane& p, double band, std::vector<Eigen::Vector3d>* in) {
+        if (!in) return count_votes(p, band);
         std::size_t count = 0;
         for (const std::size_t i : open)
             if (std::abs(p.height(samples[i].p)) <= band &&
                 std::abs(samples[i].n.dot(p.n)) >= cos_tilt) {
                 ++count;
-                if (in) in->push_back(samples[i].p);
+                in->push_back(samples[i].p);
             }
         return count;
     };
