@@ -2,13 +2,15 @@
 // one core: the pixel-window neighbours of organised views against the kd-tree's kNN (issue 38:
 // "normals of organised views from the pixel grid"). Frame: RGBD_NORMALS_CAPTURE (a capture
 // folder, first sensor of rig.json, first frame), else a synthetic 512x424 frame with a sphere of
-// 0.2 m radius at 1.5 m. Counter `same_share`: the share of normals within 1 deg of the
+// 0.2 m radius at 1.5 m. RGBD_NORMALS_UPSAMPLE=0 keeps the measured points only (a point per
+// pixel, as the person job's Kinect v1 views). Counter `same_share`: the share of normals within 1 deg of the
 // kd-tree's.
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 
 #include <cmath>
 #include <cstdlib>
+#include <string>
 
 #include "algorithms/frames/depth_to_cloud.hpp"
 #include "algorithms/normals/estimate_normals.hpp"
@@ -31,7 +33,8 @@ const PointCloud& view() {
             frame = bench::synthetic_sphere_frame();
         }
         PointCloud c = frames::depth_to_cloud(frame, frames::CloudOptions{});
-        upsample::upsample_view(c, frame, upsample::UpsampleOptions{});
+        const char* up = std::getenv("RGBD_NORMALS_UPSAMPLE");
+        if (!up || std::string(up) != "0") upsample::upsample_view(c, frame, {});
         return c;
     }();
     return cloud;
