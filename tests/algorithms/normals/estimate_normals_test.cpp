@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -198,6 +200,67 @@ TEST(EstimateNormals, OrganisedViewsTakeNeighboursFromThePixelWindow) {
         EXPECT_GT(same, 0.97 * grid.size()) << per_pixel << " points per pixel";
         EXPECT_LT(off_truth, 0.03 * grid.size()) << per_pixel << " points per pixel";
     }
+}
+
+/// A point per pixel on a wavy surface whose depth (a function of the row) is quantised to 1 mm:
+/// a pixel's left and right neighbours lie at exactly the same squared distance.
+PointCloud quantised_view() {
+    PointCloud cloud;
+    cloud.view.frame = rgbd::ViewFrame::kSensor;
+    cloud.view.grid_width = 80;
+    cloud.view.grid_height = 60;
+    auto pixel = cloud.add_pixel_map();
+    for (int row = 0; row < 60; ++row)
+        for (int col = 0; col < 80; ++col) {
+            const double x = (col - 39.5) / 75.0, y = (row - 29.5) / 75.0;
+            const double z =
+                std::round(1000.0 * (1.0 + 0.02 * std::sin(8.0 * y) + 0.1 * y * y)) / 1000.0;
+            const auto idx = *cloud.points.insert(rgbd::to_point(Eigen::Vector3d(x * z, y * z, z)));
+            pixel[idx] = static_cast<std::uint32_t>(row * 80 + col);
+        }
+    return cloud;
+}
+
+TEST(EstimateNormals, PixelWindowTakesTheKNearestWithTiesByIndex) {
+    PointCloud cloud = quantised_view();
+    std::vector<Eigen::Vector3d> xyz;
+    for (auto idx : cloud.points) xyz.push_back(rgbd::to_eigen(cloud.points.point(idx)));
+    const NormalOptions options;
+    const rgbd::Report report = rgbd::normals::estimate_normals(cloud, options);
+    const int h = report["neighbours"]["half_window_px"];
+    const std::size_t k = static_cast<std::size_t>(options.k);
+    // The reference: every point of the window, sorted by (squared distance, index), the first
+    // k; their PCA normal. Point i is pixel i here.
+    std::size_t ties_at_k = 0, i = 0;
+    for (auto idx : cloud.points) {
+        const int row = static_cast<int>(i / 80), col = static_cast<int>(i % 80);
+        std::vector<std::pair<double, std::size_t>> window;
+        for (int r = std::max(0, row - h); r <= std::min(59, row + h); ++r)
+            for (int c = std::max(0, col - h); c <= std::min(79, col + h); ++c)
+                window.emplace_back((xyz[r * 80 + c] - xyz[i]).squaredNorm(), r * 80 + c);
+        std::sort(window.begin(), window.end());
+        if (window.size() <= k) {  // a corner: all of its window
+            ++i;
+            continue;
+        }
+        ties_at_k += window[k - 1].first == window[k].first;
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (std::size_t j = 0; j < k; ++j) mean += xyz[window[j].second];
+        mean /= static_cast<double>(k);
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (std::size_t j = 0; j < k; ++j) {
+            const Eigen::Vector3d d = xyz[window[j].second] - mean;
+            cov += d * d.transpose();
+        }
+        const Eigen::Vector3d expected =
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+        const Eigen::Vector3d n = rgbd::to_eigen(cloud.points.normal(idx));
+        ASSERT_GT(std::abs(n.normalized().dot(expected.normalized())), 1.0 - 1e-12)
+            << "pixel " << i;
+        ++i;
+    }
+    // The k-th and (k+1)-th nearest at the same distance: only the index decides between them.
+    EXPECT_GT(ties_at_k, 100u);
 }
 
 TEST(EstimateNormals, BadInput) {
