@@ -1,6 +1,11 @@
 #include "pipeline/reconstruct.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
 
 #include "algorithms/evaluation/mesh_quality.hpp"
 #include "toolkit/error.hpp"
@@ -55,21 +60,46 @@ struct CloudViews {
     std::size_t cloud_points = 0, extracted_points = 0, clean_points = 0, upsample_views = 0;
 };
 
-/// 1a. One coloured cloud per frame (its report in view_reports), without extraction; the
-/// frames stay loaded in `loaded` for the super-resolution.
+/// Runs body(i) for i in [0, n) in parallel (the views are independent) and then rethrows the
+/// exception of the lowest i that threw, if any: the same error whatever the threads' order.
+/// `progress` gets done / n (scaled into [from, to]) from one thread at a time.
+template <class Body>
+void for_each_view(std::size_t n, const Progress& progress, double from, double to,
+                   const Body& body) {
+    std::vector<std::exception_ptr> errors(n);
+    std::atomic<std::size_t> done{0};
+    std::mutex progress_mutex;
+    tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+        try {
+            body(i);
+        } catch (...) {
+            errors[i] = std::current_exception();
+        }
+        const std::size_t so_far = ++done;
+        const std::lock_guard<std::mutex> lock(progress_mutex);
+        report_progress(progress, from + (to - from) * static_cast<double>(so_far) / n);
+    });
+    for (const auto& e : errors)
+        if (e) std::rethrow_exception(e);
+}
+
+/// 1a. One coloured cloud per frame (its report in view_reports), without extraction, the
+/// frames loaded and converted in parallel; they stay loaded in `loaded` for the
+/// super-resolution.
 void load_views(const io::Capture& capture, const std::vector<FrameRef>& frames,
                 const ReconstructOptions& options, const std::optional<Eigen::Vector3d>& centre,
                 const Progress& progress, CloudViews& cv, std::vector<RgbdFrame>& loaded,
                 std::vector<Report>& view_reports) {
-    for (const auto& [id, position] : frames) {
-        Report v;
-        loaded.push_back(io::load_frame(capture, id, position));
-        cv.views.push_back(view_from_frame(loaded.back(), static_cast<int>(cv.views.size()),
-                                           options.cloud, centre, /*extraction=*/{0.0}, v));
-        cv.cloud_points += cv.views.back().size();
-        view_reports.push_back(std::move(v));
-        report_progress(progress, 0.5 * cv.views.size() / frames.size());
-    }
+    const std::size_t n = frames.size();
+    loaded.resize(n);
+    cv.views.resize(n);
+    view_reports.resize(n);
+    for_each_view(n, progress, 0.0, 0.5, [&](std::size_t i) {
+        loaded[i] = io::load_frame(capture, frames[i].first, frames[i].second);
+        cv.views[i] = view_from_frame(loaded[i], static_cast<int>(i), options.cloud, centre,
+                                      /*extraction=*/{0.0}, view_reports[i]);
+    });
+    cv.cloud_points = count_points(cv.views);
 }
 
 /// 1b. The object extraction over all views (report["extraction"], its note a warning); the
@@ -91,14 +121,10 @@ void extract_subject(const std::optional<Eigen::Vector3d>& centre,
     cv.extracted_points = count_points(cv.views);
 }
 
-/// 2. distance-based cleaning and 3. super-resolution of one view (where the colour camera has
-/// more pixels than the depth one), reported in `v`. InputError naming the capture, view and
-/// sensor when fewer than 100 points are left after cleaning.
-void clean_and_upsample(PointCloud& cloud, const RgbdFrame& frame,
-                        const ReconstructOptions& options, const std::string& root, Report& v,
-                        CloudViews& cv) {
-    const auto& skip = options.skip;
-    const std::string& id = frame.sensor_id;
+/// 2. distance-based cleaning of one view, reported in `v`. InputError naming the capture, view
+/// and sensor when fewer than 100 points are left.
+void clean_view(PointCloud& cloud, const RgbdFrame& frame, const ReconstructOptions& options,
+                const std::string& root, Report& v) {
     v["points"] = cloud.size();
     // The noise model: the option, else the one the view's sensor names (the stream's
     // metadata, as rgbd-clean --noise-model auto reads it down the pipe).
@@ -106,25 +132,23 @@ void clean_and_upsample(PointCloud& cloud, const RgbdFrame& frame,
     distance_options.noise_model =
         options.noise_model ? *options.noise_model
                             : view_noise_model(cloud).value_or(denoise::NoiseModel::kKinectV2);
-    if (!skip.count("distance")) {
-        Stopwatch clean_watch;
+    if (!options.skip.count("distance"))
         v["distance"] = denoise::remove_distance_outliers(cloud, distance_options);
-        cv.clean_time += clean_watch.seconds();
-    }
-    cv.clean_points += cloud.size();
     v["points_after_cleaning"] = cloud.size();
     if (cloud.size() < 100)
-        throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + id +
+        throw InputError(root + ": view " + std::to_string(cloud.view.id) + " (" + frame.sensor_id +
                          ") has only " + std::to_string(cloud.size()) + " points of the subject");
-    // Super-resolution where the colour camera has more pixels than the depth one.
+}
+
+/// 3. super-resolution of one view where the colour camera has more pixels than the depth one
+/// (reported in `v`); returns whether it ran.
+bool upsample_one_view(PointCloud& cloud, const RgbdFrame& frame, const ReconstructOptions& options,
+                       Report& v) {
     const bool finer_colour = !frame.color.empty() && static_cast<double>(frame.color.total()) >
                                                           static_cast<double>(frame.depth.total());
-    if (!skip.count("upsample") && finer_colour && cloud.view.has_grid()) {
-        Stopwatch upsample_watch;
-        v["upsample"] = upsample::upsample_view(cloud, frame, options.upsample);
-        cv.upsample_time += upsample_watch.seconds();
-        ++cv.upsample_views;
-    }
+    if (options.skip.count("upsample") || !finer_colour || !cloud.view.has_grid()) return false;
+    v["upsample"] = upsample::upsample_view(cloud, frame, options.upsample);
+    return true;
 }
 
 /// Stages 1-3 (the "clouds" progress stage): clouds, then the object extraction over all of
@@ -143,10 +167,24 @@ CloudViews cloud_views(const io::Capture& capture, const std::vector<FrameRef>& 
     const auto centre = object_centre(capture, frames);
     load_views(capture, frames, options, centre, scope.progress(), cv, loaded, view_reports);
     extract_subject(centre, options, hooks, root, cv, result);
-    for (std::size_t i = 0; i < cv.views.size(); ++i) {
-        clean_and_upsample(cv.views[i], loaded[i], options, root, view_reports[i], cv);
+    // Cleaning, then super-resolution, each in parallel over the views (each stage's wall time
+    // for the stages table).
+    const std::size_t n = cv.views.size();
+    Stopwatch clean_watch;
+    for_each_view(n, scope.progress(), 0.5, 0.75, [&](std::size_t i) {
+        clean_view(cv.views[i], loaded[i], options, root, view_reports[i]);
+    });
+    cv.clean_time = clean_watch.seconds();
+    cv.clean_points = count_points(cv.views);
+    Stopwatch upsample_watch;
+    std::vector<char> upsampled(n, 0);
+    for_each_view(n, scope.progress(), 0.75, 1.0, [&](std::size_t i) {
+        upsampled[i] = upsample_one_view(cv.views[i], loaded[i], options, view_reports[i]) ? 1 : 0;
+    });
+    cv.upsample_time = upsample_watch.seconds();
+    for (std::size_t i = 0; i < n; ++i) {
+        cv.upsample_views += upsampled[i];
         report["views"].push_back(view_reports[i]);
-        report_progress(scope.progress(), 0.5 + 0.5 * (i + 1.0) / frames.size());
     }
     return cv;
 }

@@ -81,6 +81,31 @@ TEST(Reconstruct, SkippedStagesLeaveNoRowAndHooksSeeEveryStage) {
     EXPECT_FALSE(result.report.contains("fill"));
 }
 
+TEST(Reconstruct, TheFirstBrokenViewIsReportedWhateverTheThreads) {
+    // Views are loaded in parallel: with two truncated depth images (cam2 and cam5), the error
+    // always names the first view's file.
+    namespace fs = std::filesystem;
+    const fs::path dir = rgbd::test::scratch_dir("rgbd_pipeline_broken");
+    fs::remove_all(dir);
+    fs::copy(capture().root, dir, fs::copy_options::recursive);
+    for (const char* cam : {"cam2", "cam5"})
+        for (const auto& f : fs::directory_iterator(dir / cam / "depth"))
+            fs::resize_file(f.path(), 40);
+    const rgbd::io::Capture broken = rgbd::io::open_capture(dir);
+    const auto frames = rgbd::pipeline::frameset_frames(broken, 0);
+    for (int run = 0; run < 4; ++run) {
+        try {
+            rgbd::pipeline::reconstruct(broken, frames, rgbd::pipeline::ReconstructOptions{});
+            FAIL() << "a truncated depth image was read";
+        } catch (const rgbd::Error& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find("cam2"), std::string::npos) << what;
+            EXPECT_EQ(what.find("cam5"), std::string::npos) << what;
+        }
+    }
+    fs::remove_all(dir);
+}
+
 TEST(Reconstruct, BadOptionsAndFrameSetsAreInputErrors) {
     rgbd::pipeline::ReconstructOptions options;
     options.skip = {"mesh"};
