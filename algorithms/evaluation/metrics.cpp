@@ -13,11 +13,13 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <numeric>
 
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/spatial_order.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
 #include "toolkit/random.hpp"
@@ -101,40 +103,6 @@ std::vector<std::uint32_t> by_face(const std::vector<std::uint32_t>& face_of, st
     if (face_of.size() == count)
         std::stable_sort(order.begin(), order.end(),
                          [&](std::uint32_t a, std::uint32_t b) { return face_of[a] < face_of[b]; });
-    return order;
-}
-
-/// The indices of `points` in Morton order of a 1024^3 grid over their bounding box (ties by
-/// index): neighbouring queries run one after the other and walk the same parts of a search
-/// structure, where the callers' random order (area-uniform samples) missed the cache.
-std::vector<std::uint32_t> spatial_order(const std::vector<Eigen::Vector3d>& points) {
-    std::vector<std::uint32_t> order(points.size());
-    std::iota(order.begin(), order.end(), 0u);
-    if (points.size() < 2) return order;
-    Eigen::Vector3d lo = points[0], hi = points[0];
-    for (const auto& p : points) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-    }
-    const double extent = (hi - lo).maxCoeff();
-    if (!(extent > 0.0)) return order;
-    const auto spread = [](std::uint64_t v) {  // 10 bits -> every third bit
-        v &= 0x3FF;
-        v = (v | (v << 16)) & 0x30000FF;
-        v = (v | (v << 8)) & 0x300F00F;
-        v = (v | (v << 4)) & 0x30C30C3;
-        v = (v | (v << 2)) & 0x9249249;
-        return v;
-    };
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(points.size());
-    tbb::parallel_for(std::size_t(0), points.size(), [&](std::size_t i) {
-        const Eigen::Vector3d c = ((points[i] - lo) / extent * 1023.0).cwiseMax(0.0);
-        keyed[i] = {spread(std::uint64_t(c.x())) | (spread(std::uint64_t(c.y())) << 1) |
-                        (spread(std::uint64_t(c.z())) << 2),
-                    static_cast<std::uint32_t>(i)};
-    });
-    tbb::parallel_sort(keyed.begin(), keyed.end());
-    for (std::size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
     return order;
 }
 
@@ -449,7 +417,7 @@ std::vector<double> distances_to_surface(const std::vector<Eigen::Vector3d>& poi
     const Triangles tri = collect_triangles(reference, "reference");
     const MeshDistance dist(reference, tri);
     std::vector<double> out(points.size());
-    const std::vector<std::uint32_t> order = spatial_order(points);
+    const std::vector<std::uint32_t> order = internal::spatial_order(points);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           for (std::size_t k = r.begin(); k != r.end(); ++k) {
@@ -468,16 +436,23 @@ std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& poin
     for (const auto& p : cloud) RGBD_CHECK(p.allFinite(), "cloud has a non-finite point");
     // A cell grid, not a kd-tree: the cloud is often millions of points (a merged sequence)
     // against a few hundred thousand queries, and a kd-tree's build is sequential.
+    // In space order, the previous query's nearest point bounds this one's distance: queries
+    // far from the cloud (a closure's vertices) search a few cells instead of whole rings.
     const internal::PointSearch search(cloud);
     std::vector<double> out(points.size());
-    const std::vector<std::uint32_t> order = spatial_order(points);
+    const std::vector<std::uint32_t> order = internal::spatial_order(points);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
+                          std::uint32_t last = 0;
+                          bool have = false;
                           for (std::size_t k = r.begin(); k != r.end(); ++k) {
                               const std::size_t i = order[k];
                               std::uint32_t j = 0;
                               double sq = 0.0;
-                              search.knn(points[i], 1, &j, &sq);
+                              const double bound = have ? (cloud[last] - points[i]).squaredNorm()
+                                                        : std::numeric_limits<double>::infinity();
+                              have = search.knn(points[i], 1, &j, &sq, bound) == 1;
+                              last = j;
                               out[i] = std::sqrt(sq);
                           }
                       });
@@ -497,7 +472,7 @@ std::vector<char> within_distance(const std::vector<Eigen::Vector3d>& points,
         for (std::size_t i = 0; i < d.size(); ++i) out[i] = d[i] <= tau;
         return out;
     }
-    const std::vector<std::uint32_t> order = spatial_order(points);
+    const std::vector<std::uint32_t> order = internal::spatial_order(points);
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, points.size(), 1024),
         [&](const tbb::blocked_range<std::size_t>& r) {

@@ -235,9 +235,23 @@ public:
 
     /// The k nearest points of q (k >= 1), nearest first, into indices / sq_dists (room for k
     /// each). Returns how many were found (k, or all points when there are fewer), or 0 when
-    /// the search did not settle within max_rings rings.
+    /// the search did not settle within max_rings rings. `bound_sq`: a squared distance known
+    /// to be at least the k-th nearest's (e.g. a nearby query's k-th distance plus the distance
+    /// between the queries, by the triangle inequality): cells farther than it are skipped and
+    /// the search ends once its rings reach it, which makes queries far from the points cheap.
+    /// The result is the same; a bound that proves too small is dropped.
     std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
-                    double* sq_dists) const {
+                    double* sq_dists,
+                    double bound_sq = std::numeric_limits<double>::infinity()) const {
+        const bool bounded = bound_sq < std::numeric_limits<double>::infinity();
+        const Eigen::Vector3d& lo = grid_.lowest();
+        // Distance along axis a from q to the cells of index i, their interval widened by a
+        // millionth of a cell (a point's cell comes from a rounded division).
+        const auto gap = [&](std::int64_t i, int a) {
+            const double c0 = lo(a) + double(i - 2) * cell_ - 1e-6 * cell_;
+            const double c1 = c0 + 1.000002 * cell_;
+            return std::max({0.0, c0 - q(a), q(a) - c1});
+        };
         std::size_t found = 0;
         const auto offer = [&](double d2, std::uint32_t j) {
             if (found == k &&
@@ -254,6 +268,16 @@ public:
             indices[a] = j;
         };
         const auto visit = [&](std::int64_t x, std::int64_t y, std::int64_t z0, std::int64_t z1) {
+            if (bounded) {  // only the column's cells that meet the ball of the bound
+                const double gx = gap(x, 0), gy = gap(y, 1);
+                const double rest = bound_sq - gx * gx - gy * gy;
+                if (rest < 0.0) return;
+                const double dz = std::sqrt(rest) / cell_;
+                const double zq = (q.z() - lo.z()) / cell_ + 2.0;
+                z0 = std::max(z0, std::int64_t(std::floor(zq - dz)) - 1);
+                z1 = std::min(z1, std::int64_t(std::floor(zq + dz)) + 1);
+                if (z0 > z1) return;
+            }
             const auto [c0, c1] = grid_.column(x, y, z0, z1);
             if (!ordered_.empty())
                 for (std::uint32_t a = grid_.start[c0]; a < grid_.start[c1]; ++a)
@@ -286,8 +310,19 @@ public:
                     }
                 }
             const double reach = double(ring) * cell_;
-            if (found == want && sq_dists[found - 1] <= reach * reach) return found;
+            // (Cells beyond the bound were skipped: settled only within it.)
+            if (found == want && sq_dists[found - 1] <= reach * reach &&
+                sq_dists[found - 1] <= bound_sq)
+                return found;
+            // Every point within the bound seen: the k nearest unless fewer than k lie within it
+            // (a bound too small: searched again without it).
+            if (bounded && reach * reach >= bound_sq * (1.0 + 1e-9))
+                return found == want && sq_dists[found - 1] <= bound_sq
+                           ? found
+                           : knn(q, k, indices, sq_dists);
         }
+        if (bounded && rings == all_rings && !(found == want && sq_dists[found - 1] <= bound_sq))
+            return knn(q, k, indices, sq_dists);
         return rings == all_rings && found == want ? found : 0;
     }
 
@@ -314,24 +349,31 @@ class PointSearch {
 public:
     explicit PointSearch(const std::vector<Eigen::Vector3d>& pts)
         : pts_(pts),
-          fine_(pts, 2.0, 8),
+          fine_(pts, 2.0, kFineRings),
           coarse_(pts, 16.0, std::numeric_limits<std::int64_t>::max()) {}
     /// Borrows `pts`: a temporary would be destroyed while the search still points into it.
     explicit PointSearch(std::vector<Eigen::Vector3d>&&) = delete;
 
-    /// As CellNeighbours::knn, but never 0 for a non-empty cloud. Thread-safe.
+    /// As CellNeighbours::knn (`bound_sq` included), but never 0 for a non-empty cloud. A
+    /// bound beyond the fine grid's rings sends the query to the coarse grid at once.
+    /// Thread-safe.
     std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
-                    double* sq_dists) const {
+                    double* sq_dists,
+                    double bound_sq = std::numeric_limits<double>::infinity()) const {
         if (pts_.empty() || k == 0) return 0;
-        if (fine_.ok())
-            if (const std::size_t found = fine_.knn(q, k, indices, sq_dists)) return found;
+        const double fine_reach = kFineRings * fine_.cell();
+        if (fine_.ok() && !(bound_sq > fine_reach * fine_reach))
+            if (const std::size_t found = fine_.knn(q, k, indices, sq_dists, bound_sq))
+                return found;
         if (coarse_.ok())
-            if (const std::size_t found = coarse_.knn(q, k, indices, sq_dists)) return found;
+            if (const std::size_t found = coarse_.knn(q, k, indices, sq_dists, bound_sq))
+                return found;
         std::call_once(tree_once_, [&] { tree_ = std::make_unique<KdTree>(pts_); });
         return tree_->knn(q, k, indices, sq_dists);
     }
 
 private:
+    static constexpr std::int64_t kFineRings = 8;
     const std::vector<Eigen::Vector3d>& pts_;
     CellNeighbours fine_, coarse_;
     mutable std::once_flag tree_once_;

@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
+
+#include "algorithms/internal/spatial_order.hpp"
 
 namespace rgbd::reconstruction::internal {
 namespace {
@@ -13,6 +16,18 @@ namespace {
 /// Point flag of rgbd::frames::kUncoloured (depth_to_cloud.hpp): the colour camera did not see
 /// the point; its colour was copied from the nearest seen point of its view, or is grey.
 constexpr const char* kUncolouredFlag = "uncoloured";
+
+/// The mesh's vertices in space order (internal::spatial_order).
+std::vector<Mesh::Vertex_index> in_space_order(const Mesh& mesh) {
+    std::vector<Mesh::Vertex_index> vertices(mesh.vertices().begin(), mesh.vertices().end());
+    std::vector<Eigen::Vector3d> xyz;
+    xyz.reserve(vertices.size());
+    for (const auto v : vertices) xyz.push_back(to_eigen(mesh.point(v)));
+    std::vector<Mesh::Vertex_index> out;
+    out.reserve(vertices.size());
+    for (const std::uint32_t i : rgbd::internal::spatial_order(xyz)) out.push_back(vertices[i]);
+    return out;
+}
 
 }  // namespace
 
@@ -53,13 +68,20 @@ void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
 
-    std::vector<Mesh::Vertex_index> vertices(mesh.vertices().begin(), mesh.vertices().end());
+    std::vector<Mesh::Vertex_index> vertices = in_space_order(mesh);
     std::vector<MeshColor> result(vertices.size());
     const double floor_d = std::max(1e-3 * spacing, 1e-12);
+    // Consecutive vertices (in space order) lie near each other, and so do their neighbours:
+    // the largest distance from this vertex to the previous one's neighbours bounds its own
+    // k-th nearest distance (any k points do), which keeps the searches of vertices far from
+    // every point (a closure's) to a few cells. The neighbours, so the colours, are the same.
+    constexpr double kInf = std::numeric_limits<double>::infinity();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vertices.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
-                          std::vector<std::uint32_t> nn(k);
+                          std::vector<std::uint32_t> nn(k), last_all(k);
                           std::vector<double> sq(k);
+                          bool have_all = false, have_orig = false;
+                          std::uint32_t last_orig = 0;
                           for (std::size_t v = r.begin(); v != r.end(); ++v) {
                               const Eigen::Vector3d q = to_eigen(mesh.point(vertices[v]));
                               const rgbd::internal::PointSearch* tree = &all_tree;
@@ -67,12 +89,26 @@ void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o
                               if (separate) {
                                   std::uint32_t i;
                                   double d2;
-                                  if (orig_tree->knn(q, 1, &i, &d2) == 1 && std::sqrt(d2) <= near) {
+                                  const double bound =
+                                      have_orig ? (s.orig_xyz[last_orig] - q).squaredNorm() : kInf;
+                                  have_orig = orig_tree->knn(q, 1, &i, &d2, bound) == 1;
+                                  last_orig = i;
+                                  if (have_orig && std::sqrt(d2) <= near) {
                                       tree = &*orig_tree;
                                       rgb = &orig_rgb;
                                   }
                               }
-                              const std::size_t found = tree->knn(q, k, nn.data(), sq.data());
+                              const bool all = tree == &all_tree;
+                              double bound = kInf;
+                              if (all && have_all) {
+                                  bound = 0.0;
+                                  for (const std::uint32_t j : last_all)
+                                      bound = std::max(bound, (s.all_xyz[j] - q).squaredNorm());
+                              }
+                              const std::size_t found =
+                                  tree->knn(q, k, nn.data(), sq.data(), bound);
+                              have_all = all && found == k;
+                              if (have_all) std::copy(nn.begin(), nn.end(), last_all.begin());
                               double w_sum = 0, rs = 0, gs = 0, bs = 0;
                               for (std::size_t j = 0; j < found; ++j) {
                                   const double d = std::max(std::sqrt(sq[j]), floor_d);

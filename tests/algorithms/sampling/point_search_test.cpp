@@ -6,11 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
+#include "algorithms/internal/spatial_order.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 
 namespace {
@@ -91,6 +93,45 @@ TEST(PointSearch, TiesAreOrderedByPointIndex) {
     for (int j = 0; j < 41; ++j) EXPECT_EQ(sq[j], 0.0);
     for (int j = 1; j < 41; ++j) EXPECT_LT(idx[j - 1], idx[j]);
     EXPECT_EQ(idx[0], 7u);
+}
+
+TEST(PointSearch, ABoundFromAnotherQueryGivesTheSameNeighbours) {
+    // The bound a caller passes: the largest distance from q to the previous (nearby) query's
+    // k neighbours, which any k points give; exact bounds (the k-th distance itself, ties
+    // included), loose ones and ones too small (then dropped) leave the answer unchanged.
+    const auto pts = scene(60000, 4);
+    const PointSearch search(pts);
+    std::vector<Eigen::Vector3d> q;  // in space order, as the callers ask them
+    const auto unordered = queries(pts, 12);
+    for (const std::uint32_t i : rgbd::internal::spatial_order(unordered))
+        q.push_back(unordered[i]);
+    for (const std::size_t k : {1u, 8u}) {
+        std::vector<std::uint32_t> a(k), b(k), last(k);
+        std::vector<double> da(k), db(k);
+        bool have = false;
+        for (std::size_t i = 0; i < q.size(); ++i) {
+            const std::size_t fa = search.knn(q[i], k, a.data(), da.data());
+            ASSERT_GT(fa, 0u);
+            const double kth = da[fa - 1];
+            double from_last = std::numeric_limits<double>::infinity();
+            if (have) {
+                from_last = 0.0;
+                for (const std::uint32_t j : last)
+                    from_last = std::max(from_last, (pts[j] - q[i]).squaredNorm());
+            }
+            for (const double bound : {from_last, kth, 4.0 * kth + 1e-6, 0.25 * kth}) {
+                const std::size_t fb = search.knn(q[i], k, b.data(), db.data(), bound);
+                ASSERT_EQ(fa, fb) << "query " << i << " bound " << bound;
+                for (std::size_t j = 0; j < fa; ++j) {
+                    ASSERT_EQ(da[j], db[j]) << "query " << i << " neighbour " << j << " bound "
+                                            << bound << " k-th " << kth;
+                    ASSERT_EQ(a[j], b[j]) << "query " << i << " neighbour " << j;
+                }
+            }
+            have = fa == k;
+            std::copy(a.begin(), a.begin() + fa, last.begin());
+        }
+    }
 }
 
 TEST(PointSearch, FewerPointsThanAskedAndCloudsNoGridHolds) {
