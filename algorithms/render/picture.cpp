@@ -139,21 +139,31 @@ std::vector<Eigen::Vector3d> vertex_normals(const Geometry& g) {
 }
 
 /// Typical spacing of the points: median distance to the nearest other point of up to 4000
-/// evenly spread points. Exact neighbours from cell grids (internal::PointSearch): binning a
-/// million points is parallel, where a kd-tree over them was a long sequential build for only
-/// 4000 queries.
+/// evenly spread points. Exact neighbours from one cell grid (binning a million points is
+/// parallel, where a kd-tree over them was a long sequential build for only 4000 queries),
+/// without a cell-ordered copy of the points (4000 queries do not repay it); the few queries it
+/// does not settle within 8 rings (isolated points) from internal::PointSearch, built then.
 double point_spacing(const std::vector<Eigen::Vector3d>& pts) {
     if (pts.size() < 2) return 0.0;
-    const internal::PointSearch tree(pts);
+    const internal::CellNeighbours grid(pts, 2.0, 8, /*ordered=*/false);
     const std::size_t probes = std::min<std::size_t>(4000, pts.size());
     std::vector<double> d(probes, 0.0);
-    tbb::parallel_for(std::size_t(0), probes, [&](std::size_t i) {
-        const std::size_t k = i * pts.size() / probes;
+    std::vector<char> unsettled(probes, 0);
+    const auto probe = [&](const auto& search, std::size_t i) {
         std::uint32_t idx[2];
         double sq[2];
-        const std::size_t found = tree.knn(pts[k], 2, idx, sq);
+        const std::size_t found = search.knn(pts[i * pts.size() / probes], 2, idx, sq);
         d[i] = found == 2 ? std::sqrt(sq[1]) : 0.0;
-    });
+        return found > 0;
+    };
+    tbb::parallel_for(std::size_t(0), probes,
+                      [&](std::size_t i) { unsettled[i] = !grid.ok() || !probe(grid, i); });
+    if (std::find(unsettled.begin(), unsettled.end(), 1) != unsettled.end()) {
+        const internal::PointSearch search(pts);
+        tbb::parallel_for(std::size_t(0), probes, [&](std::size_t i) {
+            if (unsettled[i]) probe(search, i);
+        });
+    }
     return quantile(d, 0.5);
 }
 
