@@ -55,6 +55,12 @@ struct FillOptions {
     /// the hole above the true surface (measure_ring.py, Max Planck: such loops put 11-30 % of
     /// their points farther than 5 mm from the truth).
     double max_fit_rms = 2.0;
+    /// M4: every grid point lifted on the hole's quadric is projected again on the quadric of
+    /// its quadric_k nearest original points (the MLS projection of M1-M3, without their move
+    /// limit): the measured points next to a new point decide where the surface is, the hole's
+    /// single quadric only where the point goes. Off: the hole's quadric alone (the earlier
+    /// behaviour; it rounds off creases, ablation.py's bear: 2.3% of the points > 5 mm).
+    bool local_projection = true;
     bool fill_openings = false;  ///< also fill loops the sensors saw through
     /// Inside test: a candidate is inside the hole when the directions to the rim points leave
     /// no angular gap wider than this (degrees); outside a closed rim the gap exceeds 180.
