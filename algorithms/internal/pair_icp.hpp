@@ -33,6 +33,13 @@ struct RegCloud {
 /// No-op when the cloud has no colour.
 void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k);
 
+/// The same gradients from the points' nearest neighbours already known: `neighbours` holds
+/// every point's s nearest (nearest first, the point itself among them, point after point, as
+/// normals::estimate_normals gives them), of which the first k are taken; the tree answers
+/// instead when s is smaller than k or the list does not fit the cloud.
+void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k,
+                                 const std::vector<std::uint32_t>& neighbours);
+
 struct PairIcpSettings {
     std::vector<double> distances;  ///< coarse-to-fine max correspondence distances (m)
     int max_iterations = 30;        ///< per stage

@@ -87,11 +87,13 @@ Eigen::Vector3d pca_normal(const std::vector<Eigen::Vector3d>& xyz, const std::u
 /// point's result depends only on its neighbourhood.
 Report knn_normals(const std::vector<Eigen::Vector3d>& xyz, const NormalOptions& options,
                    const Progress& progress, std::vector<Eigen::Vector3d>& normals,
-                   std::vector<char>& degenerate, std::atomic<bool>& cancelled) {
+                   std::vector<char>& degenerate, std::atomic<bool>& cancelled,
+                   std::vector<std::uint32_t>* neighbours) {
     const std::size_t n = xyz.size();
     const internal::KdTree tree(xyz);
     const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(options.k), n);
     const std::size_t chunks = (n + kChunk - 1) / kChunk;
+    if (neighbours) neighbours->assign(n * k, 0);
     std::atomic<std::size_t> done{0};
     tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
         if (cancelled.load(std::memory_order_relaxed)) return;
@@ -101,6 +103,7 @@ Report knn_normals(const std::vector<Eigen::Vector3d>& xyz, const NormalOptions&
         for (std::size_t i = begin; i < end; ++i) {
             const std::size_t found = tree.knn(xyz[i], k, nn.data(), sq.data());
             normals[i] = pca_normal(xyz, nn.data(), found, degenerate[i]);
+            if (neighbours) std::copy(nn.begin(), nn.begin() + found, neighbours->begin() + i * k);
         }
         const std::size_t so_far = done.fetch_add(end - begin) + (end - begin);
         if (progress && c % 16 == 0 && !report_progress(progress, 0.9 * so_far / n))
@@ -330,7 +333,9 @@ void orient_mst(const std::vector<Eigen::Vector3d>& xyz, std::vector<Eigen::Vect
 
 }  // namespace
 
-Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const Progress& progress) {
+Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const Progress& progress,
+                        std::vector<std::uint32_t>* neighbours) {
+    if (neighbours) neighbours->clear();
     options.check();
     Stopwatch watch;
     const std::size_t n = cloud.size();
@@ -364,11 +369,11 @@ Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const P
     std::vector<Eigen::Vector3d> normals(n);
     std::vector<char> degenerate(n, 0);
     std::atomic<bool> cancelled{false};
-    Report neighbours;
+    Report method;
     if (const auto grid = organised_grid(cloud, index, options)) {
-        neighbours = grid_normals(*grid, xyz, options, progress, normals, degenerate, cancelled);
+        method = grid_normals(*grid, xyz, options, progress, normals, degenerate, cancelled);
     } else {
-        neighbours = knn_normals(xyz, options, progress, normals, degenerate, cancelled);
+        method = knn_normals(xyz, options, progress, normals, degenerate, cancelled, neighbours);
     }
     if (cancelled) throw AlgorithmError("normals: " + view_name(cloud) + ": cancelled");
 
@@ -409,7 +414,7 @@ Report estimate_normals(PointCloud& cloud, const NormalOptions& options, const P
     for (char d : degenerate) degenerate_count += d ? 1 : 0;
     Report report;
     report["k"] = options.k;
-    report["neighbours"] = neighbours;
+    report["neighbours"] = method;
     report["orientation"] = to_string(rule);
     report["points"] = n;
     report["flipped"] = flipped;

@@ -6,7 +6,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <map>
+#include <vector>
 
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/progress.hpp"
@@ -51,8 +53,13 @@ struct NormalOptions {
 /// Report: k, orientation used, points, flipped count, unoriented count (kMst leftovers are
 /// then oriented outward), degenerate neighbourhoods, time_s. Cancelled by `progress`:
 /// throws AlgorithmError("cancelled").
+/// `neighbours`: when given and the neighbours came from the kd-tree (not the pixel window),
+/// every point's min(k, points) nearest, nearest first (the point itself among them), point
+/// after point in the cloud's order; left empty otherwise. Callers that need fewer nearest
+/// neighbours of the same points take the first ones (the alignment's intensity gradients).
 Report estimate_normals(PointCloud& cloud, const NormalOptions& options,
-                        const Progress& progress = {});
+                        const Progress& progress = {},
+                        std::vector<std::uint32_t>* neighbours = nullptr);
 
 /// Name of an orientation as used in reports and CLI options ("auto", "sensor", "mst",
 /// "outward", "none").

@@ -137,7 +137,8 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         PointCloud down = sampling::voxel_downsample(*measured[v], voxel);
         RGBD_CHECK(down.size() >= 3, "align_views: " + view_name(views[v]) +
                                          " has fewer than 3 points after down-sampling");
-        const Report nrep = normals::estimate_normals(down, nopt);
+        std::vector<std::uint32_t> neighbours;  // the normals' kNN, for the gradients too
+        const Report nrep = normals::estimate_normals(down, nopt, {}, &neighbours);
         Working& w = work[v];
         w.reg.oriented = nrep["orientation"] == "sensor";
         w.initial = views[v].view.frame == ViewFrame::kSensor ? *views[v].view.world_from_sensor
@@ -164,7 +165,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         }
         w.reg.centroid /= static_cast<double>(w.reg.xyz.size());
         w.tree = std::make_unique<internal::KdTree>(w.reg.xyz);
-        internal::compute_intensity_gradients(w.reg, *w.tree, 16);
+        internal::compute_intensity_gradients(w.reg, *w.tree, 16, neighbours);
     });
     bool all_oriented = true, all_colour = true;
     for (std::size_t v = 0; v < nv; ++v) {

@@ -127,11 +127,14 @@ Sums accumulate(const RegCloud& src, const RegCloud& tgt, const KdTree& tree, co
 
 }  // namespace
 
-void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k) {
-    if (!cloud.has_colour()) return;
+namespace {
+
+/// The intensity gradients of compute_intensity_gradients, each point's kk nearest given by
+/// nearest(i, nn, sq) (nearest first, the point itself among them; returns the count).
+template <class Nearest>
+void gradients_from(RegCloud& cloud, std::size_t kk, const Nearest& nearest) {
     const std::size_t n = cloud.xyz.size();
     cloud.gradient.assign(n, Eigen::Vector3d::Zero());
-    const std::size_t kk = std::min<std::size_t>(std::max(k, 4), kMaxGradientNeighbours);
     tbb::parallel_for(std::size_t{0}, (n + kChunk - 1) / kChunk, [&](std::size_t c) {
         std::uint32_t nn[kMaxGradientNeighbours];
         double sq[kMaxGradientNeighbours];
@@ -141,7 +144,7 @@ void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k) {
             const Eigen::Vector3d& nrm = cloud.normals[i];
             const Eigen::Vector3d u = nrm.unitOrthogonal();
             const Eigen::Vector3d v = nrm.cross(u);
-            const std::size_t found = tree.knn(p, kk, nn, sq);
+            const std::size_t found = nearest(i, kk, nn, sq);
             Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
             Eigen::Vector2d b = Eigen::Vector2d::Zero();
             std::size_t used = 0;
@@ -159,6 +162,31 @@ void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k) {
             const Eigen::Vector2d x = a.ldlt().solve(b);
             if (x.allFinite()) cloud.gradient[i] = x(0) * u + x(1) * v;
         }
+    });
+}
+
+}  // namespace
+
+void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k) {
+    if (!cloud.has_colour()) return;
+    const std::size_t kk = std::min<std::size_t>(std::max(k, 4), kMaxGradientNeighbours);
+    gradients_from(cloud, kk, [&](std::size_t i, std::size_t m, std::uint32_t* nn, double* sq) {
+        return tree.knn(cloud.xyz[i], m, nn, sq);
+    });
+}
+
+void compute_intensity_gradients(RegCloud& cloud, const KdTree& tree, int k,
+                                 const std::vector<std::uint32_t>& neighbours) {
+    if (!cloud.has_colour()) return;
+    const std::size_t n = cloud.xyz.size();
+    const std::size_t kk = std::min<std::size_t>(std::max(k, 4), kMaxGradientNeighbours);
+    const std::size_t stride = n ? neighbours.size() / n : 0;
+    if (stride < std::min(kk, n) || stride * n != neighbours.size())
+        return compute_intensity_gradients(cloud, tree, k);
+    gradients_from(cloud, kk, [&](std::size_t i, std::size_t m, std::uint32_t* nn, double*) {
+        const std::size_t found = std::min(m, stride);
+        std::copy_n(neighbours.begin() + i * stride, found, nn);
+        return found;
     });
 }
 
