@@ -2,7 +2,6 @@
 
 #include <CGAL/mst_orient_normals.h>
 #include <CGAL/property_map.h>
-#include <immintrin.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
@@ -14,6 +13,11 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define RGBD_NORMALS_AVX2 1
+#endif
 
 #include "algorithms/internal/cell_grid.hpp"
 #include "algorithms/internal/kd_tree.hpp"
@@ -156,6 +160,7 @@ std::optional<PixelBuckets> organised_grid(const PointCloud& cloud,
     return b;
 }
 
+#if defined(RGBD_NORMALS_AVX2)
 /// Windows of up to this many points are selected by rank (rank_select_avx2) where AVX2 runs.
 constexpr std::size_t kRankSelectMax = 64;
 
@@ -187,21 +192,24 @@ __attribute__((target("avx2"))) void rank_select_avx2(const double* d, const std
         if (rank < found) nn[rank] = static_cast<std::uint32_t>(w[i]);
     }
 }
+#endif
 
 /// The min(k, window.size()) points of `window` nearest to q, nearest first, ties by index:
 /// the smallest (squared distance, index) pairs, written to nn; returns the count. Windows of
 /// up to 64 points on a CPU with AVX2 (the usual 7 x 7 pixels of a point per pixel) by rank
-/// (rank_select_avx2); otherwise the smallest pairs selected in one pass (nth_element) and only
-/// those sorted. Both give the same order. `dist`, `index` and `candidates` are reused buffers.
+/// (rank_select_avx2, x86-64 builds); otherwise the smallest pairs selected in one pass
+/// (nth_element) and only those sorted. Both give the same order. `dist`, `index` and `candidates`
+/// are reused buffers.
 std::size_t nearest_in_window(const std::vector<Eigen::Vector3d>& xyz,
                               const std::vector<std::uint32_t>& window, const Eigen::Vector3d& q,
-                              std::size_t k, std::vector<double>& dist,
-                              std::vector<std::int64_t>& index,
+                              std::size_t k, [[maybe_unused]] std::vector<double>& dist,
+                              [[maybe_unused]] std::vector<std::int64_t>& index,
                               std::vector<std::pair<double, std::uint32_t>>& candidates,
                               std::vector<std::uint32_t>& nn) {
     const std::size_t m = window.size(), found = std::min(k, m);
     nn.resize(found);
     if (found == 0) return 0;
+#if defined(RGBD_NORMALS_AVX2)
     static const bool avx2 = __builtin_cpu_supports("avx2");
     if (avx2 && m <= kRankSelectMax) {
         const std::size_t padded = (m + 3) / 4 * 4;
@@ -214,6 +222,7 @@ std::size_t nearest_in_window(const std::vector<Eigen::Vector3d>& xyz,
         rank_select_avx2(dist.data(), index.data(), m, found, nn.data());
         return found;
     }
+#endif
     candidates.resize(m);
     for (std::size_t j = 0; j < m; ++j)
         candidates[j] = {(xyz[window[j]] - q).squaredNorm(), window[j]};
