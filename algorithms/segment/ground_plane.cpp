@@ -70,16 +70,22 @@ void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
     fit.rms_m = fit.robust_m;
 }
 
-/// The number of the m samples (px, py, pz) with normal (nx, ny, nz) within `band` of `plane`
-/// and facing it: |n . p + d| <= band and |n . n_j| >= cos_tilt. Two samples at a time with SSE2:
-/// the same IEEE operations in the same order as Plane::height and Eigen's dot, so the same
-/// count as the scalar test (which the compiler does not vectorise).
+/// Whether a sample at p with normal n votes for `plane`: within `band` of it and facing it.
+inline bool votes_for(const Plane& plane, const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                      double band, double cos_tilt) {
+    return std::abs(plane.height(p)) <= band && std::abs(n.dot(plane.n)) >= cos_tilt;
+}
+
+/// The number of the m samples (px, py, pz) with normal (nx, ny, nz) that vote for `plane`
+/// (votes_for). Two samples at a time with SSE2: the same IEEE operations in the same order as
+/// Plane::height and Eigen's dot, so the same count as votes_for (which the compiler does not
+/// vectorise).
 std::size_t count_plane_votes(const double* px, const double* py, const double* pz,
                               const double* nx, const double* ny, const double* nz, std::size_t m,
                               const Plane& plane, double band, double cos_tilt) {
-    const double a = plane.n.x(), b = plane.n.y(), c = plane.n.z(), d = plane.d;
     std::size_t j = 0, count = 0;
 #if defined(__SSE2__)
+    const double a = plane.n.x(), b = plane.n.y(), c = plane.n.z(), d = plane.d;
     const __m128d va = _mm_set1_pd(a), vb = _mm_set1_pd(b), vc = _mm_set1_pd(c),
                   vd = _mm_set1_pd(d), vband = _mm_set1_pd(band), vcos = _mm_set1_pd(cos_tilt),
                   sign = _mm_set1_pd(-0.0);
@@ -100,11 +106,8 @@ std::size_t count_plane_votes(const double* px, const double* py, const double* 
     _mm_store_si128(reinterpret_cast<__m128i*>(sums), lanes);
     count = static_cast<std::size_t>(-(sums[0] + sums[1]));
 #endif
-    for (; j < m; ++j) {
-        const double h = px[j] * a + py[j] * b + pz[j] * c + d;
-        const double t = nx[j] * a + ny[j] * b + nz[j] * c;
-        count += std::abs(h) <= band && std::abs(t) >= cos_tilt;
-    }
+    for (; j < m; ++j)
+        count += votes_for(plane, {px[j], py[j], pz[j]}, {nx[j], ny[j], nz[j]}, band, cos_tilt);
     return count;
 }
 
@@ -189,8 +192,7 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
         if (!in) return count_votes(p, band);
         std::size_t count = 0;
         for (const std::size_t i : open)
-            if (std::abs(p.height(samples[i].p)) <= band &&
-                std::abs(samples[i].n.dot(p.n)) >= cos_tilt) {
+            if (votes_for(p, samples[i].p, samples[i].n, band, cos_tilt)) {
                 ++count;
                 in->push_back(samples[i].p);
             }
