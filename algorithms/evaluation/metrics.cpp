@@ -13,7 +13,6 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <map>
 #include <numeric>
 
@@ -449,8 +448,8 @@ std::vector<double> distances_to_points(const std::vector<Eigen::Vector3d>& poin
                               const std::size_t i = order[k];
                               std::uint32_t j = 0;
                               double sq = 0.0;
-                              const double bound = have ? (cloud[last] - points[i]).squaredNorm()
-                                                        : std::numeric_limits<double>::infinity();
+                              const double bound =
+                                  internal::knn_bound(cloud, &last, have ? 1 : 0, points[i]);
                               have = search.knn(points[i], 1, &j, &sq, bound) == 1;
                               last = j;
                               out[i] = std::sqrt(sq);

@@ -236,10 +236,10 @@ public:
     /// The k nearest points of q (k >= 1), nearest first, into indices / sq_dists (room for k
     /// each). Returns how many were found (k, or all points when there are fewer), or 0 when
     /// the search did not settle within max_rings rings. `bound_sq`: a squared distance known
-    /// to be at least the k-th nearest's (e.g. a nearby query's k-th distance plus the distance
-    /// between the queries, by the triangle inequality): cells farther than it are skipped and
-    /// the search ends once its rings reach it, which makes queries far from the points cheap.
-    /// The result is the same; a bound that proves too small is dropped.
+    /// to be at least the k-th nearest's (knn_bound(): from any k points, such as a nearby
+    /// query's neighbours): cells farther than it are skipped and the search ends once its
+    /// rings reach it, which makes queries far from the points cheap. The result is the same;
+    /// a bound that proves too small is dropped.
     std::size_t knn(const Eigen::Vector3d& q, std::size_t k, std::uint32_t* indices,
                     double* sq_dists,
                     double bound_sq = std::numeric_limits<double>::infinity()) const {
@@ -336,6 +336,18 @@ private:
     bool ok_ = false;
     CellGrid grid_;
 };
+
+/// A bound for CellNeighbours::knn / PointSearch::knn of q with k = count: the largest squared
+/// distance from q to the points pts[indices[0 .. count)] (any k points are at least as far as
+/// the k-th nearest), computed as the searches compute distances; +inf when count is 0.
+inline double knn_bound(const std::vector<Eigen::Vector3d>& pts, const std::uint32_t* indices,
+                        std::size_t count, const Eigen::Vector3d& q) {
+    if (count == 0) return std::numeric_limits<double>::infinity();
+    double bound = 0.0;
+    for (std::size_t j = 0; j < count; ++j)
+        bound = std::max(bound, (pts[indices[j]] - q).squaredNorm());
+    return bound;
+}
 
 /// Exact k nearest neighbours that always answers, for dense clouds queried a few hundred
 /// thousand times (mesh vertices, surface samples): a fine cell grid (cells of twice the

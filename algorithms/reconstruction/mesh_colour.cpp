@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 
 #include "algorithms/internal/spatial_order.hpp"
 
@@ -75,7 +74,6 @@ void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o
     // the largest distance from this vertex to the previous one's neighbours bounds its own
     // k-th nearest distance (any k points do), which keeps the searches of vertices far from
     // every point (a closure's) to a few cells. The neighbours, so the colours, are the same.
-    constexpr double kInf = std::numeric_limits<double>::infinity();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vertices.size(), 1024),
                       [&](const tbb::blocked_range<std::size_t>& r) {
                           std::vector<std::uint32_t> nn(k), last_all(k);
@@ -89,8 +87,8 @@ void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o
                               if (separate) {
                                   std::uint32_t i;
                                   double d2;
-                                  const double bound =
-                                      have_orig ? (s.orig_xyz[last_orig] - q).squaredNorm() : kInf;
+                                  const double bound = rgbd::internal::knn_bound(
+                                      s.orig_xyz, &last_orig, have_orig ? 1 : 0, q);
                                   have_orig = orig_tree->knn(q, 1, &i, &d2, bound) == 1;
                                   last_orig = i;
                                   if (have_orig && std::sqrt(d2) <= near) {
@@ -99,12 +97,8 @@ void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o
                                   }
                               }
                               const bool all = tree == &all_tree;
-                              double bound = kInf;
-                              if (all && have_all) {
-                                  bound = 0.0;
-                                  for (const std::uint32_t j : last_all)
-                                      bound = std::max(bound, (s.all_xyz[j] - q).squaredNorm());
-                              }
+                              const double bound = rgbd::internal::knn_bound(
+                                  s.all_xyz, last_all.data(), all && have_all ? k : 0, q);
                               const std::size_t found =
                                   tree->knn(q, k, nn.data(), sq.data(), bound);
                               have_all = all && found == k;
