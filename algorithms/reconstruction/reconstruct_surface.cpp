@@ -471,6 +471,42 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["front_time_s"] = af_watch.seconds();
 }
 
+/// The surface through the oriented points by options.method: Screened Poisson ("poisson",
+/// average_spacing), the filtered advancing front ("front", on points of spacing used_spacing;
+/// its steps reported in `steps`) or CGAL's plain advancing front.
+void surface_from_points(const std::vector<Pwn>& pwn, double average_spacing, double used_spacing,
+                         const ReconstructionOptions& options, Mesh& mesh, Report& steps) {
+    if (options.method == "poisson") {
+        poisson(pwn, average_spacing, options, mesh);
+        return;
+    }
+    std::vector<Eigen::Vector3d> xyz, normals;
+    xyz.reserve(pwn.size());
+    normals.reserve(pwn.size());
+    for (const Pwn& p : pwn) {
+        xyz.push_back(to_eigen(p.first));
+        normals.push_back(to_eigen(p.second));
+    }
+    if (options.method == "front")
+        front(std::move(xyz), std::move(normals), used_spacing, options, mesh, steps);
+    else
+        advancing_front(xyz, normals, nullptr, options, mesh);
+}
+
+/// The space the sensors saw empty (holes::FreeSpace) from the cloud's measured points (not
+/// the fill's synthetic ones), for the watertight closure's carving.
+holes::FreeSpace measured_free_space(const PointCloud& cloud,
+                                     const std::vector<holes::SensorView>& sensors,
+                                     double spacing) {
+    std::vector<Eigen::Vector3d> measured;
+    const auto synthetic = cloud.flag(prop::kSynthetic);
+    for (auto idx : cloud.points)
+        if (!synthetic || !(*synthetic)[idx]) measured.push_back(to_eigen(cloud.points.point(idx)));
+    holes::FreeSpaceOptions evidence;
+    evidence.background_window = 3;
+    return holes::FreeSpace(measured, sensors, spacing, evidence);
+}
+
 }  // namespace
 
 Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& options,
@@ -532,33 +568,11 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     std::optional<holes::FreeSpace> free;
     tbb::task_group evidence_task;
     if (options.watertight && !options.sensors.empty())
-        evidence_task.run([&] {
-            std::vector<Eigen::Vector3d> measured;
-            const auto synthetic = cloud.flag(prop::kSynthetic);
-            for (auto idx : cloud.points)
-                if (!synthetic || !(*synthetic)[idx])
-                    measured.push_back(to_eigen(cloud.points.point(idx)));
-            holes::FreeSpaceOptions evidence;
-            evidence.background_window = 3;
-            free.emplace(measured, options.sensors, spacing, evidence);
-        });
+        evidence_task.run(
+            [&] { free.emplace(measured_free_space(cloud, options.sensors, spacing)); });
     double mesh_time = 0.0;
     try {
-        if (options.method == "poisson") {
-            poisson(pwn, average_spacing, options, mesh);
-        } else {
-            std::vector<Eigen::Vector3d> xyz, normals;
-            xyz.reserve(pwn.size());
-            normals.reserve(pwn.size());
-            for (const Pwn& p : pwn) {
-                xyz.push_back(to_eigen(p.first));
-                normals.push_back(to_eigen(p.second));
-            }
-            if (options.method == "front")
-                front(std::move(xyz), std::move(normals), used_spacing, options, mesh, steps);
-            else
-                advancing_front(xyz, normals, nullptr, options, mesh);
-        }
+        surface_from_points(pwn, average_spacing, used_spacing, options, mesh, steps);
         if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
 
         PMP::remove_isolated_vertices(mesh);
