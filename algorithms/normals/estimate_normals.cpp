@@ -192,6 +192,54 @@ __attribute__((target("avx2"))) void rank_select_avx2(const double* d, const std
         if (rank < found) nn[rank] = static_cast<std::uint32_t>(w[i]);
     }
 }
+
+/// How many of d[0, m) (padded to a multiple of 4 with +inf) are <= t.
+__attribute__((target("avx2,popcnt"))) std::size_t count_at_most_avx2(const double* d,
+                                                                      std::size_t m, double t) {
+    const __m256d tt = _mm256_set1_pd(t);
+    std::size_t count = 0;
+    for (std::size_t j = 0; j < m; j += 4)
+        count += std::size_t(__builtin_popcount(
+            _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(d + j), tt, _CMP_LE_OQ))));
+    return count;
+}
+
+/// Keeps in place, in order, the pairs (d[j], w[j]) of j < m that can be among the `found`
+/// smallest: those with d[j] <= t for a bound t that at least `found` of them meet (the
+/// found-th smallest distance is then <= t, so every pair beyond t ranks after the found
+/// smallest, and ranks among the kept pairs equal the ranks among all). t by a few bisection
+/// steps between the smallest and the largest distance, each a vector count; the exact ranks
+/// then cost (kept / m)^2 of ranking the whole window. Returns the count kept, padded with +inf
+/// to a multiple of 4.
+std::size_t keep_candidates_avx2(double* d, std::int64_t* w, std::size_t m, std::size_t found) {
+    double lo = d[0], hi = d[0];
+    for (std::size_t j = 1; j < m; ++j) {
+        lo = std::min(lo, d[j]);
+        hi = std::max(hi, d[j]);
+    }
+    // Stop once the bound keeps at most an eighth more than needed.
+    const std::size_t enough = found + found / 8 + 1;
+    for (int step = 0; step < 6; ++step) {
+        const double mid = lo + 0.5 * (hi - lo);
+        const std::size_t count = count_at_most_avx2(d, m, mid);
+        if (count >= found) {
+            hi = mid;
+            if (count <= enough) break;
+        } else {
+            lo = mid;
+        }
+    }
+    std::size_t kept = 0;
+    for (std::size_t j = 0; j < m; ++j)
+        if (d[j] <= hi) {
+            d[kept] = d[j];
+            w[kept] = w[j];
+            ++kept;
+        }
+    const std::size_t padded = (kept + 3) / 4 * 4;
+    for (std::size_t j = kept; j < padded; ++j) d[j] = std::numeric_limits<double>::infinity();
+    return kept;
+}
 #endif
 
 /// The min(k, window.size()) points of `window` nearest to q, nearest first, ties by index:
@@ -219,7 +267,9 @@ std::size_t nearest_in_window(const std::vector<Eigen::Vector3d>& xyz,
             dist[j] = (xyz[window[j]] - q).squaredNorm();
             index[j] = window[j];
         }
-        rank_select_avx2(dist.data(), index.data(), m, found, nn.data());
+        const std::size_t kept =
+            found < m ? keep_candidates_avx2(dist.data(), index.data(), m, found) : m;
+        rank_select_avx2(dist.data(), index.data(), kept, found, nn.data());
         return found;
     }
 #endif

@@ -204,7 +204,10 @@ TEST(EstimateNormals, OrganisedViewsTakeNeighboursFromThePixelWindow) {
 
 /// A point per pixel on a wavy surface whose depth (a function of the row) is quantised to 1 mm:
 /// a pixel's left and right neighbours lie at exactly the same squared distance.
-PointCloud quantised_view() {
+/// An 80 x 60 sensor-frame view of a curved surface with depths quantised to 1 mm. `dyadic`:
+/// every coordinate a multiple of 1/64 instead, so squared distances are exact and many equal,
+/// and the window's distance bounds fall exactly on them.
+PointCloud quantised_view(bool dyadic = false) {
     PointCloud cloud;
     cloud.view.frame = rgbd::ViewFrame::kSensor;
     cloud.view.grid_width = 80;
@@ -215,14 +218,23 @@ PointCloud quantised_view() {
             const double x = (col - 39.5) / 75.0, y = (row - 29.5) / 75.0;
             const double z =
                 std::round(1000.0 * (1.0 + 0.02 * std::sin(8.0 * y) + 0.1 * y * y)) / 1000.0;
-            const auto idx = *cloud.points.insert(rgbd::to_point(Eigen::Vector3d(x * z, y * z, z)));
+            const Eigen::Vector3d p =
+                dyadic
+                    ? Eigen::Vector3d(
+                          (col - 40) / 64.0, (row - 30) / 64.0,
+                          std::round(64.0 * (1.0 + 0.25 * std::sin(5.0 * y) + 0.2 * x * x)) / 64.0)
+                    : Eigen::Vector3d(x * z, y * z, z);
+            const auto idx = *cloud.points.insert(rgbd::to_point(p));
             pixel[idx] = static_cast<std::uint32_t>(row * 80 + col);
         }
     return cloud;
 }
 
-TEST(EstimateNormals, PixelWindowTakesTheKNearestWithTiesByIndex) {
-    PointCloud cloud = quantised_view();
+/// Every pixel's normal is the PCA normal of the k points of its window nearest to it, ties by
+/// index (the reference sorts the whole window).
+void expect_window_neighbours(bool dyadic) {
+    SCOPED_TRACE(dyadic ? "dyadic coordinates" : "1 mm depths");
+    PointCloud cloud = quantised_view(dyadic);
     std::vector<Eigen::Vector3d> xyz;
     for (auto idx : cloud.points) xyz.push_back(rgbd::to_eigen(cloud.points.point(idx)));
     const NormalOptions options;
@@ -261,6 +273,11 @@ TEST(EstimateNormals, PixelWindowTakesTheKNearestWithTiesByIndex) {
     }
     // The k-th and (k+1)-th nearest at the same distance: only the index decides between them.
     EXPECT_GT(ties_at_k, 100u);
+}
+
+TEST(EstimateNormals, PixelWindowTakesTheKNearestWithTiesByIndex) {
+    expect_window_neighbours(false);
+    expect_window_neighbours(true);
 }
 
 TEST(EstimateNormals, BadInput) {
