@@ -28,12 +28,29 @@ struct Camera {
     bool undistorted = true;  ///< no lens distortion: project() is the plain pinhole
     PinholeIntrinsics intrinsics;
     double focal = 0.0;
+    double inv_focal = 0.0;                            ///< 1 / focal
+    double focal_sq = 0.0;                             ///< focal^2
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< the camera's centre in the world frame
     bool active = false;  ///< the view has points (an empty view sees nothing)
     /// Depth map over the bounding box [x0, x0 + bw) x [y0, y0 + bh) of the view's returns,
     /// row-major; every pixel outside it, like a pixel without a return inside, is +inf. The
     /// object fills a small part of the image: a few hundred kB instead of width * height.
     int x0 = 0, y0 = 0, bw = 0, bh = 0;
     std::vector<float> depth;
+
+    /// Sets the pose and intrinsics and what the hot loop derives from them (the depth map is
+    /// the caller's); focal is the mean of fx and fy.
+    void set(const Pose& world_from_sensor, const PinholeIntrinsics& k) {
+        sensor_from_world = world_from_sensor.inverse();
+        rotation = sensor_from_world.linear();
+        translation = sensor_from_world.translation();
+        centre = world_from_sensor.translation();
+        intrinsics = k;
+        undistorted = k.distortion.is_none();
+        focal = 0.5 * (k.fx + k.fy);
+        inv_focal = 1.0 / focal;
+        focal_sq = focal * focal;
+    }
 };
 
 /// What camera c contributes to the expected density at world point p with unit normal `nrm`:
@@ -49,15 +66,18 @@ struct Camera {
                                                                    double tan_max) {
     const Eigen::Vector3d q = c.rotation * p + c.translation;
     if (q.z() <= 0.0) return std::nullopt;
+    // Divisions are this loop's slowest instructions: one reciprocal of the depth serves the
+    // projection and the sample spacing (and the ray's length is one square root).
+    const double iz = 1.0 / q.z();
     const Eigen::Vector2d uv =
-        c.undistorted ? Eigen::Vector2d(c.intrinsics.fx * (q.x() / q.z()) + c.intrinsics.cx,
-                                        c.intrinsics.fy * (q.y() / q.z()) + c.intrinsics.cy)
+        c.undistorted ? Eigen::Vector2d(c.intrinsics.fx * (q.x() * iz) + c.intrinsics.cx,
+                                        c.intrinsics.fy * (q.y() * iz) + c.intrinsics.cy)
                       : c.intrinsics.project(q);
     if (!c.intrinsics.contains(uv)) return std::nullopt;
     // lround() of coordinates > -0.5.
     const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
     // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
-    const double tol = q.z() / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, q.z(), 0.0);
+    const double tol = q.z() * c.inv_focal * tan_max + 3.0 * sigma_z_m(noise_model, q.z(), 0.0);
     // The 3 x 3 window: a missing return is +inf (never NaN), which changes neither the minimum
     // nor the "seen" test; pixels outside the map's box have no return either, so are skipped.
     // The centre pixel first: a return there within tol shows the point (most points, for the
@@ -83,11 +103,10 @@ struct Camera {
     const bool any = nearest < std::numeric_limits<double>::infinity();
     // Occluded: behind v's surface, so v could not have measured it.
     if (any && !seen && q.z() > nearest + tol) return std::nullopt;
-    // Ray from camera v to the point, in the world frame.
-    const Eigen::Vector3d ray = c.rotation.transpose() * q.normalized();
-    const double cos_theta = std::abs(nrm.dot(ray));
-    const double s_d = q.z() / c.focal;
-    return cos_theta / (s_d * s_d);
+    // cos(theta) / s_d^2 with the ray from the camera to the point (world frame), cos(theta) =
+    // |nrm . ray| / |ray|, and the sample spacing s_d = z / focal.
+    const Eigen::Vector3d ray = p - c.centre;
+    return std::abs(nrm.dot(ray)) * (c.focal_sq * iz * iz) / std::sqrt(ray.squaredNorm());
 }
 
 /// Whether camera c surely contributes nothing to every point inside the box [lo, hi] (world

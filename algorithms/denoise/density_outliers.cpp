@@ -165,12 +165,7 @@ std::vector<Camera> view_cameras(const std::vector<PointCloud>& views, const Wor
     for (std::size_t v = 0; v < views.size(); ++v) {
         if (all.gathered[v].xyz.empty()) continue;
         Camera& c = cameras[v];
-        c.intrinsics = *views[v].view.intrinsics;
-        c.sensor_from_world = views[v].view.world_from_sensor->inverse();
-        c.rotation = c.sensor_from_world.linear();
-        c.translation = c.sensor_from_world.translation();
-        c.undistorted = c.intrinsics.distortion.is_none();
-        c.focal = 0.5 * (c.intrinsics.fx + c.intrinsics.fy);
+        c.set(*views[v].view.world_from_sensor, *views[v].view.intrinsics);
         c.active = true;
     }
     tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {

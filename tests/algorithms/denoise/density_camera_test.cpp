@@ -27,11 +27,7 @@ Camera camera(const Eigen::Vector3d& centre, const Eigen::Matrix3d& turn, double
     Pose world_from_sensor = Pose::Identity();
     world_from_sensor.linear() = turn;
     world_from_sensor.translation() = centre;
-    c.sensor_from_world = world_from_sensor.inverse();
-    c.rotation = c.sensor_from_world.linear();
-    c.translation = c.sensor_from_world.translation();
-    c.intrinsics = test::centred_pinhole(kW, kH, 140.0);
-    c.focal = 140.0;
+    c.set(world_from_sensor, test::centred_pinhole(kW, kH, 140.0));
     c.active = true;
     c.x0 = 20, c.y0 = 10, c.bw = 120, c.bh = 100;
     c.depth.assign(std::size_t(c.bw) * c.bh, 0.0f);
@@ -121,6 +117,39 @@ TEST(DensityCamera, UnsureCasesAreNotOccluded) {
     distorted.undistorted = false;
     std::tie(lo, hi) = box(c.intrinsics.unproject(50, 80, 3.0), 0.005);
     EXPECT_FALSE(surely_occluded(distorted, lo, hi, NoiseModel::kKinectV2, tan_max));
+}
+
+TEST(DensityCamera, DensityIsIncidenceCosineOverSampleSpacingSquared) {
+    // A camera turned and moved away from the origin, looking at its own wall: a point on the
+    // wall gets cos(theta) / (z / focal)^2 for any normal, with theta between the normal and
+    // the ray from the camera's centre; a point behind the wall or behind the camera gets none.
+    std::mt19937_64 rng(5);
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    const Eigen::Vector3d centre(0.3, -0.2, 1.1);
+    const Camera c = camera(centre, turn, 2.0, rng);
+    const double tan_max = std::tan(80.0 * M_PI / 180.0);
+    std::size_t checked = 0;
+    for (int i = 0; i < 200; ++i) {
+        // Pixels of the wall away from its hole and its step.
+        const double col = std::uniform_real_distribution<double>(25, 48)(rng);
+        const double row = std::uniform_real_distribution<double>(52, 68)(rng);
+        const Eigen::Vector3d in_camera = c.intrinsics.unproject(col, row, 2.0);
+        const Eigen::Vector3d p = turn * in_camera + centre;
+        std::normal_distribution<double> gauss;
+        const Eigen::Vector3d n = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+        const auto got = camera_density(c, p, n, NoiseModel::kKinectV2, tan_max);
+        ASSERT_TRUE(got.has_value()) << "pixel " << col << ", " << row;
+        const double cos_theta = std::abs(n.dot((p - centre).normalized()));
+        const double s_d = in_camera.z() / 140.0;
+        EXPECT_NEAR(*got, cos_theta / (s_d * s_d), 1e-9 * (1.0 / (s_d * s_d)));
+        const Eigen::Vector3d behind = turn * c.intrinsics.unproject(col, row, 2.5) + centre;
+        EXPECT_FALSE(camera_density(c, behind, n, NoiseModel::kKinectV2, tan_max).has_value());
+        const Eigen::Vector3d at_back = centre - turn * Eigen::Vector3d(0, 0, 1.0);
+        EXPECT_FALSE(camera_density(c, at_back, n, NoiseModel::kKinectV2, tan_max).has_value());
+        ++checked;
+    }
+    EXPECT_EQ(checked, 200u);
 }
 
 }  // namespace
