@@ -1,4 +1,5 @@
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
+#include "algorithms/sampling/voxel_downsample.hpp"
 
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
@@ -334,6 +335,13 @@ TEST(ReconstructSurface, FrontScalesWithTheDownSampledSpacing) {
     EXPECT_GT(mesh.number_of_faces(), 2000u) << report.dump();
     EXPECT_LT(report["border_edges"].get<std::size_t>(), 40u) << report.dump();
     expect_manifold(mesh);
+    // The budget's voxel: the first of the 10% steps from spacing * sqrt(n / max_points) whose
+    // down-sampling fits; the step before it overflows.
+    const double voxel = report["voxel_m"].get<double>();
+    const double first = report["spacing_m"].get<double>() * std::sqrt(40000.0 / 2000.0);
+    EXPECT_LE(rgbd::sampling::voxel_downsample(cloud, voxel).size(), 2000u);
+    ASSERT_GT(voxel, 1.05 * first) << "the test needs a budget that the first step misses";
+    EXPECT_GT(rgbd::sampling::voxel_downsample(cloud, voxel / 1.1).size(), 2000u);
 }
 
 // A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
