@@ -399,30 +399,40 @@ Geometry from_textured_mesh(const TexturedMesh& mesh) {
 Geometry from_views(const std::vector<PointCloud>& views) {
     Geometry g;
     bool colors = !views.empty(), normals = !views.empty();
-    for (const auto& v : views) {
-        colors = colors && v.has_colors();
-        normals = normals && v.points.has_normal_map();
-    }
-    for (const auto& view : views) {
+    // Each view's points go to [offset[v], offset[v + 1]) of the arrays, filled in parallel.
+    std::vector<std::size_t> offset(views.size() + 1, 0);
+    std::vector<Pose> world_from_view(views.size(), Pose::Identity());
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const PointCloud& view = views[v];
+        colors = colors && view.has_colors();
+        normals = normals && view.points.has_normal_map();
+        offset[v + 1] = offset[v] + view.points.size();
         // A view in its sensor frame is moved by its pose; without one (a plain point file)
         // it is drawn as it is, and a sensor view (with intrinsics) counts as a sensor at the
         // origin for the orientation.
-        Pose world_from_view = Pose::Identity();
         if (view.view.frame == ViewFrame::kSensor && view.view.world_from_sensor)
-            world_from_view = *view.view.world_from_sensor;
+            world_from_view[v] = *view.view.world_from_sensor;
         if (view.view.world_from_sensor)
             g.sensors.push_back(*view.view.world_from_sensor);
         else if (view.view.frame == ViewFrame::kSensor && view.view.intrinsics)
             g.sensors.push_back(Pose::Identity());
+    }
+    g.vertices.resize(offset.back());
+    if (colors) g.colors.resize(offset.back());
+    if (normals) g.normals.resize(offset.back());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const PointCloud& view = views[v];
+        const Pose& pose = world_from_view[v];
         std::optional<PointCloud::ColorMaps> cm;
         if (colors) cm = view.colors();
+        std::size_t a = offset[v];
         for (auto i : view.points) {
-            g.vertices.push_back(world_from_view * to_eigen(view.points.point(i)));
-            if (cm) g.colors.push_back(cm->get(i));
-            if (normals)
-                g.normals.push_back(world_from_view.linear() * to_eigen(view.points.normal(i)));
+            g.vertices[a] = pose * to_eigen(view.points.point(i));
+            if (cm) g.colors[a] = cm->get(i);
+            if (normals) g.normals[a] = pose.linear() * to_eigen(view.points.normal(i));
+            ++a;
         }
-    }
+    });
     return g;
 }
 

@@ -283,6 +283,60 @@ TEST(Picture, SameResultForAnyThreadCount) {
     EXPECT_EQ(cv::norm(a.image, b.image, cv::NORM_INF), 0.0);
 }
 
+// from_views: every live point of every view in view order, moved by its view's pose when the
+// view is in its sensor frame, with its colour and rotated normal; the sensors of posed views.
+TEST(Picture, FromViewsPlacesEveryLivePointInViewOrder) {
+    std::vector<PointCloud> views(3);
+    std::vector<Eigen::Vector3d> expected_points, expected_normals;
+    std::vector<Rgb> expected_colours;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        PointCloud& view = views[v];
+        Pose world_from_sensor = Pose::Identity();
+        world_from_sensor.linear() =
+            Eigen::AngleAxisd(0.3 * double(v + 1), Eigen::Vector3d::UnitY()).toRotationMatrix();
+        world_from_sensor.translation() = Eigen::Vector3d(0.1 * double(v), 0.2, -0.3);
+        view.view.world_from_sensor = world_from_sensor;
+        // View 1 is already in the world frame: drawn as it is.
+        view.view.frame = v == 1 ? ViewFrame::kWorld : ViewFrame::kSensor;
+        view.points.add_normal_map();
+        auto colours = view.add_colors();
+        for (int i = 0; i < 1000 + 300 * int(v); ++i) {
+            const Eigen::Vector3d p(0.001 * i, std::sin(0.01 * i), 1.0 + 0.1 * double(v));
+            const Eigen::Vector3d n = Eigen::Vector3d(1.0, 0.5 * double(v), 0.2 * i).normalized();
+            const Rgb c{std::uint8_t(i % 256), std::uint8_t(v * 40), std::uint8_t(i / 256)};
+            const auto idx = *view.points.insert(to_point(p), to_vector(n));
+            colours.set(idx, c);
+            if (i % 7 == 3) {
+                view.points.remove(idx);  // removed points are not drawn
+                continue;
+            }
+            const Pose& pose = v == 1 ? Pose::Identity() : world_from_sensor;
+            expected_points.push_back(pose * p);
+            expected_normals.push_back(pose.linear() * n);
+            expected_colours.push_back(c);
+        }
+    }
+    const Geometry g = from_views(views);
+    ASSERT_EQ(g.vertices.size(), expected_points.size());
+    ASSERT_EQ(g.normals.size(), expected_points.size());
+    ASSERT_EQ(g.colors.size(), expected_points.size());
+    for (std::size_t a = 0; a < expected_points.size(); ++a) {
+        ASSERT_LT((g.vertices[a] - expected_points[a]).norm(), 1e-12) << "point " << a;
+        ASSERT_LT((g.normals[a] - expected_normals[a]).norm(), 1e-6) << "point " << a;
+        ASSERT_EQ(g.colors[a].r, expected_colours[a].r) << "point " << a;
+        ASSERT_EQ(g.colors[a].g, expected_colours[a].g) << "point " << a;
+        ASSERT_EQ(g.colors[a].b, expected_colours[a].b) << "point " << a;
+    }
+    EXPECT_EQ(g.sensors.size(), 3u);
+    // A view without colours: no colours at all.
+    views.push_back(PointCloud());
+    views.back().points.add_normal_map();
+    views.back().points.insert(to_point(Eigen::Vector3d(0, 0, 1)),
+                               to_vector(Eigen::Vector3d(0, 0, 1)));
+    EXPECT_TRUE(from_views(views).colors.empty());
+    EXPECT_EQ(from_views(views).vertices.size(), expected_points.size() + 1);
+}
+
 TEST(Picture, RejectsBadInput) {
     const Geometry sphere = sphere_geometry(1);
     const Camera cam = fit_camera(sphere.vertices, Orientation{}, front_view());
