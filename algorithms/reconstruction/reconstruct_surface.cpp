@@ -11,7 +11,7 @@
 #include <CGAL/compute_average_spacing.h>
 #include <CGAL/property_map.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 
 #include <algorithm>
@@ -34,6 +34,7 @@
 #include "algorithms/reconstruction/closure_carving.hpp"
 #include "algorithms/reconstruction/mesh_colour.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
+#include "algorithms/reconstruction/point_budget.hpp"
 #include "algorithms/reconstruction/smooth_points.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
@@ -169,68 +170,6 @@ using Pwn = std::pair<Point_3, Vector_3>;
 using PointOf = CGAL::First_of_pair_property_map<Pwn>;
 
 std::string view_name(const PointCloud& cloud) { return "view " + std::to_string(cloud.view.id); }
-
-/// Whether more than `limit` voxels of edge `voxel` on the grid of sampling::voxel_downsample
-/// (anchored at the minimum corner `lo`) hold a point: whether its output would have more than
-/// `limit` points, from the coordinates alone. The keys are computed in parallel, then the
-/// distinct ones go into an open-addressing set of about 4 * limit slots, and the scan stops at
-/// the (limit + 1)-th: where sorting every point's key took a quarter of a second at every try.
-bool more_voxels_than(const std::vector<Eigen::Vector3d>& xyz, const Eigen::Vector3d& lo,
-                      double voxel, std::size_t limit) {
-    std::vector<std::uint64_t> keys(xyz.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, xyz.size(), 16384),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                              const Eigen::Vector3d c = ((xyz[i] - lo) / voxel).array().floor();
-                              keys[i] = (static_cast<std::uint64_t>(c.x()) & 0x1FFFFF) |
-                                        ((static_cast<std::uint64_t>(c.y()) & 0x1FFFFF) << 21) |
-                                        ((static_cast<std::uint64_t>(c.z()) & 0x1FFFFF) << 42);
-                          }
-                      });
-    std::size_t slots = 64;
-    while (slots < 4 * (limit + 1)) slots *= 2;
-    const std::size_t mask = slots - 1;
-    // Key + 1 in a slot; 0 marks an empty one.
-    std::vector<std::uint64_t> set(slots, 0);
-    std::size_t distinct = 0;
-    // Consecutive points (a depth image's row) mostly share a voxel: the set is not probed again.
-    std::uint64_t previous = ~std::uint64_t(0);
-    for (const std::uint64_t key : keys) {
-        if (key == previous) continue;
-        previous = key;
-        // Fibonacci hashing of the key into the table's slots, then linear probing.
-        std::size_t slot = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask;
-        while (set[slot] != 0 && set[slot] != key + 1) slot = (slot + 1) & mask;
-        if (set[slot] == 0) {
-            set[slot] = key + 1;
-            if (++distinct > limit) return true;
-        }
-    }
-    return false;
-}
-
-/// Voxel-downsamples until at most max_points remain (voxel grows from ŝ sqrt(n / max) by 10%
-/// steps). The voxel is chosen by counting occupied voxels on the bare coordinates; only the
-/// chosen one down-samples the cloud with all its properties.
-PointCloud bounded(const PointCloud& cloud, std::size_t max_points, double spacing, double& voxel) {
-    voxel = 0.0;
-    if (max_points == 0 || cloud.size() <= max_points) return cloud;
-    std::vector<Eigen::Vector3d> xyz;
-    xyz.reserve(cloud.size());
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-    for (auto idx : cloud.points) {
-        xyz.push_back(to_eigen(cloud.points.point(idx)));
-        lo = lo.cwiseMin(xyz.back());
-    }
-    voxel = spacing * std::sqrt(static_cast<double>(cloud.size()) / max_points);
-    for (int attempt = 0; attempt < 60; ++attempt, voxel *= 1.1) {
-        if (more_voxels_than(xyz, lo, voxel, max_points)) continue;
-        PointCloud down = sampling::voxel_downsample(cloud, voxel);
-        if (down.size() <= max_points) return down;
-    }
-    throw AlgorithmError("reconstruction: " + view_name(cloud) +
-                         ": cannot down-sample to the point budget");
-}
 
 /// CGAL's default random generator is seeded from the clock (CGAL::Random(), whole seconds).
 /// The surface mesher draws its initial points from it, and the Delaunay hole triangulation
@@ -531,6 +470,83 @@ holes::FreeSpace measured_free_space(const PointCloud& cloud,
     return holes::FreeSpace(measured, sensors, spacing, evidence);
 }
 
+/// Waits for task groups when leaving a scope (an exception on this thread: the tasks still
+/// reference its locals); their own exceptions are then dropped for the one in flight.
+struct WaitAtExit {
+    std::vector<tbb::task_group*> groups;
+    ~WaitAtExit() {
+        for (tbb::task_group* g : groups) try {
+                g->wait();
+            } catch (...) {
+            }
+    }
+};
+
+/// The oriented points the surface goes through: the cloud within the point budget
+/// (bounded()), their spacing, the points with a direction, and CGAL's average spacing (6
+/// neighbours), which Screened Poisson takes.
+struct SurfaceInput {
+    double voxel = 0.0;  ///< the budget's voxel; 0 when the cloud fits
+    double used_spacing = 0.0;
+    double average_spacing = 0.0;
+    std::vector<Pwn> pwn;
+};
+
+SurfaceInput surface_input(const PointCloud& cloud, const ReconstructionOptions& options,
+                           double spacing, const Progress& progress) {
+    SurfaceInput in;
+    const PointCloud used = internal::bounded(cloud, options.max_points, spacing, in.voxel);
+    // The front works on the down-sampled points: its radii scale with their spacing (a dense
+    // turn of 50 overlapping frames has ŝ 0.6 mm, its 60000-point voxel grid 5 mm).
+    in.used_spacing =
+        in.voxel > 0 ? std::max(spacing, sampling::robust_spacing(used.points)) : spacing;
+    in.pwn.reserve(used.size());
+    for (auto idx : used.points) {
+        const Eigen::Vector3d n = to_eigen(used.points.normal(idx));
+        if (n.squaredNorm() < 1e-24) continue;  // no direction: useless to Poisson
+        in.pwn.emplace_back(used.points.point(idx), to_vector(n.normalized()));
+    }
+    RGBD_CHECK(in.pwn.size() >= 100, "reconstruction: " + view_name(cloud) +
+                                         " has fewer than 100 points with a non-zero normal");
+    if (!report_progress(progress, 0.05)) throw AlgorithmError("reconstruction: cancelled");
+    in.average_spacing = CGAL::compute_average_spacing<CGAL::Parallel_if_available_tag>(
+        in.pwn, 6, CGAL::parameters::point_map(PointOf()));
+    return in;
+}
+
+/// The surface's clean-up before the closure: isolated vertices and small components dropped,
+/// then (options.clean, not for Poisson) folds and spikes removed.
+void clean_surface(Mesh& mesh, const ReconstructionOptions& options, const std::string& name,
+                   Report& steps) {
+    PMP::remove_isolated_vertices(mesh);
+    mesh.collect_garbage();
+    RGBD_CHECK_AS(AlgorithmError, mesh.number_of_faces() > 0,
+                  "reconstruction: " + name + ": " + options.method + " produced no triangles");
+    steps["components_dropped"] =
+        internal::drop_small_components(mesh, options.min_component_fraction);
+    if (options.clean && options.method != "poisson")
+        steps["folds"] =
+            internal::remove_folds_and_spikes(mesh, options.fold_angle_deg, options.spike_angle_deg,
+                                              3, options.min_component_fraction);
+}
+
+/// The watertight closure (internal::close_holes), checked against the free space when there
+/// is some; the faces it adds go to `added`.
+Report close_surface(Mesh& mesh, const ReconstructionOptions& options,
+                     const std::optional<holes::FreeSpace>& free,
+                     std::vector<Mesh::Face_index>& added) {
+    internal::SeenEmpty seen_empty;
+    if (free) {
+        seen_empty = [&free, votes = options.carve_votes](const Eigen::Vector3d& p,
+                                                          const Eigen::Vector3d& n) {
+            return free->count_seen_empty(p, n) >= votes;
+        };
+    }
+    return internal::close_holes(mesh, options.up, options.fair_max_edges, &added, options.ground,
+                                 options.ground_margin_m, seen_empty, options.seen_through_max,
+                                 options.carve_steps);
+}
+
 }  // namespace
 
 Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& options,
@@ -553,30 +569,17 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     const double spacing = sampling::robust_spacing(cloud.points);
     RGBD_CHECK(spacing > 0, "reconstruction: " + view_name(cloud) + " has zero point spacing");
 
-    double voxel = 0.0;
-    const PointCloud used = bounded(cloud, options.max_points, spacing, voxel);
-    // The front works on the down-sampled points: its radii scale with their spacing (a dense
-    // turn of 50 overlapping frames has ŝ 0.6 mm, its 60000-point voxel grid 5 mm).
-    const double used_spacing =
-        voxel > 0 ? std::max(spacing, sampling::robust_spacing(used.points)) : spacing;
-    std::vector<Pwn> pwn;
-    pwn.reserve(used.size());
-    for (auto idx : used.points) {
-        const Eigen::Vector3d n = to_eigen(used.points.normal(idx));
-        if (n.squaredNorm() < 1e-24) continue;  // no direction: useless to Poisson
-        pwn.emplace_back(used.points.point(idx), to_vector(n.normalized()));
-    }
-    RGBD_CHECK(pwn.size() >= 100, "reconstruction: " + view_name(cloud) +
-                                      " has fewer than 100 points with a non-zero normal");
-    if (!report_progress(progress, 0.05)) throw AlgorithmError("reconstruction: cancelled");
-
-    const double average_spacing = CGAL::compute_average_spacing<CGAL::Parallel_if_available_tag>(
-        pwn, 6, CGAL::parameters::point_map(PointOf()));
-    Mesh mesh;
-    Report steps = Report::object();
-    // The colour sources do not depend on the mesh: prepared in a task beside the surface (the
-    // advancing front is a sequential step), which stays on this thread (its CGAL random
-    // generator is this thread's, seeded above).
+    // Work that does not depend on the mesh runs in tasks beside it, started now so that it
+    // fills the gaps of the steps before the advancing front too (the front is a sequential
+    // step, and it stays on this thread: its CGAL random generator is this thread's, seeded
+    // above). The space the sensors saw empty, from the measured input points, for the
+    // watertight closure (unused when the front closes the surface by itself); the colour
+    // sources.
+    std::optional<holes::FreeSpace> free;
+    tbb::task_group evidence_task;
+    if (options.watertight && !options.sensors.empty())
+        evidence_task.run(
+            [&] { free.emplace(measured_free_space(cloud, options.sensors, spacing)); });
     internal::ColourSources colour_sources;
     bool colored = false;
     double colour_prepare_time = 0.0;
@@ -586,60 +589,38 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         colored = internal::prepare_colours(cloud, colour_sources);
         colour_prepare_time = prepare_watch.seconds();
     });
-    // The space the sensors saw empty, from the measured input points, for the watertight
-    // closure: it does not depend on the mesh either, so its maps are built beside the front
-    // too (when the front closes the surface by itself, they are not used).
-    std::optional<holes::FreeSpace> free;
-    tbb::task_group evidence_task;
-    if (options.watertight && !options.sensors.empty())
-        evidence_task.run(
-            [&] { free.emplace(measured_free_space(cloud, options.sensors, spacing)); });
-    double mesh_time = 0.0;
-    try {
-        surface_from_points(pwn, average_spacing, used_spacing, options, mesh, steps);
+    const WaitAtExit wait_at_exit{{&evidence_task, &colour_task}};
+    // This thread's steps are isolated from the tasks: waiting inside a parallel loop, it does
+    // not pick up a task and leave the front waiting for it. The tasks are waited for outside
+    // the isolation (with one thread, only this one can run them).
+    SurfaceInput in;
+    Mesh mesh;
+    Report steps = Report::object();
+    tbb::this_task_arena::isolate([&] {
+        in = surface_input(cloud, options, spacing, progress);
+        surface_from_points(in.pwn, in.average_spacing, in.used_spacing, options, mesh, steps);
         if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
-
-        PMP::remove_isolated_vertices(mesh);
-        mesh.collect_garbage();
-        RGBD_CHECK_AS(AlgorithmError, mesh.number_of_faces() > 0,
-                      "reconstruction: " + view_name(cloud) + ": " + options.method +
-                          " produced no triangles");
-        steps["components_dropped"] =
-            internal::drop_small_components(mesh, options.min_component_fraction);
-        const bool clean = options.clean && options.method != "poisson";
-        if (clean)
-            steps["folds"] = internal::remove_folds_and_spikes(mesh, options.fold_angle_deg,
-                                                               options.spike_angle_deg, 3,
-                                                               options.min_component_fraction);
-        std::vector<Mesh::Face_index> added;
-        if (options.watertight && !CGAL::is_closed(mesh)) {
-            evidence_task.wait();  // the free-space maps, built beside the front
-            internal::SeenEmpty seen_empty;
-            if (free) {
-                seen_empty = [&free, votes = options.carve_votes](const Eigen::Vector3d& p,
-                                                                  const Eigen::Vector3d& n) {
-                    return free->count_seen_empty(p, n) >= votes;
-                };
-            }
-            steps["holes"] = internal::close_holes(
-                mesh, options.up, options.fair_max_edges, &added, options.ground,
-                options.ground_margin_m, seen_empty, options.seen_through_max, options.carve_steps);
-        } else {
-            // Closed components the front closed by itself (or every component when the
-            // closure is not asked for) face outward too: close_holes orients what it closed.
-            steps["components_reversed"] = internal::orient_outward(mesh);
-        }
-        if (clean) steps["regularize"] = internal::regularize_faces(mesh, added);
+        clean_surface(mesh, options, view_name(cloud), steps);
+    });
+    std::vector<Mesh::Face_index> added;
+    if (options.watertight && !CGAL::is_closed(mesh)) {
+        evidence_task.wait();  // the free-space maps, built beside the front
+        tbb::this_task_arena::isolate(
+            [&] { steps["holes"] = close_surface(mesh, options, free, added); });
+    } else {
+        // Closed components the front closed by itself (or every component when the closure
+        // is not asked for) face outward too: close_holes orients what it closed.
+        steps["components_reversed"] = internal::orient_outward(mesh);
+    }
+    tbb::this_task_arena::isolate([&] {
+        if (options.clean && options.method != "poisson")
+            steps["regularize"] = internal::regularize_faces(mesh, added);
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
         if (options.target_faces > 0)
             steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);
         if (!report_progress(progress, 0.9)) throw AlgorithmError("reconstruction: cancelled");
-        mesh_time = watch.seconds();
-    } catch (...) {
-        colour_task.wait();
-        evidence_task.wait();
-        throw;
-    }
+    });
+    const double mesh_time = watch.seconds();
     colour_task.wait();
     evidence_task.wait();
     Stopwatch color_watch;
@@ -650,11 +631,11 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         Report& r = *report;
         r["method"] = options.method;
         r["points_in"] = cloud.size();
-        r["points_used"] = pwn.size();
-        r["voxel_m"] = voxel;
+        r["points_used"] = in.pwn.size();
+        r["voxel_m"] = in.voxel;
         r["spacing_m"] = spacing;
-        r["used_spacing_m"] = used_spacing;
-        r["average_spacing_m"] = average_spacing;
+        r["used_spacing_m"] = in.used_spacing;
+        r["average_spacing_m"] = in.average_spacing;
         r["vertices"] = mesh.number_of_vertices();
         r["faces"] = mesh.number_of_faces();
         std::size_t border_edges = 0;
