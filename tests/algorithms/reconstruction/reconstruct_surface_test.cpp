@@ -1,5 +1,4 @@
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
-#include "algorithms/sampling/voxel_downsample.hpp"
 
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
@@ -11,6 +10,7 @@
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 #include <malloc.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <array>
@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "algorithms/reconstruction/mesh_finishing.hpp"
+#include "algorithms/sampling/voxel_downsample.hpp"
 #include "sphere_cloud.hpp"
 #include "toolkit/error.hpp"
 
@@ -342,6 +343,36 @@ TEST(ReconstructSurface, FrontScalesWithTheDownSampledSpacing) {
     EXPECT_LE(rgbd::sampling::voxel_downsample(cloud, voxel).size(), 2000u);
     ASSERT_GT(voxel, 1.05 * first) << "the test needs a budget that the first step misses";
     EXPECT_GT(rgbd::sampling::voxel_downsample(cloud, voxel / 1.1).size(), 2000u);
+}
+
+// The closure with sensors: the free-space maps and the colour sources are built in tasks
+// beside the surface. With one thread (the caller runs the tasks itself, after its own steps)
+// the mesh is the one all threads give, and the job does not wait forever.
+TEST(ReconstructSurface, ClosureWithSensorsGivesTheSameMeshOnOneThread) {
+    const PointCloud cloud = rgbd::test::noisy_sphere(8000, kRadius, 0.0002, 0.8);
+    ReconstructionOptions o;
+    o.watertight = true;
+    for (int s = 0; s < 4; ++s) {  // four sensors around the sphere, at its height, looking in
+        const double a = s * M_PI / 2.0;
+        const Eigen::Vector3d centre(0.6 * std::cos(a), 0.6 * std::sin(a), 0.0);
+        const Eigen::Vector3d z = -centre.normalized(), y(0, 0, -1);
+        rgbd::Pose pose = rgbd::Pose::Identity();
+        pose.linear() << y.cross(z), y, z;
+        pose.translation() = centre;
+        o.sensors.push_back({pose, std::nullopt});
+    }
+    rgbd::Report all_report;
+    const Mesh all = rgbd::reconstruction::reconstruct_surface(cloud, o, &all_report);
+    ASSERT_TRUE(CGAL::is_closed(all)) << all_report.dump();
+    Mesh one;
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        one = rgbd::reconstruction::reconstruct_surface(cloud, o);
+    }
+    ASSERT_EQ(one.number_of_vertices(), all.number_of_vertices());
+    ASSERT_EQ(one.number_of_faces(), all.number_of_faces());
+    auto a = all.vertices().begin();
+    for (auto v : one.vertices()) EXPECT_EQ(one.point(v), all.point(*a++));
 }
 
 // A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
