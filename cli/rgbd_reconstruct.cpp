@@ -4,6 +4,9 @@
 // the files and shows progress:
 //   rgbd-cloud | rgbd-clean --distance | rgbd-upsample | rgbd-align | rgbd-clean --density
 //     | rgbd-fill | rgbd-mesh --watertight
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
+
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -225,32 +228,47 @@ void run_reconstruct(cli::Context& ctx) {
     else
         io::write_mesh(mesh_path, mesh, &info);
 
-    // 8. evaluation against ground truth when there is some.
+    // 8. evaluation against ground truth when there is some, in a task beside 9. the report
+    // pictures (the evaluation's distance structures are built on one thread; the pictures are
+    // parallel loops, isolated so that this thread does not pick the evaluation up mid-way).
     std::string reference = ctx.options().count("reference")
                                 ? ctx.get<std::string>("reference")
                                 : (fs::path(root) / "gt" / "mesh.ply").string();
     std::optional<Mesh> reference_mesh;
+    Report evaluation;
+    double evaluation_time = 0.0;
+    tbb::task_group evaluation_task;
+    struct WaitAtExit {  // an exception below: the task still reads this scope's locals
+        tbb::task_group& group;
+        ~WaitAtExit() {
+            try {
+                group.wait();
+            } catch (...) {
+            }
+        }
+    } wait_at_exit{evaluation_task};
     if (fs::exists(reference) || ctx.options().count("reference")) {
-        Stopwatch watch;
+        reference_mesh = io::read_mesh(reference);
         evaluation::MetricOptions metric_options;
         metric_options.taus_m = {0.001, 0.002, 0.005};
         metric_options.seed = ctx.seed();
-        cli::LoadedResult loaded;
-        loaded.mesh = mesh;
-        reference_mesh = io::read_mesh(reference);
-        report["evaluation"]["reference"] = reference;
-        report["evaluation"]["surface"] =
-            cli::evaluate_surface(loaded, *reference_mesh, metric_options);
-        const fs::path gt_poses = fs::path(root) / "gt" / "world_from_depth.json";
-        if (fs::exists(gt_poses))
-            report["evaluation"]["poses"] =
-                cli::evaluate_poses(result.poses, gt_poses.string(), /*remove_gauge=*/true);
-        timings["evaluation"] = watch.seconds();
+        evaluation_task.run([&, metric_options] {
+            Stopwatch watch;
+            cli::LoadedResult loaded;
+            loaded.mesh = mesh;
+            evaluation["reference"] = reference;
+            evaluation["surface"] = cli::evaluate_surface(loaded, *reference_mesh, metric_options);
+            const fs::path gt_poses = fs::path(root) / "gt" / "world_from_depth.json";
+            if (fs::exists(gt_poses))
+                evaluation["poses"] =
+                    cli::evaluate_poses(result.poses, gt_poses.string(), /*remove_gauge=*/true);
+            evaluation_time = watch.seconds();
+        });
     }
 
-    // 9. the report page with pictures.
     Stopwatch watch;
     cli::ReportPage page;
+    std::vector<cli::ReportImage> images;
     {
         auto picture_bar = ctx.progress("pictures");
         cli::PictureInputs pictures;
@@ -259,18 +277,24 @@ void run_reconstruct(cli::Context& ctx) {
         pictures.textured = textured ? &*textured : nullptr;
         pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
         Report picture_info;
-        std::vector<cli::ReportImage> images;
-        cli::render_report_pictures(pictures, images, picture_info);
-        if (!result.removed.empty()) {
-            cli::ReportImage extraction = cli::extraction_picture(result.input, result.removed);
-            if (!extraction.file.empty()) images.push_back(std::move(extraction));
-        }
+        tbb::this_task_arena::isolate([&] {
+            cli::render_report_pictures(pictures, images, picture_info);
+            if (!result.removed.empty()) {
+                cli::ReportImage extraction = cli::extraction_picture(result.input, result.removed);
+                if (!extraction.file.empty()) images.push_back(std::move(extraction));
+            }
+        });
         report["report"] = picture_info;
         timings["pictures"] = watch.seconds();
-        timings["total"] = total.seconds();
-        page = report_page(report);
-        page.images = std::move(images);
     }
+    evaluation_task.wait();
+    if (reference_mesh) {
+        report["evaluation"] = std::move(evaluation);
+        timings["evaluation"] = evaluation_time;
+    }
+    timings["total"] = total.seconds();
+    page = report_page(report);
+    page.images = std::move(images);
     page.metrics = report;
     cli::write_report(report_dir, page);
     ctx.metrics()["reconstruct"] = report;
