@@ -135,22 +135,39 @@ struct CellGrid {
     }
 
     /// Stable LSD radix sort of (value, point) pairs by value, 3 passes of 11 bits; `b` is
-    /// scratch of the same size.
+    /// scratch of the same size. Each pass counts and scatters fixed chunks of `a` in parallel:
+    /// a chunk's pairs of a digit go after those of the chunks before it, so the order is the
+    /// sequential sort's whatever the threads (the chunks depend on the size alone).
     static void radix_sort(std::vector<std::pair<std::uint32_t, std::uint32_t>>& a,
                            std::vector<std::pair<std::uint32_t, std::uint32_t>>& b) {
         constexpr int kBits = 11;
         constexpr std::uint32_t kBuckets = 1u << kBits;
-        std::vector<std::uint32_t> count(kBuckets);
+        const std::size_t n = a.size();
+        const std::size_t chunks = std::clamp<std::size_t>(n / 65536, 1, 16);
+        const auto chunk_begin = [&](std::size_t c) {
+            return n / chunks * c + std::min(c, n % chunks);
+        };
+        std::vector<std::uint32_t> count(chunks * kBuckets);
         for (int shift = 0; shift < 32; shift += kBits) {
-            std::fill(count.begin(), count.end(), 0u);
-            for (const auto& e : a) ++count[(e.first >> shift) & (kBuckets - 1)];
+            tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+                std::uint32_t* own = count.data() + c * kBuckets;
+                std::fill(own, own + kBuckets, 0u);
+                for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i)
+                    ++own[(a[i].first >> shift) & (kBuckets - 1)];
+            });
             std::uint32_t sum = 0;
-            for (auto& c : count) {
-                const std::uint32_t c0 = c;
-                c = sum;
-                sum += c0;
-            }
-            for (const auto& e : a) b[count[(e.first >> shift) & (kBuckets - 1)]++] = e;
+            for (std::uint32_t d = 0; d < kBuckets; ++d)
+                for (std::size_t c = 0; c < chunks; ++c) {
+                    std::uint32_t& slot = count[c * kBuckets + d];
+                    const std::uint32_t here = slot;
+                    slot = sum;
+                    sum += here;
+                }
+            tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+                std::uint32_t* own = count.data() + c * kBuckets;
+                for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i)
+                    b[own[(a[i].first >> shift) & (kBuckets - 1)]++] = a[i];
+            });
             a.swap(b);
         }
     }

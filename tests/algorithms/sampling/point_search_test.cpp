@@ -3,6 +3,7 @@
 // grid, with duplicates and on clouds no grid can hold; robust_spacing (which now searches a
 // cell grid) must equal a brute-force median.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -131,6 +132,32 @@ TEST(PointSearch, ABoundFromAnotherQueryGivesTheSameNeighbours) {
             have = fa == k;
             std::copy(a.begin(), a.begin() + fa, last.begin());
         }
+    }
+}
+
+// The grid's radix sort (chunks counted and scattered in parallel) is the stable sort by value,
+// on sizes that give one chunk, several and an uneven last one, with many equal values, and on
+// one thread as on all.
+TEST(PointSearch, CellGridRadixSortIsTheStableSortByValue) {
+    using Pair = std::pair<std::uint32_t, std::uint32_t>;
+    std::mt19937_64 rng(11);
+    for (const std::size_t n :
+         {std::size_t(0), std::size_t(1000), std::size_t(200000), std::size_t(1234567)}) {
+        std::vector<Pair> a(n);
+        for (std::size_t i = 0; i < n; ++i)
+            a[i] = {std::uint32_t(rng() % (i % 3 == 0 ? 50u : 4000000000u)), std::uint32_t(i)};
+        std::vector<Pair> expected = a;
+        std::stable_sort(expected.begin(), expected.end(),
+                         [](const Pair& x, const Pair& y) { return x.first < y.first; });
+        std::vector<Pair> sorted = a, scratch(n);
+        rgbd::internal::CellGrid::radix_sort(sorted, scratch);
+        EXPECT_TRUE(sorted == expected) << n << " pairs";
+        std::vector<Pair> one = a;
+        {
+            tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+            rgbd::internal::CellGrid::radix_sort(one, scratch);
+        }
+        EXPECT_TRUE(one == expected) << n << " pairs, one thread";
     }
 }
 
