@@ -75,14 +75,37 @@ struct CellGrid {
                     }
                 });
             radix_sort(a, b);
-            for (std::size_t i = 0; i < m; ++i) {
-                point[i] = a[i].second;
-                if (i == 0 || a[i].first != a[i - 1].first) {
-                    const std::uint64_t lin = a[i].first;
-                    keys.push_back(key_of(lin / (my * mz), (lin / mz) % my, lin % mz));
-                    start.push_back(std::uint32_t(i));
+            // The points in cell order, and each cell's key and first point: fixed chunks
+            // count their cells, then write them at their offsets, in parallel.
+            const std::size_t chunks = std::clamp<std::size_t>(m / 65536, 1, 16);
+            const auto chunk_begin = [&](std::size_t c) {
+                return m / chunks * c + std::min(c, m % chunks);
+            };
+            const auto first_of_cell = [&](std::size_t i) {
+                return i == 0 || a[i].first != a[i - 1].first;
+            };
+            std::vector<std::size_t> cells_before(chunks + 1, 0);
+            tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+                std::size_t count = 0;
+                for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+                    point[i] = a[i].second;
+                    count += first_of_cell(i);
                 }
-            }
+                cells_before[c + 1] = count;
+            });
+            for (std::size_t c = 0; c < chunks; ++c) cells_before[c + 1] += cells_before[c];
+            const std::size_t base = keys.size();
+            keys.resize(base + cells_before[chunks]);
+            start.resize(base + cells_before[chunks]);
+            tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+                std::size_t k = base + cells_before[c];
+                for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+                    if (!first_of_cell(i)) continue;
+                    const std::uint64_t lin = a[i].first;
+                    keys[k] = key_of(lin / (my * mz), (lin / mz) % my, lin % mz);
+                    start[k++] = std::uint32_t(i);
+                }
+            });
         } else {
             std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(m);
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 4096),
