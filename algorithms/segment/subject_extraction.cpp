@@ -362,13 +362,16 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     std::vector<detail::ViewGroundFit> fits(views.size());
     std::vector<double> fitted, flatness;
     std::size_t below = 0, above = 0, points = 0;
-    for (std::size_t v = 0; v < views.size(); ++v) {
+    // The views' fits in parallel (each its own seed), gathered in view order.
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
         const Pose& pose = *views[v].view.world_from_sensor;
         const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
                                       plane->d + plane->n.dot(pose.translation())};
         const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
         fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model,
                                             options, options.seed + 2 + v);
+    });
+    for (std::size_t v = 0; v < views.size(); ++v) {
         if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
         if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
         below += fits[v].below, above += fits[v].above, points += fits[v].points;
@@ -486,15 +489,16 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
         }
         std::vector<detail::ViewGroundFit> fits(views.size());
         std::vector<double> flatness;
-        for (std::size_t v = 0; v < views.size(); ++v) {
+        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
             const Pose& pose = *views[v].view.world_from_sensor;
             const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
                                           plane->d + plane->n.dot(pose.translation())};
             const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
             fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(),
                                                 model, o, o.seed + 200 + v);
+        });
+        for (std::size_t v = 0; v < views.size(); ++v)
             if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
-        }
         const double median = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
         wall["flatness_sigmas"] = median;
         wall["flat_views"] = flatness.size();

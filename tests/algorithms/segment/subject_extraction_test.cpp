@@ -5,6 +5,7 @@
 #include "algorithms/segment/subject_extraction.hpp"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <functional>
@@ -194,6 +195,41 @@ TEST(SubjectExtraction, AFloorSeenThroughARoughCalibrationIsStillTheGround) {
     const Counts c = count_labels(before, scene.views);
     EXPECT_GE(static_cast<double>(c.kept_subject) / c.kept, 0.98) << report.dump();
     EXPECT_GE(static_cast<double>(c.kept_subject) / c.subject, 0.95) << report.dump();
+}
+
+// The views' ground and wall fits run in parallel: one thread gives the same report (times
+// aside) and keeps the same points as all of them.
+TEST(SubjectExtraction, OneThreadGivesTheSameResult) {
+    Scene all = make_scene(2.0, 40.0);
+    Scene one = make_scene(2.0, 40.0);
+    Report all_report = segment::extract_subject(all.views, {denoise::NoiseModel::kKinectV2});
+    Report one_report;
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        one_report = segment::extract_subject(one.views, {denoise::NoiseModel::kKinectV2});
+    }
+    const std::function<void(Report&)> drop_times = [&](Report& r) {
+        if (r.is_object()) {
+            for (auto it = r.begin(); it != r.end();)
+                if (it.key().find("time") != std::string::npos)
+                    it = r.erase(it);
+                else
+                    drop_times(*it++);
+        } else if (r.is_array()) {
+            for (auto& x : r) drop_times(x);
+        }
+    };
+    drop_times(all_report);
+    drop_times(one_report);
+    EXPECT_EQ(all_report, one_report) << all_report.dump() << "\n" << one_report.dump();
+    ASSERT_EQ(all.views.size(), one.views.size());
+    for (std::size_t v = 0; v < all.views.size(); ++v) {
+        ASSERT_EQ(all.views[v].size(), one.views[v].size()) << "view " << v;
+        auto a = all.views[v].points.begin();
+        for (auto i : one.views[v].points)
+            ASSERT_EQ(one.views[v].points.point(i), all.views[v].points.point(*a++))
+                << "view " << v;
+    }
 }
 
 // The wall at x = 3 m (flat, nothing behind it, every sensor in front of it) is a wall (step
