@@ -25,6 +25,7 @@
 #include "pipeline/reconstruct.hpp"
 #include "pipeline/texture_views.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/wait_at_exit.hpp"
 
 using namespace rgbd;
 namespace fs = std::filesystem;
@@ -238,15 +239,7 @@ void run_reconstruct(cli::Context& ctx) {
     Report evaluation;
     double evaluation_time = 0.0;
     tbb::task_group evaluation_task;
-    struct WaitAtExit {  // an exception below: the task still reads this scope's locals
-        tbb::task_group& group;
-        ~WaitAtExit() {
-            try {
-                group.wait();
-            } catch (...) {
-            }
-        }
-    } wait_at_exit{evaluation_task};
+    const WaitAtExit wait_at_exit{&evaluation_task};  // the task reads this scope's locals
     if (fs::exists(reference) || ctx.options().count("reference")) {
         reference_mesh = io::read_mesh(reference);
         evaluation::MetricOptions metric_options;

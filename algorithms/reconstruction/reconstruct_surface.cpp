@@ -39,6 +39,7 @@
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/wait_at_exit.hpp"
 
 namespace rgbd::reconstruction::internal {
 
@@ -470,18 +471,6 @@ holes::FreeSpace measured_free_space(const PointCloud& cloud,
     return holes::FreeSpace(measured, sensors, spacing, evidence);
 }
 
-/// Waits for task groups when leaving a scope (an exception on this thread: the tasks still
-/// reference its locals); their own exceptions are then dropped for the one in flight.
-struct WaitAtExit {
-    std::vector<tbb::task_group*> groups;
-    ~WaitAtExit() {
-        for (tbb::task_group* g : groups) try {
-                g->wait();
-            } catch (...) {
-            }
-    }
-};
-
 /// The oriented points the surface goes through: the cloud within the point budget
 /// (bounded()), their spacing, the points with a direction, and CGAL's average spacing (6
 /// neighbours), which Screened Poisson takes.
@@ -589,7 +578,7 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         colored = internal::prepare_colours(cloud, colour_sources);
         colour_prepare_time = prepare_watch.seconds();
     });
-    const WaitAtExit wait_at_exit{{&evidence_task, &colour_task}};
+    const WaitAtExit wait_at_exit{&evidence_task, &colour_task};
     // This thread's steps are isolated from the tasks: waiting inside a parallel loop, it does
     // not pick up a task and leave the front waiting for it. The tasks are waited for outside
     // the isolation (with one thread, only this one can run them).
