@@ -77,10 +77,8 @@ struct CellGrid {
             radix_sort(a, b);
             // The points in cell order, and each cell's key and first point: fixed chunks
             // count their cells, then write them at their offsets, in parallel.
-            const std::size_t chunks = std::clamp<std::size_t>(m / 65536, 1, 16);
-            const auto chunk_begin = [&](std::size_t c) {
-                return m / chunks * c + std::min(c, m % chunks);
-            };
+            const std::size_t chunks = fixed_chunks(m);
+            const auto chunk_begin = [&](std::size_t c) { return chunk_start(m, chunks, c); };
             const auto first_of_cell = [&](std::size_t i) {
                 return i == 0 || a[i].first != a[i - 1].first;
             };
@@ -157,6 +155,16 @@ struct CellGrid {
         return {std::int64_t(c.x()) + 2, std::int64_t(c.y()) + 2, std::int64_t(c.z()) + 2};
     }
 
+    /// How many chunks build() and radix_sort() split n items into for their parallel passes:
+    /// one per 65536 items, 1 to 16, from n alone (so the results do not depend on the threads).
+    static std::size_t fixed_chunks(std::size_t n) {
+        return std::clamp<std::size_t>(n / 65536, 1, 16);
+    }
+    /// Where chunk c of `chunks` nearly equal chunks of n items starts (c = chunks: n).
+    static std::size_t chunk_start(std::size_t n, std::size_t chunks, std::size_t c) {
+        return n / chunks * c + std::min(c, n % chunks);
+    }
+
     /// Stable LSD radix sort of (value, point) pairs by value, 3 passes of 11 bits; `b` is
     /// scratch of the same size. Each pass counts and scatters fixed chunks of `a` in parallel:
     /// a chunk's pairs of a digit go after those of the chunks before it, so the order is the
@@ -166,10 +174,8 @@ struct CellGrid {
         constexpr int kBits = 11;
         constexpr std::uint32_t kBuckets = 1u << kBits;
         const std::size_t n = a.size();
-        const std::size_t chunks = std::clamp<std::size_t>(n / 65536, 1, 16);
-        const auto chunk_begin = [&](std::size_t c) {
-            return n / chunks * c + std::min(c, n % chunks);
-        };
+        const std::size_t chunks = fixed_chunks(n);
+        const auto chunk_begin = [&](std::size_t c) { return chunk_start(n, chunks, c); };
         std::vector<std::uint32_t> count(chunks * kBuckets);
         for (int shift = 0; shift < 32; shift += kBits) {
             tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
