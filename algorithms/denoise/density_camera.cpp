@@ -25,10 +25,10 @@ bool surely_occluded(const Camera& c, const Eigen::Vector3d& lo, const Eigen::Ve
           v1 < double(c.y0 + c.bh)))
         return false;  // a centre pixel outside the map's box (or outside the image)
     const int col0 = int(u0), col1 = int(u1), row0 = int(v0), row1 = int(v1);
-    const auto tol = [&](double z) {
-        return z / c.focal * tan_max + 3.0 * sigma_z_m(noise_model, z, 0.0);
-    };
-    const double limit = qlo.z() - std::max(tol(qlo.z()), tol(qhi.z())) - 1e-7;
+    const double limit = qlo.z() -
+                         std::max(c.occlusion_tolerance(qlo.z(), noise_model, tan_max),
+                                  c.occlusion_tolerance(qhi.z(), noise_model, tan_max)) -
+                         1e-7;
     // Centre pixels: a return nearer than the limit; the rest of each 3 x 3 window: that or none.
     for (int rr = std::max(row0 - 1, c.y0); rr <= std::min(row1 + 1, c.y0 + c.bh - 1); ++rr) {
         const float* line = c.depth.data() + std::size_t(rr - c.y0) * c.bw;

@@ -51,6 +51,13 @@ struct Camera {
         inv_focal = 1.0 / focal;
         focal_sq = focal * focal;
     }
+
+    /// How far behind this camera's return at depth z (metres) a point may lie and still count
+    /// as seen: max_depth_step_m() with tan(theta_max) hoisted out of the loop,
+    /// (z / focal) tan(theta_max) + 3 sigma_z(z).
+    double occlusion_tolerance(double z, NoiseModel noise_model, double tan_max) const {
+        return z * inv_focal * tan_max + 3.0 * sigma_z_m(noise_model, z, 0.0);
+    }
 };
 
 /// What camera c contributes to the expected density at world point p with unit normal `nrm`:
@@ -76,8 +83,7 @@ struct Camera {
     if (!c.intrinsics.contains(uv)) return std::nullopt;
     // lround() of coordinates > -0.5.
     const int col = int(uv.x() + 0.5), row = int(uv.y() + 0.5);
-    // max_depth_step_m() with tan(theta_max) hoisted out of the loop.
-    const double tol = q.z() * c.inv_focal * tan_max + 3.0 * sigma_z_m(noise_model, q.z(), 0.0);
+    const double tol = c.occlusion_tolerance(q.z(), noise_model, tan_max);
     // The 3 x 3 window: a missing return is +inf (never NaN), which changes neither the minimum
     // nor the "seen" test; pixels outside the map's box have no return either, so are skipped.
     // The centre pixel first: a return there within tol shows the point (most points, for the
