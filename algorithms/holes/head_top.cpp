@@ -1,6 +1,7 @@
 // §13 head top: see large_holes.hpp.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "algorithms/holes/inpaint_common.hpp"
 #include "algorithms/holes/large_holes.hpp"
@@ -345,13 +347,23 @@ FillResult fill_head_top(const SurfacePoints& points, const std::vector<Eigen::V
     const int hole_pixels = cv::countNonZero(hole);
     info["hole_pixels"] = hole_pixels;
     if (hole_pixels == 0) return finish();
-    // Step 4: Telea on height and colour (every unknown pixel, so none is a known zero).
+    // Step 4: Telea on height and colour (every unknown pixel, so none is a known zero). The
+    // height and the colour are independent chains (OpenCV's Telea is sequential): side by side.
     const cv::Mat unknown = 255 - m.known;
     m.height.setTo(0.0f, unknown);
-    telea(m.height, unknown, options.telea_radius);
-    telea(m.rgb, unknown, options.telea_radius);
-    info["colour"] = inpaint_colour(m.rgb, hole, m.known, options);
-    if (options.biharmonic) info["biharmonic"] = biharmonic(m.height, hole);
+    nlohmann::json colour_info;
+    std::optional<bool> biharmonic_done;
+    tbb::parallel_invoke(
+        [&] {
+            telea(m.height, unknown, options.telea_radius);
+            if (options.biharmonic) biharmonic_done = biharmonic(m.height, hole);
+        },
+        [&] {
+            telea(m.rgb, unknown, options.telea_radius);
+            colour_info = inpaint_colour(m.rgb, hole, m.known, options);
+        });
+    info["colour"] = std::move(colour_info);
+    if (biharmonic_done) info["biharmonic"] = *biharmonic_done;
     if (!report_progress(progress, 0.4)) throw AlgorithmError("cancelled");
     if (options.ellipsoid && !ellipsoid_crown(m, hole, hole_pixels, spacing_m, options, info)) {
         // Not an ellipsoid (a wreath, a hat): nothing trustworthy to continue; the crown stays

@@ -3,6 +3,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -71,6 +72,55 @@ BodyAxis estimate_body_axis(const SurfacePoints& points, const std::vector<Senso
     axis.up = up;
     return axis;
 }
+
+namespace {
+
+/// The radius map's biharmonic fill of the target pixels [M], harmonic on the steep components
+/// (`labels` through the union-find `find`; `px` the map's pixel in metres; `wrap_pad` pads a
+/// map of the centre copy's size as `r_wide` is padded). Reports
+/// biharmonic, harmonic_components and harmonic into `info`.
+void steep_aware_biharmonic(cv::Mat& r_wide, const cv::Rect& crop, const cv::Mat& target,
+                            const cv::Mat& labels, const std::function<int(int)>& find,
+                            int n_labels, double px,
+                            const std::function<cv::Mat(const cv::Mat&)>& wrap_pad,
+                            const InpaintOptions& options, Report& info) {
+    const int rows = target.rows, cols = target.cols;
+    // [M] Steep holes: where Telea's radius changes faster than the height (mean |dr/dh|
+    // over the component above max_biharmonic_slope), the unseen surface is closer to
+    // horizontal than vertical, the underside of an overhang whose rims are creases (the
+    // edge of the chest above, the base below): continuing the rims' slopes (biharmonic)
+    // rounds the creases into bulges below the overhang; the harmonic fill continues the
+    // values only.
+    std::vector<double> slope(n_labels, 0.0);
+    std::vector<int> count(n_labels, 0);
+    const cv::Mat centre = r_wide(crop);
+    for (int r = 1; r + 1 < rows; ++r)
+        for (int c = 0; c < cols; ++c) {
+            if (!target.at<std::uint8_t>(r, c)) continue;
+            const int l = find(labels.at<int>(r, c));
+            slope[l] +=
+                std::abs(centre.at<float>(r + 1, c) - centre.at<float>(r - 1, c)) / (2 * px);
+            ++count[l];
+        }
+    cv::Mat steep(rows, cols, CV_8U, cv::Scalar(0));
+    int n_steep = 0;
+    for (int l = 1; l < n_labels; ++l)
+        if (count[l] && slope[l] / count[l] > options.max_biharmonic_slope) ++n_steep;
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) {
+            const int l = labels.at<int>(r, c);
+            if (!target.at<std::uint8_t>(r, c) || l <= 0) continue;
+            const int root = find(l);
+            if (count[root] && slope[root] / count[root] > options.max_biharmonic_slope)
+                steep.at<std::uint8_t>(r, c) = 255;
+        }
+    cv::Mat smooth = target - steep;
+    info["biharmonic"] = biharmonic(r_wide, wrap_pad(smooth));
+    info["harmonic_components"] = n_steep;
+    if (n_steep) info["harmonic"] = biharmonic(r_wide, wrap_pad(steep), true);
+}
+
+}  // namespace
 
 FillResult fill_large_holes(const SurfacePoints& points,
                             const std::vector<Eigen::Vector3d>& normals, const BodyAxis& axis,
@@ -312,57 +362,34 @@ FillResult fill_large_holes(const SurfacePoints& points,
     cv::Mat unknown = 255 - known;
     radius.setTo(0.0f, unknown);
     cv::Mat r_wide = wrap_pad(radius), c_wide = wrap_pad(color), u_wide = wrap_pad(unknown);
-    telea(r_wide, u_wide, options.telea_radius);
-    telea(c_wide, u_wide, options.telea_radius);
     const cv::Rect crop(std::min(pad, cols), 0, cols, rows);
-    {
+    // The colour and the radius are independent chains (OpenCV's Telea is sequential): side by
+    // side, each reporting into its own object.
+    Report colour_info, radius_info = Report::object();
+    const auto colour_chain = [&] {
+        telea(c_wide, u_wide, options.telea_radius);
         // Exemplars for the target pixels of the centre copy only (the padding's copies of them
         // are cropped away); source patches anywhere, across the seam too.
-        cv::Mat t_centre = cv::Mat::zeros(r_wide.size(), CV_8U);
+        cv::Mat t_centre = cv::Mat::zeros(c_wide.size(), CV_8U);
         target.copyTo(t_centre(crop));
-        info["colour"] = inpaint_colour(c_wide, t_centre, wrap_pad(known), options);
-    }
-    if (options.biharmonic) {
-        // [M] Steep holes: where Telea's radius changes faster than the height (mean |dr/dh|
-        // over the component above max_biharmonic_slope), the unseen surface is closer to
-        // horizontal than vertical, the underside of an overhang whose rims are creases (the
-        // edge of the chest above, the base below): continuing the rims' slopes (biharmonic)
-        // rounds the creases into bulges below the overhang; the harmonic fill continues the
-        // values only.
-        std::vector<double> slope(n_labels, 0.0);
-        std::vector<int> count(n_labels, 0);
-        for (int r = 1; r + 1 < rows; ++r)
-            for (int c = 0; c < cols; ++c) {
-                if (!target.at<std::uint8_t>(r, c)) continue;
-                const int l = find(labels.at<int>(r, c));
-                const cv::Mat centre = r_wide(crop);
-                slope[l] +=
-                    std::abs(centre.at<float>(r + 1, c) - centre.at<float>(r - 1, c)) / (2 * px);
-                ++count[l];
-            }
-        cv::Mat steep(rows, cols, CV_8U, cv::Scalar(0));
-        int n_steep = 0;
-        for (int l = 1; l < n_labels; ++l)
-            if (count[l] && slope[l] / count[l] > options.max_biharmonic_slope) ++n_steep;
-        for (int r = 0; r < rows; ++r)
-            for (int c = 0; c < cols; ++c) {
-                const int l = labels.at<int>(r, c);
-                if (!target.at<std::uint8_t>(r, c) || l <= 0) continue;
-                const int root = find(l);
-                if (count[root] && slope[root] / count[root] > options.max_biharmonic_slope)
-                    steep.at<std::uint8_t>(r, c) = 255;
-            }
-        cv::Mat smooth = target - steep;
-        info["biharmonic"] = biharmonic(r_wide, wrap_pad(smooth));
-        info["harmonic_components"] = n_steep;
-        if (n_steep) info["harmonic"] = biharmonic(r_wide, wrap_pad(steep), true);
-    }
-    // §12.3: 3x3 median inside the filled region only.
-    if (options.median) {
-        cv::Mat med;
-        cv::medianBlur(r_wide, med, 3);
-        med(crop).copyTo(r_wide(crop), target);
-    }
+        colour_info = inpaint_colour(c_wide, t_centre, wrap_pad(known), options);
+    };
+    const auto radius_chain = [&] {
+        telea(r_wide, u_wide, options.telea_radius);
+        if (options.biharmonic)
+            steep_aware_biharmonic(r_wide, crop, target, labels, find, n_labels, px, wrap_pad,
+                                   options, radius_info);
+        // §12.3: 3x3 median inside the filled region only.
+        if (options.median) {
+            cv::Mat med;
+            cv::medianBlur(r_wide, med, 3);
+            med(crop).copyTo(r_wide(crop), target);
+        }
+    };
+    tbb::parallel_invoke(radius_chain, colour_chain);
+    info["colour"] = std::move(colour_info);
+    for (auto it = radius_info.begin(); it != radius_info.end(); ++it) info[it.key()] = it.value();
+
     radius = r_wide(crop).clone();
     color = c_wide(crop).clone();
     if (!report_progress(progress, 0.6)) throw AlgorithmError("cancelled");
