@@ -6,7 +6,10 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "algorithms/internal/cell_grid.hpp"
@@ -29,9 +32,34 @@ struct ColourSources {
 /// of the mesh: runs while the surface is reconstructed (cell-grid searches).
 bool prepare_colours(const PointCloud& cloud, ColourSources& s);
 
+/// Colours computed before the mesh exists, by exact position (the bits of the three
+/// coordinates): the advancing front's vertices are its input points, so their colours can be
+/// computed while the front runs.
+class KnownColours {
+public:
+    using Key = std::array<std::uint64_t, 3>;
+    struct KeyHash {
+        std::size_t operator()(const Key& k) const;
+    };
+    /// The colour at exactly `p`, or null.
+    const MeshColor* find(const Eigen::Vector3d& p) const;
+    void insert(const Eigen::Vector3d& p, const MeshColor& c);
+    std::size_t size() const { return by_position_.size(); }
+
+private:
+    std::unordered_map<Key, MeshColor, KeyHash> by_position_;
+};
+
+/// The colours colorize() gives vertices at the positions `xyz` (metres), keyed by position.
+KnownColours colour_points(const std::vector<Eigen::Vector3d>& xyz, const ColourSources& s,
+                           const ReconstructionOptions& o, double spacing);
+
 /// IDW colours (weights 1 / d^2, o.color_k neighbours) of the mesh's vertices from the coloured
 /// points of `s`, observed points first when one lies within o.color_original_radius x `spacing`
-/// (metres); grey (128) when nothing is found. Adds or overwrites the vertex colour map.
-void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o, double spacing);
+/// (metres); grey (128) when nothing is found. A vertex at a position of `known` takes the
+/// colour found there (the same colour, computed earlier). Adds or overwrites the vertex colour
+/// map.
+void colorize(Mesh& mesh, const ColourSources& s, const ReconstructionOptions& o, double spacing,
+              const KnownColours* known = nullptr);
 
 }  // namespace rgbd::reconstruction::internal

@@ -413,8 +413,10 @@ void thin_by_voxel(std::vector<Eigen::Vector3d>& xyz, std::vector<Eigen::Vector3
     normals.swap(out_n);
 }
 
-void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normals, double spacing,
-           const ReconstructionOptions& o, Mesh& mesh, Report& r) {
+/// The points the filtered front goes through: the input projected onto its MLS surface
+/// (smooth_points), then thinned to a grid of o.front_voxel spacings.
+void front_points(std::vector<Eigen::Vector3d>& xyz, std::vector<Eigen::Vector3d>& normals,
+                  double spacing, const ReconstructionOptions& o, Report& r) {
     Stopwatch watch;
     internal::SmoothOptions so;
     so.radius = o.smooth_radius * spacing;
@@ -426,6 +428,11 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["smooth_time_s"] = watch.seconds();
     thin_by_voxel(xyz, normals, o.front_voxel * spacing);
     r["front_points"] = xyz.size();
+}
+
+/// The filtered advancing front through the points of front_points().
+void front(const std::vector<Eigen::Vector3d>& xyz, const std::vector<Eigen::Vector3d>& normals,
+           double spacing, const ReconstructionOptions& o, Mesh& mesh, Report& r) {
     const double max_edge = o.front_max_edge * spacing;
     const FrontPriority priority{&xyz, &normals, max_edge * max_edge,
                                  std::cos(o.front_max_normal_angle_deg * M_PI / 180.0),
@@ -435,24 +442,33 @@ void front(std::vector<Eigen::Vector3d> xyz, std::vector<Eigen::Vector3d> normal
     r["front_time_s"] = af_watch.seconds();
 }
 
-/// The surface through the oriented points by options.method: Screened Poisson ("poisson",
-/// average_spacing), the filtered advancing front ("front", on points of spacing used_spacing;
-/// its steps reported in `steps`) or CGAL's plain advancing front.
-void surface_from_points(const std::vector<Pwn>& pwn, double average_spacing, double used_spacing,
-                         const ReconstructionOptions& options, Mesh& mesh, Report& steps) {
-    if (options.method == "poisson") {
-        poisson(pwn, average_spacing, options, mesh);
-        return;
-    }
-    std::vector<Eigen::Vector3d> xyz, normals;
+/// The points an interpolating method ("front", "advancing-front") goes through, with their
+/// normals; none for "poisson". For the front, smoothed and thinned (front_points(), at the
+/// spacing `used_spacing`; its steps reported in `steps`).
+void surface_points(const std::vector<Pwn>& pwn, double used_spacing,
+                    const ReconstructionOptions& options, std::vector<Eigen::Vector3d>& xyz,
+                    std::vector<Eigen::Vector3d>& normals, Report& steps) {
+    if (options.method == "poisson") return;
     xyz.reserve(pwn.size());
     normals.reserve(pwn.size());
     for (const Pwn& p : pwn) {
         xyz.push_back(to_eigen(p.first));
         normals.push_back(to_eigen(p.second));
     }
-    if (options.method == "front")
-        front(std::move(xyz), std::move(normals), used_spacing, options, mesh, steps);
+    if (options.method == "front") front_points(xyz, normals, used_spacing, options, steps);
+}
+
+/// The surface by options.method: Screened Poisson ("poisson", through `pwn`, at
+/// average_spacing), the filtered advancing front ("front", through the points `xyz` of
+/// surface_points(), at used_spacing) or CGAL's plain advancing front (through `xyz`).
+void surface_from_points(const std::vector<Pwn>& pwn, double average_spacing, double used_spacing,
+                         const std::vector<Eigen::Vector3d>& xyz,
+                         const std::vector<Eigen::Vector3d>& normals,
+                         const ReconstructionOptions& options, Mesh& mesh, Report& steps) {
+    if (options.method == "poisson")
+        poisson(pwn, average_spacing, options, mesh);
+    else if (options.method == "front")
+        front(xyz, normals, used_spacing, options, mesh, steps);
     else
         advancing_front(xyz, normals, nullptr, options, mesh);
 }
@@ -558,36 +574,45 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     const double spacing = sampling::robust_spacing(cloud.points);
     RGBD_CHECK(spacing > 0, "reconstruction: " + view_name(cloud) + " has zero point spacing");
 
-    // Work that does not depend on the mesh runs in tasks beside it, started now so that it
-    // fills the gaps of the steps before the advancing front too (the front is a sequential
-    // step, and it stays on this thread: its CGAL random generator is this thread's, seeded
-    // above). The space the sensors saw empty, from the measured input points, for the
-    // watertight closure (unused when the front closes the surface by itself); the colour
-    // sources.
+    // This thread's steps are isolated from the tasks below: waiting inside a parallel loop, it
+    // does not pick up a task and leave the sequential surface step waiting for it. The tasks
+    // are waited for outside the isolation (with one thread, only this one can run them).
+    SurfaceInput in;
+    std::vector<Eigen::Vector3d> xyz, normals;
+    Mesh mesh;
+    Report steps = Report::object();
+    tbb::this_task_arena::isolate([&] {
+        in = surface_input(cloud, options, spacing, progress);
+        surface_points(in.pwn, in.used_spacing, options, xyz, normals, steps);
+    });
+    // Work that does not depend on the mesh runs in tasks beside the surface step, which is
+    // sequential (the advancing front, Poisson's solve) and stays on this thread (its CGAL
+    // random generator is this thread's, seeded above): the space the sensors saw empty, from
+    // the measured input points, for the watertight closure (unused when the front closes the
+    // surface by itself); the colour sources and the colours of the points the front goes
+    // through (its vertices); the caller's options.beside_surface.
     std::optional<holes::FreeSpace> free;
     tbb::task_group evidence_task;
     if (options.watertight && !options.sensors.empty())
         evidence_task.run(
             [&] { free.emplace(measured_free_space(cloud, options.sensors, spacing)); });
     internal::ColourSources colour_sources;
+    internal::KnownColours known_colours;
     bool colored = false;
     double colour_prepare_time = 0.0;
     tbb::task_group colour_task;
     colour_task.run([&] {
         Stopwatch prepare_watch;
         colored = internal::prepare_colours(cloud, colour_sources);
+        if (colored) known_colours = internal::colour_points(xyz, colour_sources, options, spacing);
         colour_prepare_time = prepare_watch.seconds();
     });
-    const WaitAtExit wait_at_exit{&evidence_task, &colour_task};
-    // This thread's steps are isolated from the tasks: waiting inside a parallel loop, it does
-    // not pick up a task and leave the front waiting for it. The tasks are waited for outside
-    // the isolation (with one thread, only this one can run them).
-    SurfaceInput in;
-    Mesh mesh;
-    Report steps = Report::object();
+    tbb::task_group caller_task;
+    if (options.beside_surface) caller_task.run(options.beside_surface);
+    const WaitAtExit wait_at_exit{&evidence_task, &colour_task, &caller_task};
     tbb::this_task_arena::isolate([&] {
-        in = surface_input(cloud, options, spacing, progress);
-        surface_from_points(in.pwn, in.average_spacing, in.used_spacing, options, mesh, steps);
+        surface_from_points(in.pwn, in.average_spacing, in.used_spacing, xyz, normals, options,
+                            mesh, steps);
         if (!report_progress(progress, 0.7)) throw AlgorithmError("reconstruction: cancelled");
         clean_surface(mesh, options, view_name(cloud), steps);
     });
@@ -612,8 +637,9 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     const double mesh_time = watch.seconds();
     colour_task.wait();
     evidence_task.wait();
+    caller_task.wait();
     Stopwatch color_watch;
-    if (colored) internal::colorize(mesh, colour_sources, options, spacing);
+    if (colored) internal::colorize(mesh, colour_sources, options, spacing, &known_colours);
     report_progress(progress, 1.0);
 
     if (report) {

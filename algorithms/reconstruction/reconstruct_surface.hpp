@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -124,6 +125,11 @@ struct ReconstructionOptions {
     /// colour camera) colour a vertex when one lies within this multiple of ŝ (docs/algorithms.md
     /// §14: 2 ŝ).
     double color_original_radius = 2.0;
+    /// The caller's work that does not depend on the surface (a report picture of the input,
+    /// say): run once in a task beside the surface's sequential step (the advancing front,
+    /// Poisson's solve), where a second thread would otherwise idle, and waited for before
+    /// reconstruct_surface() returns (its exceptions come out of it). Empty: none.
+    std::function<void()> beside_surface;
     /// Throws InputError on absurd values or an unknown method.
     void check() const;
 };

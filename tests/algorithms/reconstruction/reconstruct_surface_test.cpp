@@ -14,10 +14,13 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
+#include "algorithms/reconstruction/mesh_colour.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "sphere_cloud.hpp"
@@ -373,6 +376,73 @@ TEST(ReconstructSurface, ClosureWithSensorsGivesTheSameMeshOnOneThread) {
     ASSERT_EQ(one.number_of_faces(), all.number_of_faces());
     auto a = all.vertices().begin();
     for (auto v : one.vertices()) EXPECT_EQ(one.point(v), all.point(*a++));
+}
+
+// The caller's beside_surface runs exactly once (with one thread too, at the wait) and changes
+// nothing: the mesh and its colours are those of a run without it.
+TEST(ReconstructSurface, BesideSurfaceRunsOnceAndChangesNothing) {
+    const PointCloud cloud = rgbd::test::coloured_sphere(6000, kRadius, /*with_synthetic=*/true);
+    ReconstructionOptions o;
+    o.watertight = true;
+    const Mesh plain = rgbd::reconstruction::reconstruct_surface(cloud, o);
+    std::atomic<int> calls{0};
+    o.beside_surface = [&] { ++calls; };
+    const Mesh with = rgbd::reconstruction::reconstruct_surface(cloud, o);
+    EXPECT_EQ(calls.load(), 1);
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        (void)rgbd::reconstruction::reconstruct_surface(cloud, o);
+    }
+    EXPECT_EQ(calls.load(), 2);
+    ASSERT_EQ(with.number_of_vertices(), plain.number_of_vertices());
+    const auto ca = rgbd::vertex_colors(plain), cb = rgbd::vertex_colors(with);
+    ASSERT_TRUE(ca && cb);
+    auto a = plain.vertices().begin();
+    for (auto v : with.vertices()) {
+        EXPECT_EQ(with.point(v), plain.point(*a));
+        EXPECT_EQ((*cb)[v], (*ca)[*a]);
+        ++a;
+    }
+    // An exception of the caller's work comes out of reconstruct_surface.
+    o.beside_surface = [] { throw std::runtime_error("picture failed"); };
+    EXPECT_THROW(rgbd::reconstruction::reconstruct_surface(cloud, o), std::runtime_error);
+}
+
+// Colours computed before the mesh, at the positions of its vertices, are the colours colorize
+// finds; a vertex at a known position takes the known colour, the others are searched.
+TEST(ReconstructSurface, KnownColoursAreTheColoursColorizeFinds) {
+    namespace internal = rgbd::reconstruction::internal;
+    const PointCloud cloud = rgbd::test::coloured_sphere(6000, kRadius, /*with_synthetic=*/true);
+    const Mesh mesh = rgbd::reconstruction::reconstruct_surface(cloud, {});
+    internal::ColourSources sources;
+    ASSERT_TRUE(internal::prepare_colours(cloud, sources));
+    const ReconstructionOptions o;
+    const double spacing = 0.002;
+    Mesh searched = mesh;
+    internal::colorize(searched, sources, o, spacing);
+    std::vector<Eigen::Vector3d> xyz;
+    for (auto v : mesh.vertices()) xyz.push_back(rgbd::to_eigen(mesh.point(v)));
+    // Every other vertex known: half looked up, half searched.
+    std::vector<Eigen::Vector3d> half;
+    for (std::size_t i = 0; i < xyz.size(); i += 2) half.push_back(xyz[i]);
+    const internal::KnownColours known = internal::colour_points(half, sources, o, spacing);
+    EXPECT_EQ(known.size(), half.size());
+    Mesh looked_up = mesh;
+    internal::colorize(looked_up, sources, o, spacing, &known);
+    const auto cs = *rgbd::vertex_colors(searched), cl = *rgbd::vertex_colors(looked_up);
+    for (auto v : mesh.vertices()) EXPECT_EQ(cl[v], cs[v]);
+    // A known colour that the search would not give is taken as it is.
+    internal::KnownColours marked;
+    const auto first = *mesh.vertices().begin();
+    marked.insert(rgbd::to_eigen(mesh.point(first)), rgbd::MeshColor(1, 2, 3));
+    Mesh with_mark = mesh;
+    internal::colorize(with_mark, sources, o, spacing, &marked);
+    const auto cm = *rgbd::vertex_colors(with_mark);
+    EXPECT_EQ(cm[first], rgbd::MeshColor(1, 2, 3));
+    EXPECT_NE(cs[first], rgbd::MeshColor(1, 2, 3));
+    for (auto v : mesh.vertices())
+        if (v != first) EXPECT_EQ(cm[v], cs[v]);
+    EXPECT_EQ(marked.find(Eigen::Vector3d(9, 9, 9)), nullptr);
 }
 
 // A fin 3 mm thick (80 x 40 mm plate), sampled every 0.75 mm with 0.15 mm noise: both sides
