@@ -190,6 +190,12 @@ void run_reconstruct(cli::Context& ctx) {
                             const std::vector<PointCloud>& views) {
         save_stage(stages_dir, index, stage, views);
     };
+    // 9. (early) the report's extraction picture needs the input points only: rendered beside
+    // the mesh stage's sequential step.
+    std::optional<cli::ReportImage> extraction;
+    hooks.beside_mesh = [&](const pipeline::ReconstructResult& r) {
+        if (!r.removed.empty()) extraction = cli::extraction_picture(r.input, r.removed);
+    };
     pipeline::ReconstructResult result = pipeline::reconstruct(capture, jobs, options, hooks);
     const Mesh& mesh = result.mesh;
     report.update(result.report);
@@ -272,10 +278,9 @@ void run_reconstruct(cli::Context& ctx) {
         Report picture_info;
         tbb::this_task_arena::isolate([&] {
             cli::render_report_pictures(pictures, images, picture_info);
-            if (!result.removed.empty()) {
-                cli::ReportImage extraction = cli::extraction_picture(result.input, result.removed);
-                if (!extraction.file.empty()) images.push_back(std::move(extraction));
-            }
+            if (!extraction && !result.removed.empty())
+                extraction = cli::extraction_picture(result.input, result.removed);
+            if (extraction && !extraction->file.empty()) images.push_back(std::move(*extraction));
         });
         report["report"] = picture_info;
         timings["pictures"] = watch.seconds();

@@ -307,7 +307,10 @@ void mesh_views(std::vector<PointCloud>&& views, const ReconstructOptions& optio
     {
         StageScope scope(hooks, "mesh");
         Report mesh_report;
-        result.mesh = mesh_stage(std::move(views), options.mesh, mesh_report, scope.progress());
+        reconstruction::ReconstructionOptions mesh_options = options.mesh;
+        if (hooks.beside_mesh)
+            mesh_options.beside_surface = [&hooks, &result] { hooks.beside_mesh(result); };
+        result.mesh = mesh_stage(std::move(views), mesh_options, mesh_report, scope.progress());
         result.report["mesh"] = mesh_report;
     }
     add_stage(result, "mesh", watch.seconds(), mesh_in, result.mesh.number_of_vertices(),

@@ -114,6 +114,11 @@ struct ReconstructHooks {
     /// would carry them between the single tools.
     std::function<void(int index, const std::string& stage, const std::vector<PointCloud>& views)>
         views_after;
+    /// Work of the front end's that needs the result's `input` and `removed` but not the mesh
+    /// (a report picture): run once beside the mesh stage's sequential step on a second thread
+    /// (reconstruction::ReconstructionOptions::beside_surface), finished before the mesh stage
+    /// returns; nothing writes the result meanwhile.
+    std::function<void(const ReconstructResult& result)> beside_mesh;
 };
 
 /// Runs the chain on `frames` of `capture` and meshes the result. Throws InputError when a

@@ -81,6 +81,33 @@ TEST(Reconstruct, SkippedStagesLeaveNoRowAndHooksSeeEveryStage) {
     EXPECT_FALSE(result.report.contains("fill"));
 }
 
+// beside_mesh runs once, while the mesh stage runs (the result's input is there, its mesh not
+// yet), and the mesh does not depend on it.
+TEST(Reconstruct, BesideMeshSeesTheInputBeforeTheMeshAndChangesNothing) {
+    rgbd::pipeline::ReconstructOptions options;
+    options.skip = {"distance", "upsample", "density", "fill"};
+    options.mesh.watertight = false;
+    const auto frames = rgbd::pipeline::frameset_frames(capture(), 0);
+    const auto plain = rgbd::pipeline::reconstruct(capture(), frames, options);
+    int calls = 0;
+    std::size_t input_points = 0, mesh_faces_then = 1;
+    rgbd::pipeline::ReconstructHooks hooks;
+    hooks.beside_mesh = [&](const rgbd::pipeline::ReconstructResult& r) {
+        ++calls;
+        input_points = r.input.vertices.size();
+        mesh_faces_then = r.mesh.number_of_faces();
+    };
+    const auto result = rgbd::pipeline::reconstruct(capture(), frames, options, hooks);
+    EXPECT_EQ(calls, 1);
+    EXPECT_EQ(input_points, result.input.vertices.size());
+    EXPECT_GT(input_points, 1000u);
+    EXPECT_EQ(mesh_faces_then, 0u) << "the hook runs before the mesh is stored";
+    ASSERT_EQ(result.mesh.number_of_vertices(), plain.mesh.number_of_vertices());
+    ASSERT_EQ(result.mesh.number_of_faces(), plain.mesh.number_of_faces());
+    auto a = plain.mesh.vertices().begin();
+    for (auto v : result.mesh.vertices()) EXPECT_EQ(result.mesh.point(v), plain.mesh.point(*a++));
+}
+
 TEST(Reconstruct, TheFirstBrokenViewIsReportedWhateverTheThreads) {
     // Views are loaded in parallel: with two truncated depth images (cam2 and cam5), the error
     // always names the first view's file.
