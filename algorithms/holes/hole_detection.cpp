@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -310,11 +311,16 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
             detail::directed_lists(points.position, tree, r.spacing_m,
                                    {gradient_options.neighbourhood, options.neighbourhood});
         if (!report_progress(progress, 0.2)) throw AlgorithmError("cancelled");
-        r.gradient = gradient_over(
-            points, detail::graph_from(directed[0], gradient_options.neighbourhood.symmetric),
-            sensors, gradient_options);
+        // The two graphs side by side (their edge scatter is sequential).
+        Neighbourhood gradient_graph;
+        tbb::parallel_invoke(
+            [&] {
+                gradient_graph =
+                    detail::graph_from(directed[0], gradient_options.neighbourhood.symmetric);
+            },
+            [&] { graph = detail::graph_from(directed[1], options.neighbourhood.symmetric); });
+        r.gradient = gradient_over(points, gradient_graph, sensors, gradient_options);
         if (!report_progress(progress, 0.3)) throw AlgorithmError("cancelled");
-        graph = detail::graph_from(directed[1], options.neighbourhood.symmetric);
     }
     if (!report_progress(progress, 0.5)) throw AlgorithmError("cancelled");
     r.p_angle.resize(n);

@@ -1,5 +1,6 @@
 #include "cli/common/report_page.hpp"
 
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
@@ -134,7 +135,10 @@ void write_report(const fs::path& dir, const ReportPage& page) {
     io::write_folder_atomic(
         dir,
         [&](const fs::path& folder) {
-            for (const auto& im : page.images) io::write_image_atomic(folder / im.file, im.image);
+            // PNG encoding is sequential per image: the images side by side.
+            tbb::parallel_for(std::size_t(0), page.images.size(), [&](std::size_t i) {
+                io::write_image_atomic(folder / page.images[i].file, page.images[i].image);
+            });
             io::write_text_atomic(folder / "metrics.json", page.metrics.dump(2) + "\n");
             io::write_text_atomic(folder / "index.html", page_html(page));
         },
