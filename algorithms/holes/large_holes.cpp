@@ -388,8 +388,7 @@ FillResult fill_large_holes(const SurfacePoints& points,
     };
     tbb::parallel_invoke(radius_chain, colour_chain);
     info["colour"] = std::move(colour_info);
-    for (auto it = radius_info.begin(); it != radius_info.end(); ++it) info[it.key()] = it.value();
-
+    info.update(radius_info);
     radius = r_wide(crop).clone();
     color = c_wide(crop).clone();
     if (!report_progress(progress, 0.6)) throw AlgorithmError("cancelled");

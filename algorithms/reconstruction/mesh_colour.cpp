@@ -121,13 +121,6 @@ bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
     return true;
 }
 
-std::size_t KnownColours::KeyHash::operator()(const Key& k) const {
-    std::uint64_t h = k[0] * 0x9E3779B97F4A7C15ull;
-    h ^= (k[1] + 0x7F4A7C159E3779B9ull + (h << 6) + (h >> 2));
-    h ^= (k[2] + 0x94D049BB133111EBull + (h << 6) + (h >> 2));
-    return static_cast<std::size_t>(h ^ (h >> 31));
-}
-
 const MeshColor* KnownColours::find(const Eigen::Vector3d& p) const {
     const auto it = by_position_.find(position_key(p));
     return it == by_position_.end() ? nullptr : &it->second;

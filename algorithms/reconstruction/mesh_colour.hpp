@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <boost/container_hash/hash.hpp>
 #include <cstdint>
 #include <optional>
 #include <unordered_map>
@@ -38,16 +39,13 @@ bool prepare_colours(const PointCloud& cloud, ColourSources& s);
 class KnownColours {
 public:
     using Key = std::array<std::uint64_t, 3>;
-    struct KeyHash {
-        std::size_t operator()(const Key& k) const;
-    };
     /// The colour at exactly `p`, or null.
     const MeshColor* find(const Eigen::Vector3d& p) const;
     void insert(const Eigen::Vector3d& p, const MeshColor& c);
     std::size_t size() const { return by_position_.size(); }
 
 private:
-    std::unordered_map<Key, MeshColor, KeyHash> by_position_;
+    std::unordered_map<Key, MeshColor, boost::hash<Key>> by_position_;
 };
 
 /// The colours colorize() gives vertices at the positions `xyz` (metres), keyed by position.
