@@ -2,9 +2,9 @@
 
 #include <chrono>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "cli/common/tool.hpp"
+#include "io/image_codec.hpp"
 #include "io/output_file.hpp"
 #include "io/ply_stream.hpp"
 #include "toolkit/error.hpp"
@@ -78,8 +78,11 @@ RgbdFrame rgbd_from_live(const io::SensorSpec& spec, const LiveFrame& frame, cv:
     const std::string what = "live frame " + std::to_string(frame.index) + " of sensor " + spec.id;
     color.release();
     if (!frame.jpeg.empty()) {
-        color = cv::imdecode(frame.jpeg, cv::IMREAD_COLOR);
-        if (color.empty()) throw InputError(what + ": cannot decode the colour JPEG");
+        try {
+            color = io::decode_image(frame.jpeg, io::ImageMode::kColor);
+        } catch (const IoError& e) {
+            throw InputError(what + ": cannot decode the colour JPEG: " + e.what());
+        }
     }
     RgbdFrame rgbd = io::frame_from_stored(spec, frame.depth, color, what);
     rgbd.frame_index = frame.index;

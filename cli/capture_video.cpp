@@ -3,7 +3,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <opencv2/imgcodecs.hpp>
 
 #include "cli/common/tool.hpp"
 #include "sensors/sensor.hpp"

@@ -13,7 +13,6 @@
 #include <iostream>
 #include <map>
 #include <mutex>
-#include <opencv2/imgcodecs.hpp>
 
 #include "algorithms/calibration/charuco_board.hpp"
 #include "algorithms/calibration/rig_refinement.hpp"
@@ -23,6 +22,7 @@
 #include "cli/common/stages.hpp"
 #include "cli/common/tool.hpp"
 #include "io/capture_folder.hpp"
+#include "io/image_codec.hpp"
 #include "toolkit/error.hpp"
 
 using namespace rgbd;
@@ -78,8 +78,7 @@ BoardImages load_board_images(const io::Capture& capture, const io::SensorSpec& 
         return (path.is_absolute() ? path : capture.root / spec.id / path).string();
     };
     const std::string depth_file = resolve(r.depth);
-    cv::Mat raw = cv::imread(depth_file, cv::IMREAD_UNCHANGED);
-    RGBD_CHECK(!raw.empty(), depth_file + ": missing or undecodable depth image");
+    cv::Mat raw = io::read_image(depth_file);
     if (spec.depth_encoding != io::DepthEncoding::kPlain) {
         RGBD_CHECK(raw.type() == CV_16UC1, depth_file + ": depth image is not 16-bit");
         io::decode_depth(raw, spec.depth_encoding);
@@ -88,8 +87,7 @@ BoardImages load_board_images(const io::Capture& capture, const io::SensorSpec& 
     out.depth = io::frame_from_stored(spec, raw, cv::Mat(), depth_file).depth;
     if (!r.color.empty()) {
         const std::string color_file = resolve(r.color);
-        out.grey = cv::imread(color_file, cv::IMREAD_GRAYSCALE);
-        RGBD_CHECK(!out.grey.empty(), color_file + ": missing or undecodable colour image");
+        out.grey = io::read_image(color_file, io::ImageMode::kGrey);
         RGBD_CHECK(out.grey.cols == spec.color.width && out.grey.rows == spec.color.height,
                    color_file + ": colour image is " + std::to_string(out.grey.cols) + "x" +
                        std::to_string(out.grey.rows) + ", rig.json says " +

@@ -15,7 +15,6 @@
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <thread>
 #include <zmq.hpp>
@@ -23,6 +22,7 @@
 #include "cli/common/tool.hpp"
 #include "cli/node_views.hpp"
 #include "cli/zmq_errors.hpp"
+#include "io/image_codec.hpp"
 #include "io/rvl.hpp"
 #include "sensors/network/protocol.hpp"
 #include "sensors/network/transport.hpp"
@@ -291,9 +291,12 @@ void run_node(cli::Context& ctx) {
                                std::vector<std::uint8_t>& rgb) {
         const cv::Mat* bgr = &f.color;
         if (f.color.empty() && !f.color_jpeg.empty()) {
-            decoded = cv::imdecode(f.color_jpeg, cv::IMREAD_COLOR);
-            if (decoded.empty())
-                throw InputError("cannot decode the colour of frame " + std::to_string(f.index));
+            try {
+                decoded = io::decode_image(f.color_jpeg, io::ImageMode::kColor);
+            } catch (const IoError& e) {
+                throw InputError("cannot decode the colour of frame " + std::to_string(f.index) +
+                                 ": " + e.what());
+            }
             bgr = &decoded;
         }
         RgbdFrame rgbd =
@@ -340,7 +343,6 @@ void run_node(cli::Context& ctx) {
 
     sensors::SensorFrame frame;
     std::vector<std::uint8_t> rvl, jpeg, message;
-    const std::vector<int> jpeg_params = {cv::IMWRITE_JPEG_QUALITY, quality};
     std::int64_t sent = 0, raw_bytes = 0, rvl_bytes = 0, color_bytes = 0;
     double encode_s = 0;
     const std::int64_t run_start = sensors::monotonic_ns();
@@ -371,9 +373,12 @@ void run_node(cli::Context& ctx) {
                 jpeg.clear();
                 color = &jpeg;
             } else if (frame.color_jpeg.empty() && !frame.color.empty()) {
-                if (!cv::imencode(".jpg", frame.color, jpeg, jpeg_params))
+                try {
+                    jpeg = io::encode_jpeg(frame.color, quality);
+                } catch (const Error& e) {
                     throw AlgorithmError("cannot JPEG-encode colour frame " +
-                                         std::to_string(frame.index));
+                                         std::to_string(frame.index) + ": " + e.what());
+                }
                 color = &jpeg;
             }
         }

@@ -8,7 +8,6 @@
 #include <fstream>
 #include <limits>
 #include <opencv2/core/persistence.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -268,18 +267,6 @@ std::vector<FrameSet> read_framesets_csv(const fs::path& path, const Rig& rig) {
 
 // Appends one line; on failure (disk full) the file is cut back to its previous length so it
 
-cv::Mat read_image(const std::string& file, int flags, const char* what) {
-    if (!has_file(file)) fail(file, std::string("missing ") + what + " image");
-    cv::Mat image;
-    try {
-        image = cv::imread(file, flags);
-    } catch (const cv::Exception& e) {
-        fail(file, std::string("cannot decode ") + what + " image: " + e.what());
-    }
-    if (image.empty()) fail(file, std::string("cannot decode ") + what + " image");
-    return image;
-}
-
 void check_size(const std::string& file, const cv::Mat& image, const PinholeIntrinsics& k,
                 const char* what) {
     if (image.cols != k.width || image.rows != k.height)
@@ -454,7 +441,7 @@ RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::
         return (path.is_absolute() ? path : capture.root / sensor_id / path).string();
     };
     const std::string depth_file = resolve(r.depth);
-    cv::Mat raw = read_image(depth_file, cv::IMREAD_UNCHANGED, "depth");
+    cv::Mat raw = read_capture_image(depth_file, ImageMode::kUnchanged, "depth");
     if (s.depth_encoding != DepthEncoding::kPlain) {
         if (raw.type() != CV_16UC1) fail(depth_file, "depth image is not 16-bit single-channel");
         decode_depth(raw, s.depth_encoding);
@@ -463,13 +450,13 @@ RgbdFrame load_frame(const Capture& capture, const std::string& sensor_id, std::
     std::string color_file;
     if (!r.color.empty()) {
         color_file = resolve(r.color);
-        color = read_image(color_file, cv::IMREAD_COLOR, "colour");
+        color = read_capture_image(color_file, ImageMode::kColor, "colour");
         check_size(color_file, color, s.color, "colour");
     }
     RgbdFrame frame = frame_from_stored(s, raw, color, depth_file);
     if (!r.mask.empty()) {
         const std::string mask_file = resolve(r.mask);
-        const cv::Mat mask = read_image(mask_file, cv::IMREAD_GRAYSCALE, "mask");
+        const cv::Mat mask = read_capture_image(mask_file, ImageMode::kGrey, "mask");
         check_size(mask_file, mask, s.depth, "mask");
         cv::compare(mask, 128, frame.mask, cv::CMP_GE);  // JPEG edges are soft: threshold
     }

@@ -155,9 +155,11 @@ private:
 };
 
 /// Writes an image atomically (temporary file in the same folder, then rename); the format
-/// follows the extension (.png, .jpg). Throws IoError naming the file.
+/// follows the extension (.png, .jpg; io/image_codec.hpp), with `level_or_quality` the PNG
+/// zlib level or the JPEG quality (< 0: PNG level 1, JPEG quality 95). Throws IoError naming
+/// the file (for another extension or image type too; InputError for an empty image).
 void write_image_atomic(const std::filesystem::path& path, const cv::Mat& image,
-                        const std::vector<int>& params = {});
+                        int level_or_quality = -1);
 /// Writes bytes atomically. Throws IoError naming the file.
 void write_bytes_atomic(const std::filesystem::path& path, const std::uint8_t* data,
                         std::size_t size);

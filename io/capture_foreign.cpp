@@ -9,7 +9,6 @@
 #include <fstream>
 #include <limits>
 #include <opencv2/core/persistence.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -187,8 +186,7 @@ Capture open_uva(const fs::path& root, const std::vector<fs::path>& xmls) {
             s.depth.cx = k.at<double>(0, 2);
             s.depth.cy = k.at<double>(1, 2);
             // The image size is not in the xml: read it from the first depth image.
-            const cv::Mat d = cv::imread(f.depth, cv::IMREAD_UNCHANGED);
-            if (d.empty()) fail(f.depth, "missing or unreadable depth image");
+            const cv::Mat d = read_capture_image(f.depth, ImageMode::kUnchanged, "depth");
             s.depth.width = d.cols;
             s.depth.height = d.rows;
             try {
@@ -486,8 +484,8 @@ Capture open_apc(const fs::path& root, const std::vector<fs::path>& depth) {
     s.range_min_m = 0.2;
     s.range_max_m = 1.2;
     // The image size is not in cam.info.txt: read it from the first depth image.
-    const cv::Mat first = cv::imread(depth.front().string(), cv::IMREAD_UNCHANGED);
-    if (first.empty()) fail(depth.front(), "missing or unreadable depth image");
+    const cv::Mat first =
+        read_capture_image(depth.front().string(), ImageMode::kUnchanged, "depth");
     // frame-N.depth.png is registered to the colour camera: it lies on the colour grid, so its
     // intrinsics are the colour ones and colour_from_depth is the identity. The raw depth
     // camera (raw/, its own intrinsics and the 25.7 mm depth-to-colour extrinsic) is kept in

@@ -7,12 +7,12 @@
 #include <fstream>
 #include <limits>
 #include <opencv2/core/persistence.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <set>
 #include <sstream>
 
 #include "io/capture_folder.hpp"
+#include "io/image_codec.hpp"
 #include "io/internal/atomic_file.hpp"
 #include "io/internal/capture_common.hpp"
 #include "io/internal/depth_png.hpp"
@@ -90,7 +90,7 @@ void CaptureWriter::add_frame(const std::string& sensor_id, std::int64_t index,
     std::string color_rel;
     if (!color_bgr.empty()) {
         color_rel = "color/" + name + ".jpg";
-        write_image_atomic(dir / color_rel, color_bgr, {cv::IMWRITE_JPEG_QUALITY, 95});
+        write_image_atomic(dir / color_rel, color_bgr, 95);
     }
 
     const fs::path csv = dir / "frames.csv";
@@ -176,14 +176,12 @@ void CaptureWriter::add_frameset(const FrameSet& set) {
     append_line(csv, line);
 }
 
-void write_image_atomic(const fs::path& path, const cv::Mat& image,
-                        const std::vector<int>& params) {
+void write_image_atomic(const fs::path& path, const cv::Mat& image, int level_or_quality) {
     if (image.empty()) throw InputError(path.string() + ": empty image, nothing written");
-    std::vector<unsigned char> bytes;
+    std::vector<std::uint8_t> bytes;
     try {
-        if (!cv::imencode(path.extension().string(), image, bytes, params))
-            throw IoError(path.string() + ": cannot encode image");
-    } catch (const cv::Exception& e) {
+        bytes = encode_image(path.string(), image, level_or_quality);
+    } catch (const Error& e) {
         throw IoError(path.string() + ": cannot encode image: " + e.what());
     }
     internal::write_file_atomic(path, [&](std::ostream& out) {

@@ -1,6 +1,7 @@
 #include "io/textured_mesh_io.hpp"
 
-// tinygltf compiled here; images are encoded and decoded with OpenCV (io/CMakeLists.txt).
+// tinygltf compiled here; images are encoded and decoded by io/image_codec.hpp
+// (io/CMakeLists.txt).
 #define TINYGLTF_IMPLEMENTATION
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
@@ -14,11 +15,11 @@
 #include <cstring>
 #include <fstream>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <sstream>
 
 #include "io/capture_folder.hpp"
+#include "io/image_codec.hpp"
 #include "io/internal/atomic_file.hpp"
 #include "io/mesh_io.hpp"
 #include "io/output_file.hpp"
@@ -52,11 +53,12 @@ void check_mesh(const TexturedMesh& m, const std::string& name) {
     }
 }
 
-std::vector<std::uint8_t> encode_png(const cv::Mat& image, const std::string& name) {
-    std::vector<std::uint8_t> bytes;
-    RGBD_CHECK_AS(IoError, cv::imencode(".png", image, bytes, {cv::IMWRITE_PNG_COMPRESSION, 3}),
-                  name + ": cannot encode the texture as PNG");
-    return bytes;
+std::vector<std::uint8_t> encode_atlas(const cv::Mat& image, const std::string& name) {
+    try {
+        return encode_png(image, 3);
+    } catch (const Error& e) {
+        throw IoError(name + ": cannot encode the texture as PNG: " + e.what());
+    }
 }
 
 // ---- OBJ ----
@@ -67,7 +69,7 @@ void write_obj(const fs::path& path, const TexturedMesh& m, const std::string& c
     try {
         std::ostringstream mtl;
         for (std::size_t a = 0; a < m.atlases.size(); ++a) {
-            const std::vector<std::uint8_t> png = encode_png(m.atlases[a], files[2 + a].string());
+            const std::vector<std::uint8_t> png = encode_atlas(m.atlases[a], files[2 + a].string());
             write_bytes_atomic(files[2 + a], png.data(), png.size());
             written.push_back(files[2 + a]);
             mtl << "newmtl atlas" << a << "\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\nmap_Kd "
@@ -180,10 +182,13 @@ TexturedMesh read_obj(const fs::path& path) {
                 std::string file;
                 std::getline(ms >> std::ws, file);
                 const fs::path image_path = mtl.parent_path() / file;
-                cv::Mat image = cv::imread(image_path.string(), cv::IMREAD_COLOR);
-                RGBD_CHECK_AS(
-                    IoError, !image.empty(),
-                    image_path.string() + ": cannot read the texture named by " + mtl.string());
+                cv::Mat image;
+                try {
+                    image = read_image(image_path.string(), ImageMode::kColor);
+                } catch (const IoError& e) {
+                    throw IoError(std::string(e.what()) + " (the texture named by " + mtl.string() +
+                                  ")");
+                }
                 material_atlas[material] = static_cast<int>(m.atlases.size());
                 m.atlases.push_back(image);
             }
@@ -336,7 +341,7 @@ void write_glb(const fs::path& path, const TexturedMesh& m, const std::string& c
         material.extensions["KHR_materials_unlit"] = tinygltf::Value(tinygltf::Value::Object());
         if (textured) {
             const std::vector<std::uint8_t> png =
-                encode_png(m.atlases[a], path.string() + " (atlas " + std::to_string(a) + ")");
+                encode_atlas(m.atlases[a], path.string() + " (atlas " + std::to_string(a) + ")");
             tinygltf::Image image;
             image.mimeType = "image/png";
             image.bufferView = add_view(model, png.data(), png.size(), 0);
@@ -377,13 +382,15 @@ void write_glb(const fs::path& path, const TexturedMesh& m, const std::string& c
     });
 }
 
-/// tinygltf image loader: decodes PNG/JPEG with OpenCV (BGR, 3 channels).
-bool decode_image(tinygltf::Image* image, const int, std::string* err, std::string*, int, int,
-                  const unsigned char* bytes, int size, void*) {
-    const cv::Mat raw(1, size, CV_8UC1, const_cast<unsigned char*>(bytes));
-    const cv::Mat bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
-    if (bgr.empty()) {
-        if (err) *err = "cannot decode an embedded image";
+/// tinygltf image loader: decodes PNG/JPEG (io/image_codec.hpp; BGR, 3 channels).
+bool load_gltf_image(tinygltf::Image* image, const int, std::string* err, std::string*, int, int,
+                     const unsigned char* bytes, int size, void*) {
+    cv::Mat bgr;
+    try {
+        bgr = decode_image(bytes, size < 0 ? 0 : static_cast<std::size_t>(size), ImageMode::kColor,
+                           "an embedded image");
+    } catch (const IoError& e) {
+        if (err) *err = e.what();
         return false;
     }
     image->width = bgr.cols;
@@ -472,7 +479,7 @@ std::optional<Eigen::Vector3d> root_up(const tinygltf::Model& model) {
 
 TexturedMesh read_glb(const fs::path& path) {
     tinygltf::TinyGLTF loader;
-    loader.SetImageLoader(decode_image, nullptr);
+    loader.SetImageLoader(load_gltf_image, nullptr);
     tinygltf::Model model;
     std::string err, warn;
     const std::string name = path.string();

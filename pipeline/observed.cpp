@@ -1,7 +1,6 @@
 #include "pipeline/observed.hpp"
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "io/image_codec.hpp"
 #include "pipeline/stages.hpp"
 #include "toolkit/error.hpp"
 
@@ -56,8 +55,7 @@ Observations load_observations(const io::Capture& capture,
             RGBD_CHECK(fs::exists(file), file.string() +
                                              ": missing (the capture has subject labels for "
                                              "other frames)");
-            cv::Mat label = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-            RGBD_CHECK_AS(IoError, !label.empty(), file.string() + ": cannot read the image");
+            cv::Mat label = io::read_image(file.string());
             RGBD_CHECK(label.type() == CV_8UC1 && label.cols == frame.depth.cols &&
                            label.rows == frame.depth.rows,
                        file.string() + ": not an 8-bit one-channel image of the depth size (" +

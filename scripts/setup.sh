@@ -9,7 +9,7 @@ PACKAGES=(build-essential cmake ninja-build pkg-config
   libcgal-dev libgmp-dev libmpfr-dev libeigen3-dev libopencv-dev libopencv-contrib-dev libtbb-dev
   libboost-dev libboost-program-options-dev libnanoflann-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libzmq3-dev cppzmq-dev zlib1g-dev libpng-dev libopenni2-dev iproute2 libdraco-dev libtinygltf-dev
+  libzmq3-dev cppzmq-dev zlib1g-dev libpng-dev libjpeg-dev libopenni2-dev iproute2 libdraco-dev libtinygltf-dev
   libjs-three curl libcgal-demo python3-open3d python3-numpy pybind11-dev chromium snakemake assimp-utils
   slurm-wlm munge)
 

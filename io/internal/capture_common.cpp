@@ -7,6 +7,15 @@
 
 namespace rgbd::io::internal {
 
+cv::Mat read_capture_image(const std::string& file, ImageMode mode, const char* what) {
+    if (!has_file(file)) fail(file, std::string("missing ") + what + " image");
+    try {
+        return decode_image(read_file_bytes(file), mode, "");
+    } catch (const IoError& e) {
+        fail(file, std::string("cannot decode ") + what + " image: " + e.what());
+    }
+}
+
 std::string read_text(const fs::path& path) {
     std::error_code ec;
     if (!fs::is_regular_file(path, ec)) fail(path, "no such file");

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "io/capture_folder.hpp"
+#include "io/image_codec.hpp"
 #include "io/internal/file_text.hpp"
 #include "toolkit/error.hpp"
 
@@ -25,6 +26,10 @@ using nlohmann::json;
 /// The 12 optional pose columns of frames.csv (row-major 3x4 world_from_depth).
 inline constexpr const char* kPoseColumns[12] = {"r00", "r01", "r02", "t0",  "r10", "r11",
                                                  "r12", "t1",  "r20", "r21", "r22", "t2"};
+
+/// A capture's PNG or JPEG image (io/image_codec.hpp); InputError "FILE: missing WHAT image"
+/// or "FILE: cannot decode WHAT image: why".
+cv::Mat read_capture_image(const std::string& file, ImageMode mode, const char* what);
 
 /// The whole file as bytes; InputError when it is not a regular file, IoError when unreadable.
 std::string read_text(const fs::path& path);

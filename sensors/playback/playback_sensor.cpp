@@ -5,9 +5,9 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
 #include <thread>
 
+#include "io/image_codec.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::sensors {
@@ -94,8 +94,7 @@ void PlaybackSensor::load(std::size_t position, Stored& out) const {
         return path.is_absolute() ? path : capture_.root / spec_.id / path;
     };
     const fs::path depth_file = resolve(r.depth);
-    out.depth = cv::imread(depth_file.string(), cv::IMREAD_UNCHANGED);
-    if (out.depth.empty()) throw IoError(depth_file.string() + ": cannot read depth image");
+    out.depth = io::read_image(depth_file.string());
     if (out.depth.type() != CV_16UC1)
         throw InputError(depth_file.string() + ": depth image is not 16-bit single-channel");
     if (out.depth.cols != spec_.depth.width || out.depth.rows != spec_.depth.height)
@@ -111,8 +110,7 @@ void PlaybackSensor::load(std::size_t position, Stored& out) const {
         if (is_jpeg(color_file) && !options_.decode_color) {
             out.color_jpeg = read_bytes(color_file);
         } else {
-            out.color = cv::imread(color_file.string(), cv::IMREAD_COLOR);
-            if (out.color.empty()) throw IoError(color_file.string() + ": cannot read colour");
+            out.color = io::read_image(color_file.string(), io::ImageMode::kColor);
         }
     }
 }
