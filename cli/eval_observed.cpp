@@ -146,7 +146,15 @@ pipeline::Observations load_observed(const Context& ctx,
     cloud.z_min_m = ctx.get<double>("z-min");
     cloud.z_max_m = ctx.get<double>("z-max");
     cloud.check();
-    return pipeline::load_observations(capture, jobs, cloud, subject);
+    // A synthetic capture's rig.json poses carry a calibration error that its truth does not:
+    // the observations go where the sensors saw them.
+    std::map<std::string, Pose> truth;
+    const fs::path gt = capture.root / "gt" / "world_from_depth.json";
+    if (!ctx.has("observed-capture-poses") && fs::exists(gt))
+        for (const auto& [id, pose] : read_gt_poses(gt.string()))
+            if (id.find('/') == std::string::npos) truth.emplace(id, pose);
+    return pipeline::load_observations(capture, jobs, cloud, subject,
+                                       truth.empty() ? nullptr : &truth);
 }
 
 /// Observed metrics of one mesh; an error entry for a mesh without area.

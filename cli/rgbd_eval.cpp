@@ -574,7 +574,10 @@ const cli::ToolSpec kSpec{
         "--observed CAPTURE judges a mesh against the capture's own observations (real "
         "captures without truth): every view of --frameset (a capture without frame sets: "
         "every frame, or --frames) back-projected with the capture's calibration (depth window "
-        "and masks as rgbd-cloud) into the world, cut to the subject: the pixels labelled 1 in "
+        "and masks as rgbd-cloud; the poses of the capture's truth gt/world_from_depth.json "
+        "when it has one, as rgbd-synth's captures do, whose rig.json poses carry a "
+        "calibration error: --observed-capture-poses keeps the rig's) into the world, cut to "
+        "the subject: the pixels labelled 1 in "
         "gt/<sensor>/segment/ when the capture has them, else the points inside a vertical "
         "cylinder of --observed-radius-m around where the sensors' axes converge, minus a "
         "ground plane (within 15 deg of the cameras' up; 2 cm above it dropped). \"observed\" "
@@ -604,7 +607,7 @@ const cli::ToolSpec kSpec{
                {{"observed", "colour"}, {"frameset", "frames"}},
                {{"observed"},
                 {"observed-tau-mm", "observed-radius-m", "z-min", "z-max", "tsdf-voxel-mm",
-                 "observed-poisson-depth"}},
+                 "observed-poisson-depth", "observed-capture-poses"}},
                {{"report"}, {"report-size"}},
                {{"gt-poses"}, {"keep-gauge"}}},
     .add_options = [](cli::po::options_description& o) {
@@ -637,6 +640,9 @@ const cli::ToolSpec kSpec{
             "--observed: frame positions per sensor (default: all of a capture without frame "
             "sets)")("observed-tau-mm", cli::value<std::string>("20,5", "LIST"),
                      "--observed thresholds in millimetres (the first is the main one)")(
+            "observed-capture-poses",
+            "--observed: place the observations with the capture's poses even when it has a "
+            "truth (gt/world_from_depth.json)")(
             "observed-radius-m", cli::value(evaluation::SubjectOptions{}.radius_m, "M"),
             "--observed without labels: radius of the subject cylinder around the axes' "
             "convergence")(

@@ -28,7 +28,8 @@ fs::path segment_label_file(const io::Capture& capture, const std::string& senso
 Observations load_observations(const io::Capture& capture,
                                const std::vector<std::pair<std::string, std::size_t>>& frames,
                                const frames::CloudOptions& cloud_options,
-                               const evaluation::SubjectOptions& subject) {
+                               const evaluation::SubjectOptions& subject,
+                               const std::map<std::string, Pose>* poses) {
     const std::string root = capture.root.string();
     RGBD_CHECK(!frames.empty(), root + ": no frame selected");
     subject.check();
@@ -40,7 +41,13 @@ Observations load_observations(const io::Capture& capture,
     int view_id = 0;
     bool masked = cloud_options.use_mask;
     for (const auto& [sensor_id, position] : frames) {
-        const RgbdFrame frame = io::load_frame(capture, sensor_id, position);
+        RgbdFrame frame = io::load_frame(capture, sensor_id, position);
+        if (poses) {
+            const auto given = poses->find(sensor_id);
+            RGBD_CHECK(given != poses->end(), root + ": no given pose for sensor " + sensor_id);
+            frame.world_from_sensor = given->second;
+            frame.has_pose = true;
+        }
         const std::string name =
             root + ": frame " + std::to_string(frame.frame_index) + " of sensor " + sensor_id;
         RGBD_CHECK(frame.has_pose, name +
@@ -74,6 +81,7 @@ Observations load_observations(const io::Capture& capture,
         labelled ? Report((capture.root / "gt" / "<sensor>" / "segment").string()) : Report();
     for (std::size_t v = 0; v < obs.views.size(); ++v) per_view[v]["points"] = obs.views[v].size();
     obs.report["per_view"] = per_view;
+    obs.report["poses"] = poses ? "given" : "capture";
     RGBD_CHECK(obs.report["points"].get<std::size_t>() > 0,
                root + ": no observed subject point is left (selection " +
                    obs.report["selection"].get<std::string>() + ")");

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -40,13 +41,16 @@ std::filesystem::path segment_label_file(const io::Capture& capture, const std::
 /// no crop) and keeps the observed subject: the label images when the first frame has one
 /// (then every frame must), else the cylinder around where the sensors' axes converge
 /// (object_centre) minus the ground plane (evaluation::observed_subject), which is not looked
-/// for when every frame's object mask was applied (the masks left no ground).
+/// for when every frame's object mask was applied (the masks left no ground). With `poses`
+/// (sensor id -> world_from_depth, e.g. a synthetic capture's truth), the views are placed with
+/// those instead of the capture's calibration; report: poses "given" or "capture".
 /// @throws InputError naming the capture when no frame is selected, a frame has no pose
 ///         (rig.json world_from_depth or frames.csv pose columns), a label file is missing
 ///         while others exist, or no observed point is left; IoError for unreadable files.
 Observations load_observations(const io::Capture& capture,
                                const std::vector<std::pair<std::string, std::size_t>>& frames,
                                const frames::CloudOptions& cloud_options,
-                               const evaluation::SubjectOptions& subject);
+                               const evaluation::SubjectOptions& subject,
+                               const std::map<std::string, Pose>* poses = nullptr);
 
 }  // namespace rgbd::pipeline

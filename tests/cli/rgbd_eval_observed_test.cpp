@@ -85,6 +85,30 @@ TEST(RgbdEvalObserved, MovedMeshDoesNotExplainThem) {
     EXPECT_GT(o["unsupported_area_fraction"].get<double>(), 0.3) << o.dump(2);
 }
 
+TEST(RgbdEvalObserved, SyntheticCapturesArePlacedWithTheirTruePoses) {
+    // rgbd-synth's rig.json poses carry a calibration error; its truth does not. By default the
+    // observations go where the sensors truly saw them (the truth mesh explains them); with
+    // --observed-capture-poses, where the erroneous rig puts them (it explains far fewer).
+    rgbd::test::write_ellipsoid_off(temp_root() / "ell2.off", 64, 32, 0.15, 0.25, 0.12);
+    const Outcome r =
+        run("$BIN/rgbd-synth ell2.off -o miscal --sensors 6 --height-m 0.5 --resolution-scale 0.25 "
+            "--calib-error-deg 3 --calib-error-mm 40 --noise none --seed 5 -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto judge = [](const std::string& extra) {
+        const Outcome e = run("$BIN/rgbd-eval miscal/gt/mesh.ply --observed miscal " + extra +
+                              " -o miscal.json -q");
+        EXPECT_EQ(e.code, 0) << e.err;
+        return read_json(temp_root() / "miscal.json")["observed"];
+    };
+    const auto truth = judge("");
+    EXPECT_EQ(truth["subject"]["poses"], "given") << truth.dump(2);
+    EXPECT_GE(truth["explained"].get<double>(), 0.95) << truth.dump(2);
+    const auto rig = judge("--observed-capture-poses");
+    EXPECT_EQ(rig["subject"]["poses"], "capture") << rig.dump(2);
+    EXPECT_LT(rig["explained"].get<double>(), truth["explained"].get<double>() - 0.1)
+        << rig.dump(2);
+}
+
 TEST(RgbdEvalObserved, FarBoxIsUnsupportedByItsShareOfTheArea) {
     const fs::path gt = capture() / "gt" / "mesh.ply";
     const auto base = eval("cap/gt/mesh.ply")["observed"];
@@ -173,7 +197,10 @@ TEST(RgbdEvalObserved, BadInputFailsWithOneLine) {
     auto rig = read_json(nopose / "rig.json");
     for (auto& s : rig["sensors"]) s.erase("world_from_depth");
     std::ofstream(nopose / "rig.json") << rig.dump(1);
-    r = run("$BIN/rgbd-eval cap/gt/mesh.ply --observed nopose -o never.json");
+    // (its truth would place the views: the rig's poses are asked for)
+    r =
+        run("$BIN/rgbd-eval cap/gt/mesh.ply --observed nopose --observed-capture-poses "
+            "-o never.json");
     rgbd::test::expect_failure(r, 1, "rgbd-eval", temp_root(), "never.json");
     EXPECT_NE(r.err.find("has no pose"), std::string::npos) << r.err;
     // tsdf without --observed is a usage error.
