@@ -1,10 +1,10 @@
 #include "io/image_codec.hpp"
 
-// clang-format off: jpeglib.h needs <cstdio> first.
-#include <jerror.h>
-#include <jpeglib.h>
-
+// jpeglib.h needs <cstdio> before it, jerror.h needs jpeglib.h.
+// clang-format off
 #include <cstdio>
+#include <jpeglib.h>
+#include <jerror.h>
 // clang-format on
 #include <png.h>
 
@@ -17,6 +17,7 @@
 #include <iterator>
 #include <opencv2/imgproc.hpp>
 
+#include "io/internal/depth_png.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::io {
@@ -103,6 +104,39 @@ void png_append(png_structp png, png_bytep data, png_size_t size) {
 }
 void png_no_flush(png_structp) {}
 
+/// PNG of an image of a type encode_png accepts into `out` (cleared; its capacity reused), zlib
+/// `level`; with `up_filter` one fixed row filter (Up) instead of libpng's adaptive per-row
+/// search. IoError "PNG encoding failed: ..." when libpng fails.
+void write_png(const cv::Mat& image, int level, bool up_filter, std::vector<std::uint8_t>& out) {
+    const int depth = image.depth(), channels = image.channels();
+    out.clear();
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, png_throw, png_quiet);
+    if (!png) throw IoError("PNG encoding failed: out of memory");
+    png_infop info = png_create_info_struct(png);
+    try {
+        if (!info) throw IoError("out of memory");
+        png_set_write_fn(png, &out, png_append, png_no_flush);
+        png_set_compression_level(png, level);
+        if (up_filter) png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+        const int colour = channels == 1   ? PNG_COLOR_TYPE_GRAY
+                           : channels == 3 ? PNG_COLOR_TYPE_RGB
+                                           : PNG_COLOR_TYPE_RGB_ALPHA;
+        png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols),
+                     static_cast<png_uint_32>(image.rows), depth == CV_16U ? 16 : 8, colour,
+                     PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+        png_write_info(png, info);
+        png_set_bgr(png);
+        if (depth == CV_16U) png_set_swap(png);  // PNG stores 16-bit samples big-endian
+        for (int y = 0; y < image.rows; ++y)
+            png_write_row(png, const_cast<png_bytep>(image.ptr<png_byte>(y)));
+        png_write_end(png, info);
+    } catch (const IoError& e) {
+        png_destroy_write_struct(&png, &info);
+        throw IoError(std::string("PNG encoding failed: ") + e.what());
+    }
+    png_destroy_write_struct(&png, &info);
+}
+
 // ---------------------------------------------------------------- JPEG
 
 struct JpegError {
@@ -122,6 +156,14 @@ void jpeg_on_message(j_common_ptr info, int level) {
     if (level < 0 && info->err->msg_code == JWRN_JPEG_EOF) (*info->err->error_exit)(info);
 }
 
+/// libjpeg's error manager with the handlers above (errors longjmp to err.jump).
+jpeg_error_mgr* jpeg_errors(JpegError& err) {
+    jpeg_error_mgr* mgr = jpeg_std_error(&err.base);
+    mgr->error_exit = jpeg_on_error;
+    mgr->emit_message = jpeg_on_message;
+    return mgr;
+}
+
 bool is_jpeg(const std::uint8_t* data, std::size_t size) {
     return size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF;
 }
@@ -132,9 +174,7 @@ bool decode_jpeg_into(const std::uint8_t* data, std::size_t size, ImageMode mode
                       char* message) {
     jpeg_decompress_struct info;
     JpegError err;
-    info.err = jpeg_std_error(&err.base);
-    err.base.error_exit = jpeg_on_error;
-    err.base.emit_message = jpeg_on_message;
+    info.err = jpeg_errors(err);
     if (setjmp(err.jump)) {
         std::memcpy(message, err.message, JMSG_LENGTH_MAX);
         jpeg_destroy_decompress(&info);
@@ -173,9 +213,7 @@ bool encode_jpeg_into(const cv::Mat& image, int quality, unsigned char** buffer,
                       unsigned long* size, char* message) {
     jpeg_compress_struct info;
     JpegError err;
-    info.err = jpeg_std_error(&err.base);
-    err.base.error_exit = jpeg_on_error;
-    err.base.emit_message = jpeg_on_message;
+    info.err = jpeg_errors(err);
     if (setjmp(err.jump)) {
         std::memcpy(message, err.message, JMSG_LENGTH_MAX);
         jpeg_destroy_compress(&info);
@@ -254,31 +292,15 @@ std::vector<std::uint8_t> encode_png(const cv::Mat& image, int level) {
                "encode_png: the image must be 8-bit grey/BGR/BGRA or 16-bit grey/BGR");
     RGBD_CHECK(level >= 0 && level <= 9, "encode_png: level must be 0..9");
     std::vector<std::uint8_t> out;
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, png_throw, png_quiet);
-    if (!png) throw IoError("PNG encoding failed: out of memory");
-    png_infop info = png_create_info_struct(png);
-    try {
-        if (!info) throw IoError("out of memory");
-        png_set_write_fn(png, &out, png_append, png_no_flush);
-        png_set_compression_level(png, level);
-        const int colour = channels == 1   ? PNG_COLOR_TYPE_GRAY
-                           : channels == 3 ? PNG_COLOR_TYPE_RGB
-                                           : PNG_COLOR_TYPE_RGB_ALPHA;
-        png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols),
-                     static_cast<png_uint_32>(image.rows), depth == CV_16U ? 16 : 8, colour,
-                     PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-        png_write_info(png, info);
-        png_set_bgr(png);
-        if (depth == CV_16U) png_set_swap(png);
-        for (int y = 0; y < image.rows; ++y)
-            png_write_row(png, const_cast<png_bytep>(image.ptr<png_byte>(y)));
-        png_write_end(png, info);
-    } catch (const IoError& e) {
-        png_destroy_write_struct(&png, &info);
-        throw IoError(std::string("PNG encoding failed: ") + e.what());
-    }
-    png_destroy_write_struct(&png, &info);
+    write_png(image, level, false, out);
     return out;
+}
+
+void internal::encode_depth_png(const cv::Mat& depth, int level, std::vector<std::uint8_t>& out) {
+    if (depth.type() != CV_16UC1 || depth.empty())
+        throw InputError("encode_depth_png: depth must be a non-empty CV_16UC1 image");
+    if (level < 0 || level > 9) throw InputError("encode_depth_png: level must be 0..9");
+    write_png(depth, level, true, out);
 }
 
 std::vector<std::uint8_t> encode_jpeg(const cv::Mat& image, int quality) {

@@ -1,7 +1,8 @@
-// Fast 16-bit greyscale PNG encoding for depth images, written with libpng directly: one fixed
-// row filter (Up) instead of libpng's adaptive per-row filter search that cv::imencode gets,
-// which makes recording about three times cheaper per frame (the capture hub writes 240 depth
-// frames a second). The files are ordinary PNGs; cv::imread reads them bit for bit.
+// Fast 16-bit greyscale PNG encoding for depth images (io/image_codec.cpp's PNG writer): one
+// fixed row filter (Up) instead of libpng's adaptive per-row filter search that encode_png and
+// cv::imencode use, which makes recording about three times cheaper per frame (the capture hub
+// writes 240 depth frames a second). The files are ordinary PNGs; io::read_image and
+// cv::imread read them bit for bit.
 // See also: io/capture_folder.hpp (CaptureWriter::add_encoded_frame).
 #pragma once
 

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <thread>
 
@@ -17,10 +15,7 @@ namespace fs = std::filesystem;
 namespace {
 
 std::vector<std::uint8_t> read_bytes(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(path.string() + ": cannot open colour image");
-    std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                                    std::istreambuf_iterator<char>());
+    std::vector<std::uint8_t> bytes = io::read_file_bytes(path.string());
     if (bytes.empty()) throw InputError(path.string() + ": empty colour image");
     return bytes;
 }
