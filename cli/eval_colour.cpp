@@ -58,18 +58,14 @@ Report colour_report(Context& ctx, const std::string& model_path) {
             capture, ctx.get<long long>("frameset"),
             ctx.options().count("frames") ? ctx.get<std::string>("frames") : std::string(), {},
             &ctx);
-        const fs::path gt = capture.root / "gt" / "world_from_depth.json";
-        if (fs::exists(gt)) {
-            // The truth as poses of views (sensor-level poses of a rig capture).
-            for (const auto& [id, pose] : read_gt_poses(gt.string())) {
-                if (id.find('/') != std::string::npos) continue;
-                PointCloud header;
-                header.view.sensor = id;
-                header.view.world_from_sensor = pose;
-                aligned.push_back(std::move(header));
-            }
-            if (!aligned.empty()) poses = "gt";
+        // The truth as poses of views (sensor-level poses of a rig capture).
+        for (const auto& [id, pose] : pipeline::read_sensor_gt_poses(capture)) {
+            PointCloud header;
+            header.view.sensor = id;
+            header.view.world_from_sensor = pose;
+            aligned.push_back(std::move(header));
         }
+        if (!aligned.empty()) poses = "gt";
     }
     const auto views =
         pipeline::load_texture_views(capture, frames, aligned.empty() ? nullptr : &aligned);

@@ -148,11 +148,9 @@ pipeline::Observations load_observed(const Context& ctx,
     cloud.check();
     // A synthetic capture's rig.json poses carry a calibration error that its truth does not:
     // the observations go where the sensors saw them.
-    std::map<std::string, Pose> truth;
-    const fs::path gt = capture.root / "gt" / "world_from_depth.json";
-    if (!ctx.has("observed-capture-poses") && fs::exists(gt))
-        for (const auto& [id, pose] : read_gt_poses(gt.string()))
-            if (id.find('/') == std::string::npos) truth.emplace(id, pose);
+    const std::map<std::string, Pose> truth = ctx.has("observed-capture-poses")
+                                                  ? std::map<std::string, Pose>()
+                                                  : pipeline::read_sensor_gt_poses(capture);
     return pipeline::load_observations(capture, jobs, cloud, subject,
                                        truth.empty() ? nullptr : &truth);
 }

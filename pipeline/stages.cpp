@@ -314,6 +314,15 @@ Report evaluate_surface(const LoadedResult& result, const Mesh& reference,
     return evaluation::compare_to_reference(nullptr, &merged, reference, options).to_json();
 }
 
+std::map<std::string, Pose> read_sensor_gt_poses(const io::Capture& capture) {
+    std::map<std::string, Pose> poses;
+    const std::filesystem::path gt = capture.root / "gt" / "world_from_depth.json";
+    if (!std::filesystem::exists(gt)) return poses;
+    for (const auto& [id, pose] : read_gt_poses(gt.string()))
+        if (id.find('/') == std::string::npos) poses.emplace(id, pose);
+    return poses;
+}
+
 std::map<std::string, Pose> read_gt_poses(const std::string& path) {
     std::ifstream in(path);
     RGBD_CHECK_AS(IoError, in.good(), path + ": cannot open for reading");

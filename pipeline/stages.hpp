@@ -143,6 +143,12 @@ Report evaluate_surface(const LoadedResult& result, const Mesh& reference,
 /// "<sensor>/<index>". Throws InputError naming the file.
 std::map<std::string, Pose> read_gt_poses(const std::string& path);
 
+/// The sensor-level true poses of a capture: its gt/world_from_depth.json without the per-frame
+/// "<sensor>/<index>" entries (a synthetic capture's truth, whose rig.json poses carry a
+/// calibration error); empty when the capture has none. Throws InputError naming a malformed
+/// file.
+std::map<std::string, Pose> read_sensor_gt_poses(const io::Capture& capture);
+
 /// Pose errors of the views' world_from_sensor against the truth.
 Report evaluate_poses(const std::vector<PointCloud>& views, const std::string& gt_path,
                       bool remove_gauge);
