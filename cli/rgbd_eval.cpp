@@ -460,6 +460,7 @@ void run_eval(cli::Context& ctx) {
             row("spike vertices", "mesh_quality", "spike_vertex_fraction", 1.0);
             row("far area >3mm", "mesh_quality", "far_area_fraction_3mm", 1.0);
             row("grey vertices", "mesh_quality", "grey_vertex_fraction", 1.0);
+            row("crossing pairs", "mesh_quality", "self_intersecting_pairs", 1.0);
         }
         t << "time s            " << pad("-", 8);
         for (const auto& r : runs) t << pad(cell(r.report, "time_s"), 9);
@@ -564,7 +565,8 @@ const cli::ToolSpec kSpec{
         "deg, by count and area), fold edges (adjacent normals > 120 deg apart), spike "
         "vertices (a face normal > 60 deg from the vertex's area-weighted normal) and, with "
         "--points, the share of its area farther than 3 mm from every input point and of grey "
-        "fill vertices (128,128,128) within 3 mm of one. --baseline screened-poisson runs "
+        "fill vertices (128,128,128) within 3 mm of one, and the face pairs that cross each other "
+        "(self_intersecting_pairs). --baseline screened-poisson runs "
         "Open3D 0.16's Screened Poisson (Debian's python3-open3d) on the same input points at "
         "each --baseline-depths, normals as given or estimated by Open3D towards the sensors, "
         "times it, and evaluates its meshes exactly like the result, side by side (JSON and a "

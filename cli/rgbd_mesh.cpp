@@ -25,6 +25,7 @@ void run_mesh(cli::Context& ctx) {
         options.max_points = static_cast<std::size_t>(max_points);
         options.watertight = ctx.options().count("watertight") > 0;
         if (ctx.options().count("no-carve-closure")) options.carve_steps = 0;
+        options.repair_self_intersections = ctx.options().count("repair-self-intersections") > 0;
         options.target_faces = static_cast<std::size_t>(target_faces);
         options.check();
     } catch (const InputError& e) {
@@ -68,7 +69,9 @@ const cli::ToolSpec kSpec{
         "surface is invented where no sensor looked, so unseen regions stay open. --watertight "
         "closes every remaining hole into a closed 2-manifold: the loop at the bottom of the "
         "object (up from the sensors' poses) is the cut it stood on and gets straight sides "
-        "down to a flat base; every other hole is triangulated, refined and faired. --method "
+        "down to a flat base; every other hole is triangulated, refined and faired; patches "
+        "that fold onto themselves are repaired (--repair-self-intersections repairs every "
+        "face crossing another). --method "
         "poisson solves CGAL's (unscreened) Poisson reconstruction and gives a closed surface; "
         "--method advancing-front interpolates the raw points. Components smaller than 1% of "
         "the largest are dropped. --target-faces N simplifies by edge collapse "
@@ -87,6 +90,9 @@ const cli::ToolSpec kSpec{
             "no-carve-closure",
             "--watertight: keep the faired hole patches as they are (default: carved back out "
             "of the space at least two sensors saw empty)")(
+            "repair-self-intersections",
+            "remove the faces that cross others and refill their holes, last (a closed mesh "
+            "then bounds a volume; see the report's self_intersections)")(
             "target-faces",
             cli::value(static_cast<long long>(reconstruction::ReconstructionOptions{}.target_faces),
                        "N"),

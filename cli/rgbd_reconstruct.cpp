@@ -122,6 +122,8 @@ void run_reconstruct(cli::Context& ctx) {
         options.mesh.method = ctx.get<std::string>("method");
         options.mesh.watertight = ctx.options().count("open") == 0;
         if (ctx.options().count("no-carve-closure")) options.mesh.carve_steps = 0;
+        options.mesh.repair_self_intersections =
+            ctx.options().count("repair-self-intersections") > 0;
         options.mesh.check();
         const int neighbors = ctx.get<int>("upsample");
         if (neighbors != 0 && neighbors != 4 && neighbors != 8)
@@ -375,6 +377,9 @@ const cli::ToolSpec kSpec{
             "no-carve-closure",
             "keep the closed holes' faired patches as they are (default: carved back out of the "
             "space at least two sensors saw empty, as rgbd-mesh)")(
+            "repair-self-intersections",
+            "remove the mesh's faces that cross others and refill their holes, last (as "
+            "rgbd-mesh)")(
             "refine-colour",
             "-o .obj/.glb: refine the colour cameras' poses against the mesh by photometric "
             "consistency before texturing (as rgbd-texture --refine-colour)")(

@@ -422,6 +422,7 @@ reconstruction::ReconstructionOptions mesh_options(Options& o, bool watertight) 
     options.target_faces = static_cast<std::size_t>(target_faces);
     options.watertight = watertight;
     if (o.flag("no_carve_closure")) options.carve_steps = 0;
+    options.repair_self_intersections = o.flag("repair_self_intersections");
     options.check();
     return options;
 }
@@ -580,6 +581,7 @@ py::object reconstruct(const py::object& capture_arg, const py::kwargs& kwargs) 
     o.get("method", options.mesh.method);
     options.mesh.watertight = !o.flag("open");
     if (o.flag("no_carve_closure")) options.mesh.carve_steps = 0;
+    options.mesh.repair_self_intersections = o.flag("repair_self_intersections");
     options.mesh.check();
     int neighbors = options.upsample.neighbors;
     o.get("upsample", neighbors);

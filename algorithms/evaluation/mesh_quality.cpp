@@ -12,6 +12,7 @@
 #include <string>
 
 #include "algorithms/evaluation/metrics.hpp"
+#include "algorithms/reconstruction/self_intersections.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::evaluation {
@@ -231,6 +232,7 @@ Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_
         out["far_tau_m"] = options.far_tau_m;
         out["grey_tau_m"] = options.grey_tau_m;
     }
+    if (options.self_intersections) out.update(reconstruction::self_intersection_counts(mesh));
     out["time_s"] = watch.seconds();
     return out;
 }

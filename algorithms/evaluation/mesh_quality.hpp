@@ -18,6 +18,9 @@
 //   colour (128, 128, 128, reconstruction/reconstruct_surface.cpp and holes/large_holes.cpp)
 //   within grey_tolerance per channel, while an input point lies within grey_tau_m: the
 //   colour was lost although the surface was observed. Share of all vertices.
+// - self-intersecting pairs: pairs of faces that cross other than at a shared edge or vertex
+//   (CGAL PMP::self_intersections; reconstruction/self_intersections.hpp); a closed mesh with
+//   any bounds no volume (slicers, booleans and Open3D's is_watertight reject it).
 //
 // See also: libigl `internal_angles`, Meshlab "Select Faces by angle / Compute quality
 // (triangle aspect)", PMP::degenerate_faces (CGAL), VCGlib `tri::Clean::CountNonManifold*`.
@@ -51,6 +54,8 @@ struct MeshQualityOptions {
     /// Area-uniform samples for the far area (with input points only).
     std::size_t samples = 100000;
     std::uint64_t seed = 1;
+    /// Count the self-intersecting face pairs (about 0.2 s per 100,000 faces on 2 cores).
+    bool self_intersections = true;
 
     /// Throws InputError for a non-finite or out-of-range threshold or samples == 0 or > 1e8.
     void check() const;
@@ -65,7 +70,8 @@ struct MeshQualityOptions {
 ///         sliver_area_fraction_5deg (one pair per threshold, fractional degrees with 'p'),
 ///         fold_edge_fraction, fold_edges, spike_vertex_fraction, spike_vertices; with input
 ///         points far_area_fraction_3mm (tau in mm) and grey_vertex_fraction (null when the
-///         mesh has no vertex colours), grey_vertices; the thresholds; time_s.
+///         mesh has no vertex colours), grey_vertices; with options.self_intersections
+///         self_intersecting_pairs and self_intersecting_faces; the thresholds; time_s.
 /// @throws InputError for a mesh without faces, a non-triangle face, a non-finite vertex or
 ///         input point, or empty input points.
 Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_points,

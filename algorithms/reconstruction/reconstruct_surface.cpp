@@ -35,6 +35,7 @@
 #include "algorithms/reconstruction/mesh_colour.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/reconstruction/point_budget.hpp"
+#include "algorithms/reconstruction/self_intersections.hpp"
 #include "algorithms/reconstruction/smooth_points.hpp"
 #include "algorithms/sampling/robust_spacing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
@@ -627,11 +628,25 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
         steps["components_reversed"] = internal::orient_outward(mesh);
     }
     tbb::this_task_arena::isolate([&] {
-        if (options.clean && options.method != "poisson")
+        if (options.clean && options.method != "poisson") {
+            // The closure's faces, through the remeshing (its new faces count as closure).
+            auto closure = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_closure", 1).first;
+            for (auto f : mesh.faces()) closure[f] = 0;
+            for (auto f : added) closure[f] = 1;
             steps["regularize"] = internal::regularize_faces(mesh, added);
+            if (!added.empty()) {
+                added.clear();
+                for (auto f : mesh.faces())
+                    if (closure[f]) added.push_back(f);
+                steps["folded_patches"] = repair_folded_patches(mesh, added);
+            }
+            mesh.remove_property_map(closure);
+        }
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
         if (options.target_faces > 0)
             steps["simplification"] = internal::simplify_to_faces(mesh, options.target_faces);
+        if (options.repair_self_intersections)
+            steps["self_intersections"] = repair_self_intersections(mesh);
         if (!report_progress(progress, 0.9)) throw AlgorithmError("reconstruction: cancelled");
     });
     const double mesh_time = watch.seconds();

@@ -100,8 +100,16 @@ struct ReconstructionOptions {
     double front_max_facet_angle_deg = 75.0;
     /// front and advancing-front: remove folds and spikes before `watertight` closes the holes,
     /// then regularise the triangles (mesh_finishing.hpp: remove_folds_and_spikes,
-    /// regularize_faces): no flaps, no spikes along silhouettes, no slivers.
+    /// regularize_faces): no flaps, no spikes along silhouettes, no slivers; with `watertight`,
+    /// the closure's patches that fold onto themselves are repaired first
+    /// (self_intersections.hpp: repair_folded_patches).
     bool clean = true;
+    /// Last, after any simplification: the faces that cross others are removed and their holes
+    /// refilled (self_intersections.hpp), so that a closed mesh bounds a volume (slicers,
+    /// booleans). Off by default: where two closure patches span one unseen band (a groove
+    /// round a neck) the repair replaces them by a band that invents more surface than it
+    /// removes (docs/algorithms.md §14).
+    bool repair_self_intersections = false;
     /// clean: faces whose normals differ by more than this across an edge are a fold, degrees.
     double fold_angle_deg = 120.0;
     /// clean: a border face with a smaller angle than this is a spike, degrees.

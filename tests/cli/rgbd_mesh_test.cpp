@@ -61,8 +61,9 @@ nlohmann::json info(const std::string& file) {
 TEST_F(Mesh, HelpNamesMethodsAndOptions) {
     const Outcome help = run("$BIN/rgbd-mesh --help");
     EXPECT_EQ(help.code, 0);
-    for (const char* word : {"--method", "front", "poisson", "advancing-front", "--watertight",
-                             "--target-faces", "--max-points", "Example"})
+    for (const char* word :
+         {"--method", "front", "poisson", "advancing-front", "--watertight", "--target-faces",
+          "--max-points", "--repair-self-intersections", "Example"})
         EXPECT_NE(help.out.find(word), std::string::npos) << word;
 }
 
@@ -82,6 +83,19 @@ TEST_F(Mesh, WatertightClosesAndTargetFacesIsHonoured) {
     const std::string ply = slurp(temp_root() / "closed.ply");
     EXPECT_NE(ply.find("property uchar red"), std::string::npos);
     EXPECT_NE(ply.find("element face"), std::string::npos);
+}
+
+TEST_F(Mesh, RepairSelfIntersectionsLeavesNoCrossingAndStaysClosed) {
+    const Outcome r = run(
+        "$BIN/rgbd-mesh sphere.ply --watertight --repair-self-intersections --metrics m.json -o "
+        "repaired.ply");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto m = nlohmann::json::parse(slurp(temp_root() / "m.json"));
+    const auto& rec = m["mesh"]["reconstruction"];
+    EXPECT_EQ(rec["closed"], true);
+    const auto& si = rec["self_intersections"];
+    EXPECT_EQ(si["pairs_after"], 0) << si.dump();
+    EXPECT_EQ(si["faces_after"], rec["faces"]) << si.dump();
 }
 
 TEST_F(Mesh, WritesObjAndOffAndEveryMethod) {

@@ -1,7 +1,8 @@
 // Tests of the mesh cleanliness measure with known answers: a regular icosphere (no slivers,
 // folds or spikes), a flat grid with a needle, a 7-degree sliver and a folded flap (exact
 // fractions), a plane offset 5 mm / 1 mm from its input points (far area 1 / 0), grey fill
-// vertices near and far from the points, options checks and thread-count determinism.
+// vertices near and far from the points, two crossing spheres (self-intersections), options
+// checks and thread-count determinism.
 #include "algorithms/evaluation/mesh_quality.hpp"
 
 #include <gtest/gtest.h>
@@ -66,7 +67,21 @@ TEST(MeshQuality, RegularIcosphereIsClean) {
         EXPECT_EQ(r["edges_interior"].get<std::size_t>(), 30u << (2 * levels));
         EXPECT_FALSE(r.contains("far_area_fraction_3mm"));
         EXPECT_FALSE(r.contains("grey_vertex_fraction"));
+        EXPECT_EQ(r["self_intersecting_pairs"], 0);
+        EXPECT_EQ(r["self_intersecting_faces"], 0);
     }
+}
+
+TEST(MeshQuality, CountsTheFacesOfTwoCrossingSpheres) {
+    Mesh mesh;
+    synth::testing::add_icosphere(mesh, Eigen::Vector3d::Zero(), 0.1, 2);
+    synth::testing::add_icosphere(mesh, Eigen::Vector3d(0.1, 0.0, 0.0), 0.1, 2);
+    const Report r = mesh_quality(mesh, nullptr);
+    EXPECT_GT(r["self_intersecting_pairs"].get<std::size_t>(), 10u);
+    EXPECT_GT(r["self_intersecting_faces"].get<std::size_t>(), 10u);
+    MeshQualityOptions no_count;
+    no_count.self_intersections = false;
+    EXPECT_FALSE(mesh_quality(mesh, nullptr, no_count).contains("self_intersecting_pairs"));
 }
 
 TEST(MeshQuality, NeedleSliverAndFlapGiveExactFractions) {

@@ -1,0 +1,55 @@
+// Self-intersections of a triangle mesh: found (CGAL Polygon_mesh_processing::self_intersections,
+// box intersection of the faces' bounding boxes, then exact triangle-triangle tests) and
+// repaired (PMP::experimental::remove_self_intersections: the faces around each intersecting
+// region are removed and the hole is refilled, or the region smoothed, until no face crosses
+// another; CGAL 5.5). A closed mesh that crosses itself bounds no volume: slicers and boolean
+// operations (corefinement) reject it, and Open3D's is_watertight is false. The advancing front
+// and the closure's hole patches (a faired patch over a non-planar hole, a flat base over a rim
+// whose projection folds) both make a few (docs/algorithms.md §14). Heavy CGAL templates live in
+// self_intersections.cpp only.
+#pragma once
+
+#include <cstddef>
+#include <utility>
+#include <vector>
+
+#include "toolkit/mesh.hpp"
+#include "toolkit/report.hpp"
+
+namespace rgbd::reconstruction {
+
+/// The pairs of faces of `mesh` that intersect other than at a shared edge or vertex (in a
+/// deterministic order: by the first face's index, then the second's; first < second).
+/// Degenerate (zero-area) faces count as intersecting their neighbours, as in CGAL.
+std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> self_intersecting_pairs(
+    const Mesh& mesh);
+
+/// Counts of self_intersecting_pairs(): self_intersecting_pairs (face pairs) and
+/// self_intersecting_faces (faces in at least one pair); 0 and 0 for a mesh that bounds a
+/// volume without crossing itself.
+Report self_intersection_counts(const Mesh& mesh);
+
+/// Removes the self-intersections of `mesh` (faces are removed around each intersecting region
+/// and the hole refilled, or the region smoothed; CGAL's repair, up to 20 rounds), keeping the
+/// mesh closed when it was closed: a hole the repair leaves is closed again by CGAL's hole
+/// filling (triangulated, refined, faired). Vertex properties of new vertices take their maps'
+/// defaults. Report: pairs_before, faces_involved, pairs_after (0 unless the repair failed:
+/// then the mesh keeps what CGAL could not undo), holes_refilled, faces_removed, faces_added,
+/// time_s.
+Report repair_self_intersections(Mesh& mesh);
+
+/// Repairs the closure patches that fold onto themselves (docs/algorithms.md §14): `patch` lists
+/// the faces the closure added; its connected components (sharing edges) are the patches. Faces
+/// of one patch that cross each other (a faired patch over a strongly non-planar hole folds:
+/// the cow's belly between its legs, the jug's mouth, the walls of a base cut round two feet)
+/// are removed with their surroundings and the hole refilled (CGAL's repair, as
+/// repair_self_intersections). Crossings between two patches, or between a patch and the
+/// reconstructed surface, are left: they mark a wrong topology (two disks where the unseen band
+/// round a neck needs a tube), which a local repair replaces by a flat band that invents more
+/// than it removes. `patch` is updated to the faces added or refilled after the repair (the
+/// mesh's garbage is collected). Report: patch_pairs (crossing pairs among the patch faces),
+/// folded_pairs (within one patch), faces_involved, holes_refilled, pairs_after (folded pairs
+/// left, counted only when CGAL's repair reports a failure or a hole was refilled), time_s.
+Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch);
+
+}  // namespace rgbd::reconstruction

@@ -1,0 +1,133 @@
+// Tests of the self-intersection search and repair with known answers: a regular icosphere
+// crosses nothing (and the repair leaves it as it is); two overlapping spheres cross exactly
+// along the circle where they meet; a closed sphere whose top cap is pushed down and out
+// through its own side crosses itself, and the repair leaves it closed and crossing nothing; as
+// one closure patch its crossings are folds and are repaired, while a patch of its rim alone
+// crosses the rest of the surface and is left.
+#include "algorithms/reconstruction/self_intersections.hpp"
+
+#include <CGAL/boost/graph/helpers.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tests/validation/synth_test_shapes.hpp"
+
+namespace rgbd::reconstruction {
+namespace {
+
+using synth::testing::add_icosphere;
+using synth::testing::icosphere;
+
+Eigen::Vector3d centroid(const Mesh& mesh, Mesh::Face_index f) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh)) c += to_eigen(mesh.point(v));
+    return c / 3.0;
+}
+
+/// An icosphere (radius 0.1) whose cap above z = 0.06 is pushed 5 cm down and widened by half:
+/// its rim (radius 0.12 at z = 0.01) passes out through the sphere's side (radius about 0.1
+/// there). `cap` receives the faces with a moved corner (the
+/// cap and the band that joins it to the rest).
+Mesh dented_sphere(std::vector<Mesh::Face_index>& cap) {
+    Mesh mesh = icosphere(0.1, 3);
+    std::vector<char> moved(mesh.num_vertices(), 0);
+    for (auto v : mesh.vertices()) {
+        Eigen::Vector3d p = to_eigen(mesh.point(v));
+        if (p.z() <= 0.06) continue;
+        mesh.point(v) = to_point(Eigen::Vector3d(1.5 * p.x(), 1.5 * p.y(), p.z() - 0.05));
+        moved[std::size_t(v)] = 1;
+    }
+    for (auto f : mesh.faces())
+        for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh))
+            if (moved[std::size_t(v)]) {
+                cap.push_back(f);
+                break;
+            }
+    return mesh;
+}
+
+TEST(SelfIntersections, IcosphereCrossesNothingAndRepairKeepsIt) {
+    Mesh mesh = icosphere(0.1, 3);
+    EXPECT_TRUE(self_intersecting_pairs(mesh).empty());
+    const Report counts = self_intersection_counts(mesh);
+    EXPECT_EQ(counts["self_intersecting_pairs"], 0);
+    EXPECT_EQ(counts["self_intersecting_faces"], 0);
+    const std::size_t faces = mesh.number_of_faces();
+    const Report r = repair_self_intersections(mesh);
+    EXPECT_EQ(r["pairs_before"], 0);
+    EXPECT_EQ(r["pairs_after"], 0);
+    EXPECT_EQ(mesh.number_of_faces(), faces);
+}
+
+TEST(SelfIntersections, TwoOverlappingSpheresCrossAlongTheirCircle) {
+    // Radius 0.1, centres 0.1 apart on x: the spheres meet on the plane x = 0.05 in a circle
+    // of radius sqrt(0.1^2 - 0.05^2) = 0.0866.
+    Mesh mesh;
+    add_icosphere(mesh, Eigen::Vector3d::Zero(), 0.1, 3);
+    add_icosphere(mesh, Eigen::Vector3d(0.1, 0.0, 0.0), 0.1, 3);
+    const auto pairs = self_intersecting_pairs(mesh);
+    ASSERT_GT(pairs.size(), 20u);
+    const double edge = 0.1 * 1.1 / 8.0;  // level 3: edges about a twelfth of the radius
+    for (const auto& [a, b] : pairs) {
+        EXPECT_LT(a, b);
+        for (auto f : {a, b}) {
+            const Eigen::Vector3d c = centroid(mesh, f);
+            EXPECT_NEAR(c.x(), 0.05, edge);
+            EXPECT_NEAR(std::hypot(c.y(), c.z()), 0.0866, edge);
+        }
+    }
+    const Report counts = self_intersection_counts(mesh);
+    EXPECT_EQ(counts["self_intersecting_pairs"], pairs.size());
+    EXPECT_LE(counts["self_intersecting_faces"], 2 * pairs.size());
+}
+
+TEST(SelfIntersections, RepairLeavesADentedSphereClosedAndUncrossed) {
+    std::vector<Mesh::Face_index> cap;
+    Mesh mesh = dented_sphere(cap);
+    ASSERT_TRUE(CGAL::is_closed(mesh));
+    const std::size_t before = self_intersecting_pairs(mesh).size();
+    ASSERT_GT(before, 0u);
+    const Report r = repair_self_intersections(mesh);
+    EXPECT_EQ(r["pairs_before"], before);
+    EXPECT_EQ(r["pairs_after"], 0) << r.dump();
+    EXPECT_TRUE(self_intersecting_pairs(mesh).empty());
+    EXPECT_TRUE(CGAL::is_closed(mesh));
+    EXPECT_TRUE(CGAL::is_triangle_mesh(mesh));
+    EXPECT_EQ(r["faces_after"], mesh.number_of_faces());
+}
+
+TEST(SelfIntersections, FoldedPatchIsRepairedAndAPatchCrossingTheRestIsLeft) {
+    // The whole sphere as one closure patch: its crossings are folds of that patch.
+    {
+        std::vector<Mesh::Face_index> ignored;
+        Mesh mesh = dented_sphere(ignored);
+        std::vector<Mesh::Face_index> patch(mesh.faces().begin(), mesh.faces().end());
+        const std::size_t before = self_intersecting_pairs(mesh).size();
+        ASSERT_GT(before, 0u);
+        const Report r = repair_folded_patches(mesh, patch);
+        EXPECT_EQ(r["patch_pairs"], before);
+        EXPECT_EQ(r["folded_pairs"], before);
+        EXPECT_EQ(r["pairs_after"], 0) << r.dump();
+        EXPECT_TRUE(self_intersecting_pairs(mesh).empty());
+        EXPECT_TRUE(CGAL::is_closed(mesh));
+        EXPECT_EQ(patch.size(), mesh.number_of_faces());  // the refilled faces are patch faces
+    }
+    // Only the moved cap and its band as the patch: they cross the sphere's side, which is not
+    // patch: a crossing between a patch and the rest is left as it is.
+    {
+        std::vector<Mesh::Face_index> cap;
+        Mesh mesh = dented_sphere(cap);
+        ASSERT_FALSE(cap.empty());
+        const std::size_t before = self_intersecting_pairs(mesh).size();
+        ASSERT_GT(before, 0u);
+        const std::size_t faces = mesh.number_of_faces();
+        const Report r = repair_folded_patches(mesh, cap);
+        EXPECT_EQ(r["folded_pairs"], 0) << r.dump();
+        EXPECT_EQ(mesh.number_of_faces(), faces);
+        EXPECT_EQ(self_intersecting_pairs(mesh).size(), before);
+    }
+}
+
+}  // namespace
+}  // namespace rgbd::reconstruction
