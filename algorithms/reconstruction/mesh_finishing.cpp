@@ -557,8 +557,10 @@ Report remove_folds_and_spikes(Mesh& mesh, double max_fold_deg, double spike_ang
     return r;
 }
 
-Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch) {
-    Stopwatch watch;
+namespace {
+
+/// regularize_faces() without the patch's tracking and the time.
+Report regularize_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& patch) {
     auto in_patch = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_patch", 0).first;
     for (auto f : patch) in_patch[f] = 1;
     // Target: the median edge of the faces outside the patch (the reconstruction's own).
@@ -601,6 +603,28 @@ Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch) 
     r["target_edge_m"] = target;
     r["degenerate_removed"] =
         faces_before - std::min<std::size_t>(faces_before, mesh.number_of_faces());
+    return r;
+}
+
+}  // namespace
+
+void track_faces(Mesh& mesh, std::vector<Mesh::Face_index>& faces,
+                 const std::function<void()>& edit) {
+    auto tracked = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_tracked", 1).first;
+    for (auto f : mesh.faces()) tracked[f] = 0;
+    for (auto f : faces) tracked[f] = 1;
+    edit();
+    mesh.collect_garbage();
+    faces.clear();
+    for (auto f : mesh.faces())
+        if (tracked[f]) faces.push_back(f);
+    mesh.remove_property_map(tracked);
+}
+
+Report regularize_faces(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
+    Stopwatch watch;
+    Report r;
+    track_faces(mesh, patch, [&] { r = regularize_patch(mesh, patch); });
     r["time_s"] = watch.seconds();
     return r;
 }

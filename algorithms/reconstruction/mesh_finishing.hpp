@@ -73,14 +73,23 @@ Report remove_folds_and_spikes(Mesh& mesh, double max_fold_deg = 120.0,
                                double spike_angle_deg = 10.0, int rounds = 3,
                                double min_component_fraction = 0.01);
 
+/// Runs `edit` on `mesh` (it may add, remove and recycle faces and collect the garbage), then
+/// sets `faces` to those of its faces that survive plus every face `edit` created: a face
+/// property tracks them through the edit (new faces take its default). The mesh's garbage is
+/// collected.
+void track_faces(Mesh& mesh, std::vector<Mesh::Face_index>& faces,
+                 const std::function<void()>& edit);
+
 /// Regularises the triangles: isotropic remeshing (CGAL PMP::isotropic_remeshing, Botsch and
 /// Kobbelt 2004: 3 iterations of splits, collapses and flips; no tangential relaxation) of the
-/// faces that `is_patch` marks plus their one-ring, to the median edge length of the other faces;
-/// then, over the whole mesh, needles (longest / shortest edge > 4, shortest edge under that
-/// median) are collapsed and caps (an angle over 160 degrees) flipped
+/// faces of `patch` plus their one-ring, to the median edge length of the other faces; then,
+/// over the whole mesh, needles (longest / shortest edge > 4, shortest edge under that median)
+/// are collapsed and caps (an angle over 160 degrees) flipped
 /// (PMP::experimental::remove_almost_degenerate_faces). Borders stay borders; a closed mesh
-/// stays closed. Report: remeshed_faces, target_edge_m, degenerate_removed, time_s.
-Report regularize_faces(Mesh& mesh, const std::vector<Mesh::Face_index>& patch);
+/// stays closed. `patch` is updated (track_faces): its surviving faces and every face the
+/// remeshing made (in the one-ring too). Report: remeshed_faces, target_edge_m,
+/// degenerate_removed, time_s.
+Report regularize_faces(Mesh& mesh, std::vector<Mesh::Face_index>& patch);
 
 /// Edge collapse (Garland-Heckbert plane quadrics, bounded normal change) until the mesh has
 /// at most `target_faces` faces (or no collapse is possible). Borders stay borders and a

@@ -629,18 +629,10 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     }
     tbb::this_task_arena::isolate([&] {
         if (options.clean && options.method != "poisson") {
-            // The closure's faces, through the remeshing (its new faces count as closure).
-            auto closure = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_closure", 1).first;
-            for (auto f : mesh.faces()) closure[f] = 0;
-            for (auto f : added) closure[f] = 1;
+            const bool closed_holes = !added.empty();
+            // `added` follows the remeshing (its new faces count as closure).
             steps["regularize"] = internal::regularize_faces(mesh, added);
-            if (!added.empty()) {
-                added.clear();
-                for (auto f : mesh.faces())
-                    if (closure[f]) added.push_back(f);
-                steps["folded_patches"] = repair_folded_patches(mesh, added);
-            }
-            mesh.remove_property_map(closure);
+            if (closed_holes) steps["folded_patches"] = repair_folded_patches(mesh, added);
         }
         if (!report_progress(progress, 0.8)) throw AlgorithmError("reconstruction: cancelled");
         if (options.target_faces > 0)

@@ -1,10 +1,10 @@
 #include "algorithms/reconstruction/self_intersections.hpp"
 
 #include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
 #include <CGAL/Polygon_mesh_processing/repair_self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
-#include <CGAL/Polygon_mesh_processing/shape_predicates.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/boost/graph/helpers.h>
 
@@ -14,36 +14,25 @@
 #include <limits>
 #include <set>
 
-#include "toolkit/error.hpp"
+#include "algorithms/reconstruction/mesh_finishing.hpp"
 
 namespace rgbd::reconstruction {
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 
-std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> self_intersecting_pairs(
-    const Mesh& mesh) {
-    std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
-    PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
-    for (auto& p : pairs)
-        if (p.second < p.first) std::swap(p.first, p.second);
-    std::sort(pairs.begin(), pairs.end());
-    return pairs;
-}
-
-Report self_intersection_counts(const Mesh& mesh) {
-    const auto pairs = self_intersecting_pairs(mesh);
-    std::set<Mesh::Face_index> faces;
-    for (const auto& p : pairs) {
-        faces.insert(p.first);
-        faces.insert(p.second);
-    }
-    Report r = Report::object();
-    r["self_intersecting_pairs"] = pairs.size();
-    r["self_intersecting_faces"] = faces.size();
-    return r;
-}
-
 namespace {
+
+using FacePairs = std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>>;
+
+/// The faces of the pairs, each once.
+std::set<Mesh::Face_index> faces_of(const FacePairs& pairs) {
+    std::set<Mesh::Face_index> faces;
+    for (const auto& [a, b] : pairs) {
+        faces.insert(a);
+        faces.insert(b);
+    }
+    return faces;
+}
 
 /// CGAL's repair of the faces `involved` (they cross others), then, if the mesh was closed,
 /// its holes refilled and caps flipped; the garbage is collected. Returns whether CGAL
@@ -78,16 +67,30 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
 
 }  // namespace
 
+std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> self_intersecting_pairs(
+    const Mesh& mesh) {
+    std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+    PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
+    for (auto& p : pairs)
+        if (p.second < p.first) std::swap(p.first, p.second);
+    std::sort(pairs.begin(), pairs.end());
+    return pairs;
+}
+
+Report self_intersection_counts(const Mesh& mesh) {
+    const auto pairs = self_intersecting_pairs(mesh);
+    Report r = Report::object();
+    r["self_intersecting_pairs"] = pairs.size();
+    r["self_intersecting_faces"] = faces_of(pairs).size();
+    return r;
+}
+
 Report repair_self_intersections(Mesh& mesh) {
     const Stopwatch watch;
     Report r;
     const auto pairs = self_intersecting_pairs(mesh);
     r["pairs_before"] = pairs.size();
-    std::set<Mesh::Face_index> involved;
-    for (const auto& p : pairs) {
-        involved.insert(p.first);
-        involved.insert(p.second);
-    }
+    const std::set<Mesh::Face_index> involved = faces_of(pairs);
     r["faces_involved"] = involved.size();
     r["faces_before"] = mesh.number_of_faces();
     std::size_t after = 0, refilled = 0;
@@ -106,49 +109,38 @@ Report repair_self_intersections(Mesh& mesh) {
 Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
     const Stopwatch watch;
     Report r;
-    // The patches: components of the patch faces across shared edges (union-find by slot).
-    std::vector<std::size_t> parent(mesh.num_faces(), static_cast<std::size_t>(-1));
-    for (auto f : patch) parent[std::size_t(f)] = std::size_t(f);
-    auto root = [&parent](std::size_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
-    for (auto f : patch)
-        for (auto h : CGAL::halfedges_around_face(mesh.halfedge(f), mesh)) {
-            const auto g = mesh.face(mesh.opposite(h));
-            if (g == Mesh::null_face() || parent[std::size_t(g)] == static_cast<std::size_t>(-1))
-                continue;
-            const std::size_t a = root(std::size_t(f)), b = root(std::size_t(g));
-            if (a != b) parent[std::max(a, b)] = std::min(a, b);
-        }
-    std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+    // The patches: connected components across edges between two patch faces (every edge
+    // with a face outside the patch, or none, is a wall).
+    auto in_patch = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_in_patch", 0).first;
+    for (auto f : patch) in_patch[f] = 1;
+    auto wall = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_patch_wall", false).first;
+    for (auto e : mesh.edges()) {
+        const auto f = mesh.face(mesh.halfedge(e, 0)), g = mesh.face(mesh.halfedge(e, 1));
+        wall[e] = f == Mesh::null_face() || g == Mesh::null_face() || in_patch[f] != in_patch[g];
+    }
+    auto component = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_cc", 0).first;
+    PMP::connected_components(mesh, component, CGAL::parameters::edge_is_constrained_map(wall));
+    mesh.remove_property_map(wall);
+    mesh.remove_property_map(in_patch);
+    FacePairs pairs;
     PMP::self_intersections<CGAL::Parallel_if_available_tag>(patch, mesh,
                                                              std::back_inserter(pairs));
-    std::set<Mesh::Face_index> involved;
-    std::size_t folded = 0;
-    for (const auto& [a, b] : pairs)
-        if (root(std::size_t(a)) == root(std::size_t(b))) {
-            ++folded;
-            involved.insert(a);
-            involved.insert(b);
-        }
+    FacePairs folded;
+    for (const auto& p : pairs)
+        if (component[p.first] == component[p.second]) folded.push_back(p);
+    mesh.remove_property_map(component);
+    const std::set<Mesh::Face_index> involved = faces_of(folded);
     r["patch_pairs"] = pairs.size();
-    r["folded_pairs"] = folded;
+    r["folded_pairs"] = folded.size();
     r["faces_involved"] = involved.size();
     std::size_t refilled = 0, after = 0;
     if (!involved.empty()) {
-        // The patch faces, and the faces the repair adds (new faces take the map's default),
-        // survive the garbage collection in a property map.
-        auto added = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_repair_patch", 1).first;
-        for (auto f : mesh.faces()) added[f] = 0;
-        for (auto f : patch) added[f] = 1;
-        const bool repaired = repair_faces(mesh, involved, refilled);
-        patch.clear();
-        for (auto f : mesh.faces())
-            if (added[f]) patch.push_back(f);
-        mesh.remove_property_map(added);
+        // The faces the repair adds are patch faces too.
+        bool repaired = true;
+        internal::track_faces(mesh, patch,
+                              [&] { repaired = repair_faces(mesh, involved, refilled); });
         if (!repaired || refilled > 0) {
-            std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> left;
+            FacePairs left;
             PMP::self_intersections(patch, mesh, std::back_inserter(left));
             after = left.size();
         }
