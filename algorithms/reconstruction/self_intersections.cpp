@@ -1,3 +1,15 @@
+// CGAL's self-intersection repair cuts the faces round a crossing out and refills the hole with
+// triangulate_hole_polyline, which first searches a 3D Delaunay triangulation of the hole's
+// corners. That search's choice depends on the heap's layout (mesh_finishing.cpp): the repaired
+// mesh varied from process to process (the jug: 122,906 faces in one run, 122,940 in the next).
+// CGAL 5.5 has no parameter for it inside the repair, so this translation unit turns the
+// Delaunay search space off: the holes are triangulated by the cubic search over all
+// triangulations (Liepa), which is deterministic. Every CGAL hole-filling template instantiated
+// here takes RepairTraits as its geometric traits, so none is shared with mesh_finishing.cpp
+// (which keeps the Delaunay search past the cubic algorithm's reach) and the two TUs' different
+// bodies never meet at link time.
+#define CGAL_HOLE_FILLING_DO_NOT_USE_DT3
+
 #include "algorithms/reconstruction/self_intersections.hpp"
 
 #include <CGAL/Polygon_mesh_processing/border.h>
@@ -22,6 +34,9 @@ namespace PMP = CGAL::Polygon_mesh_processing;
 
 namespace {
 
+/// The kernel under a type of this translation unit's own (see the note at the top).
+struct RepairTraits : Kernel {};
+
 using FacePairs = std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>>;
 
 /// The faces of the pairs, each once.
@@ -42,7 +57,7 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
     // preserve_genus(false): an intersecting region may be removed with the handle it makes
     // (two sheets crossing are no handle of the surface the sensors saw).
     const bool repaired = PMP::experimental::remove_self_intersections(
-        involved, mesh, CGAL::parameters::preserve_genus(false));
+        involved, mesh, CGAL::parameters::preserve_genus(false).geom_traits(RepairTraits()));
     refilled = 0;
     if (was_closed && !CGAL::is_closed(mesh)) {
         std::vector<Mesh::Halfedge_index> borders;
@@ -51,7 +66,8 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
             if (!mesh.is_border(h)) continue;
             std::vector<Mesh::Face_index> faces;
             PMP::triangulate_refine_and_fair_hole(mesh, h, std::back_inserter(faces),
-                                                  CGAL::Emptyset_iterator());
+                                                  CGAL::Emptyset_iterator(),
+                                                  CGAL::parameters::geom_traits(RepairTraits()));
             refilled += !faces.empty();
         }
     }

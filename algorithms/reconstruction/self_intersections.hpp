@@ -2,11 +2,13 @@
 // box intersection of the faces' bounding boxes, then exact triangle-triangle tests) and
 // repaired (PMP::experimental::remove_self_intersections: the faces around each intersecting
 // region are removed and the hole is refilled, or the region smoothed, until no face crosses
-// another; CGAL 5.5). A closed mesh that crosses itself bounds no volume: slicers and boolean
-// operations (corefinement) reject it, and Open3D's is_watertight is false. The advancing front
-// and the closure's hole patches (a faired patch over a non-planar hole, a flat base over a rim
-// whose projection folds) both make a few (docs/algorithms.md §14). Heavy CGAL templates live in
-// self_intersections.cpp only.
+// another; CGAL 5.5; the holes triangulated by Liepa's search over all triangulations, not the
+// 3D Delaunay search space, whose choice followed the heap's layout: the same mesh is repaired
+// the same way in every process). A closed mesh that crosses itself bounds no volume: slicers and
+// boolean operations (corefinement) reject it, and Open3D's is_watertight is false. The advancing
+// front and the closure's hole patches (a faired patch over a non-planar hole, a flat base over a
+// rim whose projection folds) both make a few (docs/algorithms.md §14). Heavy CGAL templates live
+// in self_intersections.cpp only.
 #pragma once
 
 #include <cstddef>

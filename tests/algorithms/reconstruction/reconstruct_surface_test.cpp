@@ -9,14 +9,12 @@
 #include <CGAL/Polygon_mesh_processing/repair.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
-#include <malloc.h>
 #include <tbb/global_control.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 #include <vector>
 
@@ -24,6 +22,7 @@
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "sphere_cloud.hpp"
+#include "tests/support/heap_layout.hpp"
 #include "toolkit/error.hpp"
 
 namespace {
@@ -547,27 +546,11 @@ TEST(ReconstructSurface, FrontDoesNotDependOnTheHeapLayout) {
     const PointCloud cloud = rgbd::test::noisy_sphere(30000, kRadius, 0.0005, 0.7);
     ReconstructionOptions o;
     o.watertight = true;
-    const auto triangles = [](const Mesh& m) {
-        std::vector<std::array<double, 9>> out;
-        for (auto f : m.faces()) {
-            std::array<double, 9> t{};
-            int k = 0;
-            for (auto v : CGAL::vertices_around_face(m.halfedge(f), m))
-                for (int i = 0; i < 3; ++i) t[k++] = m.point(v)[i];
-            out.push_back(t);
-        }
-        return out;
+    const auto mesh = [&] {
+        return rgbd::test::mesh_triangles(rgbd::reconstruction::reconstruct_surface(cloud, o));
     };
-    const auto first = triangles(rgbd::reconstruction::reconstruct_surface(cloud, o));
-    // The second call on a heap laid out the other way round: every block of 4 KiB or more
-    // mapped on its own (glibc maps them top-down), the small ones around scrambled free lists.
-    std::vector<std::vector<char>> kept, dropped;
-    std::mt19937 rng(7);
-    for (int i = 0; i < 4000; ++i) (i % 3 ? kept : dropped).emplace_back(16 + rng() % 4000, 'x');
-    dropped.clear();
-    mallopt(M_MMAP_THRESHOLD, 4096);
-    const auto second = triangles(rgbd::reconstruction::reconstruct_surface(cloud, o));
-    mallopt(M_MMAP_THRESHOLD, 128 * 1024);
+    const auto first = mesh();
+    const auto second = rgbd::test::on_scrambled_heap(mesh);
     ASSERT_GT(first.size(), 1000u);
     EXPECT_EQ(first.size(), second.size());
     EXPECT_TRUE(first == second);
