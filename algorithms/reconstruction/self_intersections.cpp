@@ -1,16 +1,96 @@
-// CGAL's self-intersection repair cuts the faces round a crossing out and refills the hole with
-// triangulate_hole_polyline, which first searches a 3D Delaunay triangulation of the hole's
-// corners. That search's choice depends on the heap's layout (mesh_finishing.cpp): the repaired
-// mesh varied from process to process (the jug: 122,906 faces in one run, 122,940 in the next).
-// CGAL 5.5 has no parameter for it inside the repair, so this translation unit turns the
-// Delaunay search space off: the holes are triangulated by the cubic search over all
-// triangulations (Liepa), which is deterministic. Every CGAL hole-filling template instantiated
-// here takes RepairTraits as its geometric traits, so none is shared with mesh_finishing.cpp
-// (which keeps the Delaunay search past the cubic algorithm's reach) and the two TUs' different
-// bodies never meet at link time.
-#define CGAL_HOLE_FILLING_DO_NOT_USE_DT3
-
 #include "algorithms/reconstruction/self_intersections.hpp"
+
+#include <CGAL/Delaunay_triangulation_cell_base_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+
+#include "toolkit/types.hpp"
+
+// CGAL's self-intersection repair cuts the faces round a crossing out and refills the hole with
+// triangulate_hole_polyline, which searches the triangles of a 3D Delaunay triangulation of the
+// hole's corners. That triangulation's cells and vertices are ordered by their addresses (which
+// cell represents an edge, where the circulation round it starts, so which of two equally good
+// triangles is taken): the repaired mesh followed the heap's layout (the jug, seed 2: 127,722 to
+// 149,406 faces from the same points). CGAL 5.5 has no parameter for the triangulation it uses;
+// its cell and vertex bases are specialised here, for a traits type of this translation unit's
+// own, to carry time stamps, which the triangulation's containers order them by instead
+// (creation order, as CGAL's Mesh_3 does). The search space and the result are CGAL's; only the
+// order is fixed. (Turning the Delaunay search space off, CGAL_HOLE_FILLING_DO_NOT_USE_DT3, was
+// deterministic too but made the repair fail more and cost more: the elephant left 375 crossing
+// pairs instead of none, the APC shelf 376 s instead of 127.)
+namespace rgbd::reconstruction {
+namespace {
+/// The kernel under a type of this translation unit's own: the hole filling's triangulation is
+/// instantiated with it alone (and, in an unnamed namespace, with internal linkage).
+struct RepairTraits : Kernel {};
+}  // namespace
+}  // namespace rgbd::reconstruction
+
+namespace CGAL {
+
+/// Delaunay_triangulation_cell_base_3 for RepairTraits, with a time stamp.
+template <typename Cb>
+class Delaunay_triangulation_cell_base_3<rgbd::reconstruction::RepairTraits, Cb> : public Cb {
+public:
+    using Geom_traits = rgbd::reconstruction::RepairTraits;
+    using Vertex_handle = typename Cb::Vertex_handle;
+    using Cell_handle = typename Cb::Cell_handle;
+    using Point_3 = typename Geom_traits::Point_3;
+    using Point = Point_3;
+    using Has_timestamp = Tag_true;
+
+    template <typename TDS2>
+    struct Rebind_TDS {
+        using Cb2 = typename Cb::template Rebind_TDS<TDS2>::Other;
+        using Other = Delaunay_triangulation_cell_base_3<Geom_traits, Cb2>;
+    };
+
+    using Cb::Cb;
+
+    template <typename GT_>
+    Point_3 circumcenter(const GT_& gt) const {
+        return gt.construct_circumcenter_3_object()(
+            this->vertex(0)->point(), this->vertex(1)->point(), this->vertex(2)->point(),
+            this->vertex(3)->point());
+    }
+    Point_3 circumcenter() const { return circumcenter(Geom_traits()); }
+
+    std::size_t time_stamp() const { return time_stamp_; }
+    void set_time_stamp(const std::size_t& ts) { time_stamp_ = ts; }
+
+private:
+    std::size_t time_stamp_ = std::size_t(-1);
+};
+
+/// Triangulation_vertex_base_with_info_3 for RepairTraits, with a time stamp.
+template <typename Info_, typename Vb>
+class Triangulation_vertex_base_with_info_3<Info_, rgbd::reconstruction::RepairTraits, Vb>
+    : public Vb {
+public:
+    using Cell_handle = typename Vb::Cell_handle;
+    using Point = typename Vb::Point;
+    using Info = Info_;
+    using Has_timestamp = Tag_true;
+
+    template <typename TDS2>
+    struct Rebind_TDS {
+        using Vb2 = typename Vb::template Rebind_TDS<TDS2>::Other;
+        using Other =
+            Triangulation_vertex_base_with_info_3<Info, rgbd::reconstruction::RepairTraits, Vb2>;
+    };
+
+    using Vb::Vb;
+
+    const Info& info() const { return info_; }
+    Info& info() { return info_; }
+    std::size_t time_stamp() const { return time_stamp_; }
+    void set_time_stamp(const std::size_t& ts) { time_stamp_ = ts; }
+
+private:
+    Info info_{};
+    std::size_t time_stamp_ = std::size_t(-1);
+};
+
+}  // namespace CGAL
 
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
@@ -33,9 +113,6 @@ namespace rgbd::reconstruction {
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 namespace {
-
-/// The kernel under a type of this translation unit's own (see the note at the top).
-struct RepairTraits : Kernel {};
 
 using FacePairs = std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>>;
 
@@ -79,6 +156,28 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
                                                       std::numeric_limits<double>::max(), 0.0);
     mesh.collect_garbage();
     return repaired;
+}
+
+/// The regions of the faces `crossing`: their connected components across shared edges (as
+/// CGAL's repair groups them). Returns each region's face count, by region.
+std::vector<std::size_t> fold_regions(Mesh& mesh, const std::set<Mesh::Face_index>& crossing) {
+    auto in = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_crossing", 0).first;
+    for (auto f : crossing) in[f] = 1;
+    auto wall = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_region_wall", true).first;
+    for (auto e : mesh.edges()) {
+        const auto f = mesh.face(mesh.halfedge(e, 0)), g = mesh.face(mesh.halfedge(e, 1));
+        wall[e] = f == Mesh::null_face() || g == Mesh::null_face() || !in[f] || !in[g];
+    }
+    auto region = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_region", 0).first;
+    const std::size_t n =
+        PMP::connected_components(mesh, region, CGAL::parameters::edge_is_constrained_map(wall));
+    std::vector<std::size_t> sizes(n, 0);
+    for (auto f : crossing) ++sizes[region[f]];
+    mesh.remove_property_map(region);
+    mesh.remove_property_map(wall);
+    mesh.remove_property_map(in);
+    sizes.erase(std::remove(sizes.begin(), sizes.end(), 0u), sizes.end());
+    return sizes;
 }
 
 }  // namespace
@@ -146,9 +245,13 @@ Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
         if (component[p.first] == component[p.second]) folded.push_back(p);
     mesh.remove_property_map(component);
     const std::set<Mesh::Face_index> involved = faces_of(folded);
+    const std::vector<std::size_t> regions = fold_regions(mesh, involved);
     r["patch_pairs"] = pairs.size();
     r["folded_pairs"] = folded.size();
     r["faces_involved"] = involved.size();
+    r["regions"] = regions.size();
+    r["largest_region_faces"] =
+        regions.empty() ? 0 : *std::max_element(regions.begin(), regions.end());
     std::size_t refilled = 0, after = 0;
     if (!involved.empty()) {
         // The faces the repair adds are patch faces too.

@@ -2,13 +2,13 @@
 // box intersection of the faces' bounding boxes, then exact triangle-triangle tests) and
 // repaired (PMP::experimental::remove_self_intersections: the faces around each intersecting
 // region are removed and the hole is refilled, or the region smoothed, until no face crosses
-// another; CGAL 5.5; the holes triangulated by Liepa's search over all triangulations, not the
-// 3D Delaunay search space, whose choice followed the heap's layout: the same mesh is repaired
-// the same way in every process). A closed mesh that crosses itself bounds no volume: slicers and
-// boolean operations (corefinement) reject it, and Open3D's is_watertight is false. The advancing
-// front and the closure's hole patches (a faired patch over a non-planar hole, a flat base over a
-// rim whose projection folds) both make a few (docs/algorithms.md §14). Heavy CGAL templates live
-// in self_intersections.cpp only.
+// another; CGAL 5.5; the Delaunay triangulation that its hole filling searches orders its cells
+// by creation, not by address, so the same mesh is repaired the same way in every process). A
+// closed mesh that crosses itself bounds no volume: slicers and boolean operations (corefinement)
+// reject it, and Open3D's is_watertight is false. The advancing front and the closure's hole
+// patches (a faired patch over a non-planar hole, a flat base over a rim whose projection folds)
+// both make a few (docs/algorithms.md §14). Heavy CGAL templates live in self_intersections.cpp
+// only.
 #pragma once
 
 #include <cstddef>
@@ -50,7 +50,9 @@ Report repair_self_intersections(Mesh& mesh);
 /// round a neck needs a tube), which a local repair replaces by a flat band that invents more
 /// than it removes. `patch` is updated to the faces added or refilled after the repair (the
 /// mesh's garbage is collected). Report: patch_pairs (crossing pairs among the patch faces),
-/// folded_pairs (within one patch), faces_involved, holes_refilled, pairs_after (folded pairs
+/// folded_pairs (within one patch), faces_involved, regions and largest_region_faces (the
+/// involved faces' connected components across edges: CGAL repairs each as one region; its cost
+/// grows with the region), holes_refilled, pairs_after (folded pairs
 /// left, counted only when CGAL's repair reports a failure or a hole was refilled), time_s.
 Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch);
 
