@@ -27,16 +27,27 @@ struct RepairTraits : Kernel {};
 
 namespace CGAL {
 
+/// A time stamp for CGAL's compact containers, which order handles of a type with one by it.
+class RepairTimeStamp {
+public:
+    using Has_timestamp = Tag_true;
+    std::size_t time_stamp() const { return time_stamp_; }
+    void set_time_stamp(const std::size_t& ts) { time_stamp_ = ts; }
+
+private:
+    std::size_t time_stamp_ = std::size_t(-1);
+};
+
 /// Delaunay_triangulation_cell_base_3 for RepairTraits, with a time stamp.
 template <typename Cb>
-class Delaunay_triangulation_cell_base_3<rgbd::reconstruction::RepairTraits, Cb> : public Cb {
+class Delaunay_triangulation_cell_base_3<rgbd::reconstruction::RepairTraits, Cb>
+    : public Cb, public RepairTimeStamp {
 public:
     using Geom_traits = rgbd::reconstruction::RepairTraits;
     using Vertex_handle = typename Cb::Vertex_handle;
     using Cell_handle = typename Cb::Cell_handle;
     using Point_3 = typename Geom_traits::Point_3;
     using Point = Point_3;
-    using Has_timestamp = Tag_true;
 
     template <typename TDS2>
     struct Rebind_TDS {
@@ -53,23 +64,16 @@ public:
             this->vertex(3)->point());
     }
     Point_3 circumcenter() const { return circumcenter(Geom_traits()); }
-
-    std::size_t time_stamp() const { return time_stamp_; }
-    void set_time_stamp(const std::size_t& ts) { time_stamp_ = ts; }
-
-private:
-    std::size_t time_stamp_ = std::size_t(-1);
 };
 
 /// Triangulation_vertex_base_with_info_3 for RepairTraits, with a time stamp.
 template <typename Info_, typename Vb>
 class Triangulation_vertex_base_with_info_3<Info_, rgbd::reconstruction::RepairTraits, Vb>
-    : public Vb {
+    : public Vb, public RepairTimeStamp {
 public:
     using Cell_handle = typename Vb::Cell_handle;
     using Point = typename Vb::Point;
     using Info = Info_;
-    using Has_timestamp = Tag_true;
 
     template <typename TDS2>
     struct Rebind_TDS {
@@ -82,12 +86,9 @@ public:
 
     const Info& info() const { return info_; }
     Info& info() { return info_; }
-    std::size_t time_stamp() const { return time_stamp_; }
-    void set_time_stamp(const std::size_t& ts) { time_stamp_ = ts; }
 
 private:
     Info info_{};
-    std::size_t time_stamp_ = std::size_t(-1);
 };
 
 }  // namespace CGAL
@@ -158,26 +159,27 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
     return repaired;
 }
 
-/// The regions of the faces `crossing`: their connected components across shared edges (as
-/// CGAL's repair groups them). Returns each region's face count, by region.
-std::vector<std::size_t> fold_regions(Mesh& mesh, const std::set<Mesh::Face_index>& crossing) {
-    auto in = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_crossing", 0).first;
-    for (auto f : crossing) in[f] = 1;
-    auto wall = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_region_wall", true).first;
+/// The connected components of the faces `faces` across the edges between two of them: the
+/// component id of each face of `faces`, indexed by std::size_t(face) (other faces get ids of
+/// their own). Returns the number of ids.
+template <class FaceRange>
+std::size_t components_within(Mesh& mesh, const FaceRange& faces, std::vector<std::size_t>& id) {
+    auto in = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_in_set", 0).first;
+    for (auto f : faces) in[f] = 1;
+    auto wall = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_set_wall", true).first;
     for (auto e : mesh.edges()) {
         const auto f = mesh.face(mesh.halfedge(e, 0)), g = mesh.face(mesh.halfedge(e, 1));
         wall[e] = f == Mesh::null_face() || g == Mesh::null_face() || !in[f] || !in[g];
     }
-    auto region = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_region", 0).first;
+    auto component = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_cc", 0).first;
     const std::size_t n =
-        PMP::connected_components(mesh, region, CGAL::parameters::edge_is_constrained_map(wall));
-    std::vector<std::size_t> sizes(n, 0);
-    for (auto f : crossing) ++sizes[region[f]];
-    mesh.remove_property_map(region);
+        PMP::connected_components(mesh, component, CGAL::parameters::edge_is_constrained_map(wall));
+    id.assign(mesh.num_faces(), 0);
+    for (auto f : mesh.faces()) id[std::size_t(f)] = component[f];
+    mesh.remove_property_map(component);
     mesh.remove_property_map(wall);
     mesh.remove_property_map(in);
-    sizes.erase(std::remove(sizes.begin(), sizes.end(), 0u), sizes.end());
-    return sizes;
+    return n;
 }
 
 }  // namespace
@@ -224,34 +226,30 @@ Report repair_self_intersections(Mesh& mesh) {
 Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
     const Stopwatch watch;
     Report r;
-    // The patches: connected components across edges between two patch faces (every edge
-    // with a face outside the patch, or none, is a wall).
-    auto in_patch = mesh.add_property_map<Mesh::Face_index, char>("f:rgbd_in_patch", 0).first;
-    for (auto f : patch) in_patch[f] = 1;
-    auto wall = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_patch_wall", false).first;
-    for (auto e : mesh.edges()) {
-        const auto f = mesh.face(mesh.halfedge(e, 0)), g = mesh.face(mesh.halfedge(e, 1));
-        wall[e] = f == Mesh::null_face() || g == Mesh::null_face() || in_patch[f] != in_patch[g];
-    }
-    auto component = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:rgbd_cc", 0).first;
-    PMP::connected_components(mesh, component, CGAL::parameters::edge_is_constrained_map(wall));
-    mesh.remove_property_map(wall);
-    mesh.remove_property_map(in_patch);
+    // The patches: connected components across edges between two patch faces.
+    std::vector<std::size_t> component;
+    components_within(mesh, patch, component);
     FacePairs pairs;
     PMP::self_intersections<CGAL::Parallel_if_available_tag>(patch, mesh,
                                                              std::back_inserter(pairs));
     FacePairs folded;
     for (const auto& p : pairs)
-        if (component[p.first] == component[p.second]) folded.push_back(p);
-    mesh.remove_property_map(component);
+        if (component[std::size_t(p.first)] == component[std::size_t(p.second)])
+            folded.push_back(p);
     const std::set<Mesh::Face_index> involved = faces_of(folded);
-    const std::vector<std::size_t> regions = fold_regions(mesh, involved);
+    // The regions CGAL's repair works on: the involved faces' components across edges.
+    std::size_t regions = 0, largest_region = 0;
+    if (!involved.empty()) {
+        std::vector<std::size_t> region, size(components_within(mesh, involved, region), 0);
+        for (auto f : involved) ++size[region[std::size_t(f)]];
+        regions = std::size_t(std::count_if(size.begin(), size.end(), [](auto n) { return n; }));
+        largest_region = *std::max_element(size.begin(), size.end());
+    }
     r["patch_pairs"] = pairs.size();
     r["folded_pairs"] = folded.size();
     r["faces_involved"] = involved.size();
-    r["regions"] = regions.size();
-    r["largest_region_faces"] =
-        regions.empty() ? 0 : *std::max_element(regions.begin(), regions.end());
+    r["regions"] = regions;
+    r["largest_region_faces"] = largest_region;
     std::size_t refilled = 0, after = 0;
     if (!involved.empty()) {
         // The faces the repair adds are patch faces too.
