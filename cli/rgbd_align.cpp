@@ -22,6 +22,13 @@ void run_align(cli::Context& ctx) {
         options.colour_weight = ctx.get<double>("colour-weight");
         options.ransac_iterations = ctx.get<int>("ransac-iterations");
         options.max_prior_rotation_deg = ctx.get<double>("max-prior-rotation-deg");
+        options.calibration_prior_rotation_deg = ctx.get<double>("calibration-prior-deg");
+        options.calibration_prior_translation_m = ctx.get<double>("calibration-prior-mm") / 1000.0;
+        if ((options.calibration_prior_rotation_deg > 0) !=
+            (options.calibration_prior_translation_m > 0))
+            throw cli::UsageError(
+                "--calibration-prior-deg and --calibration-prior-mm must both be positive, or "
+                "both 0 (off)");
         options.seed = ctx.seed();
         options.check();
         stand = pipeline::parse_stand_mode(ctx.get<std::string>("stand"));
@@ -137,7 +144,9 @@ const cli::ToolSpec kSpec{
     .example =
         "rgbd-cloud cap/ | rgbd-clean | rgbd-align --merge --metrics align.json -o merged.ply",
     .whole_stream = true,
-    .ranges = {{"max-prior-rotation-deg", Range::closed(0, 360), "degrees"}},
+    .ranges = {{"max-prior-rotation-deg", Range::closed(0, 360), "degrees"},
+               {"calibration-prior-deg", Range::closed(0, 90), "degrees"},
+               {"calibration-prior-mm", Range::closed(0, 1000), "mm"}},
     .add_options = [](cli::po::options_description& o) {
         o.add_options()("merge",
                         "emit one merged view instead of one document per view, without "
@@ -166,6 +175,18 @@ const cli::ToolSpec kSpec{
             cli::value(registration::MultiViewOptions{}.max_prior_rotation_deg, "D"),
             "pair results farther than this from the initial relative pose are discarded (>= "
             "180 disables)")(
+            "calibration-prior-deg",
+            cli::value(registration::MultiViewOptions{}.calibration_prior_rotation_deg, "D"),
+            "with known poses, when the joint rounds leave a view past 20 degrees or 0.2 m "
+            "from its initial pose (a surface of revolution turning about its axis), they run "
+            "again from the initial poses with every view held towards them, as by a rig "
+            "calibrated to about D degrees and --calibration-prior-mm; the held result is kept "
+            "when fewer views end past the bounds and it matches nearly as many points (0 and "
+            "0 = off)")(
+            "calibration-prior-mm",
+            cli::value(1000.0 * registration::MultiViewOptions{}.calibration_prior_translation_m,
+                       "M"),
+            "the calibration prior's translation (mm)")(
             "stand", cli::value<std::string>("auto", "MODE"),
             "the stand (turntable platter) below the object, after the alignment: auto "
             "(remove it on streams of 3+ views of one sensor: a turntable), remove, keep; its "

@@ -43,6 +43,12 @@ void MultiViewOptions::check() const {
     check_range("align_views: rounds", rounds, Range::closed(1, 1000));
     check_range("align_views: fail_fitness", fail_fitness, Range::closed(0, 1));
     check_range("align_views: warn_fitness", warn_fitness, Range::closed(0, 1));
+    RGBD_CHECK(std::isfinite(calibration_prior_rotation_deg) &&
+                   std::isfinite(calibration_prior_translation_m) &&
+                   calibration_prior_rotation_deg >= 0 && calibration_prior_translation_m >= 0 &&
+                   (calibration_prior_rotation_deg > 0) == (calibration_prior_translation_m > 0),
+               "align_views: the calibration prior's rotation and translation must both be "
+               "positive, or both 0 (off)");
     RGBD_CHECK(max_rotation_deg > 0 && max_translation_m > 0,
                "align_views: pose-change limits must be positive");
     check_range("align_views: pair_neighbours", pair_neighbours, Range::closed(1, 64));
@@ -90,6 +96,12 @@ Report MultiViewResult::to_json() const {
     r["start"] = start;
     r["pairwise_fitness"] = pairwise_fitness;
     r["joint_only_fitness"] = joint_only_fitness;
+    if (held.ran)
+        r["calibration_prior"] = {{"views_far_free", held.views_far_free},
+                                  {"views_far_held", held.views_far_held},
+                                  {"free_fitness", held.free_fitness},
+                                  {"held_fitness", held.held_fitness},
+                                  {"kept", held.kept}};
     r["pairs"] = Report::array();
     for (const PairAlignment& p : pairs) {
         Report j = fit_report(p);

@@ -82,6 +82,10 @@ struct JointSettings {
     double colour_scale = 0.0;  // colour residual weight against geometric ones
     double colour_sigma = 0.05;
     std::size_t fixed_view = 0;  // gauge
+    /// Calibration prior (diagonal information: rotation about the centre of the working
+    /// points, then translation; in the units of the point-to-plane terms, m²): each free view
+    /// is held towards its initial pose with this weight. Zero: no prior (poses unknown).
+    Eigen::Matrix<double, 6, 1> prior = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
 /// Joint multi-view point-to-plane refinement (Chen-Medioni linearised, all poses at once;
@@ -105,6 +109,8 @@ public:
     /// point (m), or nothing when no view could move (nothing to solve, or a singular system).
     /// `moved[v]` counts the steps that moved view v.
     std::optional<double> step(double dmax, std::size_t min_matches, std::vector<int>& moved);
+    /// Replaces the calibration prior (JointSettings::prior) of the following steps.
+    void set_prior(const Eigen::Matrix<double, 6, 1>& prior) { s_.prior = prior; }
 
     /// After match(): matched points of view v, and the sum of their squared distances (m²).
     std::size_t matched(std::size_t v) const { return matched_[v]; }

@@ -127,6 +127,17 @@ struct MultiViewOptions {
     /// as far as the pairs say, and gets WARN for a move beyond these.)
     double max_rotation_deg = 20.0;
     double max_translation_m = 0.2;
+    /// Calibration prior (known poses only): when the joint rounds leave a view farther than
+    /// max_rotation_deg / max_translation_m from its initial pose, all rounds run again from the
+    /// initial poses with every free view held towards its initial pose, as by a rig calibrated to
+    /// about this rotation and translation (a diagonal prior whose information is ŝ² / σ², in
+    /// the units of the point-to-plane terms). Where the shape constrains a view the points
+    /// outweigh it (a view of a few thousand matched points at 0.1 m: ~10³ times); along a
+    /// direction the shape leaves free (a surface of revolution turning about its axis) the
+    /// prior decides. The held result is kept when fewer views end past the bounds and its
+    /// matched share is at most 0.05 below the free one's. 0 = no retry.
+    double calibration_prior_rotation_deg = 1.0;
+    double calibration_prior_translation_m = 0.01;
 
     /// Pairwise stage (docs/algorithms.md §6), before the joint rounds: every overlapping pair is
     /// registered by point-to-plane ICP with a colour term from the initial relative pose and,
@@ -243,10 +254,19 @@ struct MultiViewResult {
     std::string start;
     double pairwise_fitness = 0.0;    ///< mean matched share from the pairwise start
     double joint_only_fitness = 0.0;  ///< ... from the initial poses (0 when not run)
+    /// The calibration prior's retry (MultiViewOptions::calibration_prior_rotation_deg): whether
+    /// it ran, the views past the bounds before and after it, the matched shares of the free
+    /// and held results, and whether the held one was kept.
+    struct HeldRetry {
+        bool ran = false, kept = false;
+        std::size_t views_far_free = 0, views_far_held = 0;
+        double free_fitness = 0.0, held_fitness = 0.0;
+    } held;
     LoopClosure loop;
     double working_time_s = 0.0;          ///< working copies: down-sampling, normals, kd-trees
     double pairwise_time_s = 0.0;         ///< pairwise stage and pose graph
-    double safety_net_time_s = 0.0;       ///< joint rounds from the initial poses (0 when not run)
+    double safety_net_time_s = 0.0;       ///< joint rounds from the initial poses, free and held
+                                          ///< (0 when not run)
     double joint_time_s = 0.0;            ///< joint rounds that refine the winning start
     Verdict verdict = Verdict::kFail;     ///< the worst of the views' verdicts
     double spacing_m = 0.0;               ///< ŝ used

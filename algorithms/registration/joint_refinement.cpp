@@ -1,6 +1,7 @@
 // Joint multi-view point-to-plane refinement on per-view kd-trees (see align_stages.hpp).
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -267,6 +268,18 @@ std::optional<double> JointRefinement::step(double dmax, std::size_t min_matches
             }
         }
     }
+    // The calibration prior: the view's correction from its initial pose, about the centre
+    // (first order: a step x changes it by x).
+    if (s_.prior.any())
+        for (std::size_t v : active) {
+            const Pose d = work_[v].pose * work_[v].initial.inverse();
+            const Eigen::AngleAxisd aa(d.linear());
+            Vec6 delta;
+            delta.head<3>() = aa.angle() * aa.axis();
+            delta.tail<3>() = d * centre - centre;
+            diag[v].diagonal() += s_.prior;
+            g.segment<6>(6 * slot[v]) += s_.prior.cwiseProduct(delta);
+        }
     double max_diag = 1e-300;
     for (std::size_t v : active) max_diag = std::max(max_diag, diag[v].diagonal().maxCoeff());
     const double damping = 1e-9 * max_diag;  // tiny Levenberg damping (symmetric slides)

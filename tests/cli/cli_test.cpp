@@ -72,7 +72,9 @@ TEST(Contract, HelpNamesEveryValueAndWritesDefaultsShort) {
 
 TEST(Contract, AlignRejectsAbsurdParameters) {
     for (const char* opt : {"--colour-weight -1", "--colour-weight nan", "--ransac-iterations 0",
-                            "--max-prior-rotation-deg -5", "--rounds 0", "--fixed-view -1"}) {
+                            "--max-prior-rotation-deg -5", "--rounds 0", "--fixed-view -1",
+                            "--calibration-prior-deg -1", "--calibration-prior-mm nan",
+                            "--calibration-prior-deg 0"}) {
         SCOPED_TRACE(opt);
         const Outcome r = run(std::string("$BIN/rgbd-align ") + opt + " -o never.ply < /dev/null");
         rgbd::test::expect_failure(r, 2, "rgbd-align", temp_root());

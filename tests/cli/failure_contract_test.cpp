@@ -258,6 +258,8 @@ const Refused kRefused[] = {
     {"rgbd-cloud badcap --z-max 1e300 -o out.ply", "--z-max must be in [0, 100] m, got 1e300"},
     {"rgbd-align small.ply --max-prior-rotation-deg 1e300 -o out.ply",
      "--max-prior-rotation-deg must be in [0, 360] degrees"},
+    {"rgbd-align small.ply --calibration-prior-deg 0 -o out.ply",
+     "--calibration-prior-deg and --calibration-prior-mm must both be positive, or both 0"},
     {"rgbd-render small.ply --azimuth inf -o out.png", "--azimuth must be a finite number"},
     {"rgbd-render small.ply --scalar-min 0 -o out.png", "--scalar-min applies only with --scalar"},
     {"rgbd-eval small.ply --reference small.ply --baseline-depths 8 -o out.json",
