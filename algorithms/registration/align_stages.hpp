@@ -88,6 +88,18 @@ struct JointSettings {
     Eigen::Matrix<double, 6, 1> prior = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
+/// The calibration prior's information (JointSettings::prior) for a rig calibrated to about
+/// `rotation_deg` and `translation_m` against point residuals of about `spacing` (ŝ, m):
+/// ŝ²/σ² for the three rotation components, then the three translation components.
+inline Eigen::Matrix<double, 6, 1> calibration_prior(double spacing, double rotation_deg,
+                                                     double translation_m) {
+    const double s2 = spacing * spacing, sr = rotation_deg * kDegToRad;
+    Eigen::Matrix<double, 6, 1> prior;
+    prior.head<3>().setConstant(s2 / (sr * sr));
+    prior.tail<3>().setConstant(s2 / (translation_m * translation_m));
+    return prior;
+}
+
 /// Joint multi-view point-to-plane refinement (Chen-Medioni linearised, all poses at once;
 /// Park et al. 2017 colour term). Every working point is matched to the nearest point of its
 /// view's partner views (within the distance, then the normal gate): each partner's own

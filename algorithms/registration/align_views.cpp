@@ -297,6 +297,35 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         return joint.overlap();
     };
 
+    // A view's change from its initial pose: rotation (degrees) and the translation of its
+    // points' centroid (m); moved_far: past the verdicts' bounds.
+    const auto pose_change = [&](std::size_t v) {
+        const Pose d = orthonormalized(work[v].pose * work[v].initial.inverse());
+        const Eigen::Vector3d c0 = work[v].initial * work[v].reg.centroid;
+        return std::make_pair(rotation_error_deg(d, Pose::Identity()), (d * c0 - c0).norm());
+    };
+    const auto moved_far = [&](const std::pair<double, double>& change) {
+        return change.first > options.max_rotation_deg || change.second > options.max_translation_m;
+    };
+    // The joint rounds' outcome (poses and counters), kept while another start is tried.
+    struct JointState {
+        std::vector<Pose> poses;
+        std::vector<int> moved;
+        std::vector<char> converged;
+        int iterations = 0;
+    };
+    const auto save_state = [&] {
+        JointState state{std::vector<Pose>(nv), moved_iterations, converged, result.iterations};
+        for (std::size_t v = 0; v < nv; ++v) state.poses[v] = work[v].pose;
+        return state;
+    };
+    const auto restore_state = [&](const JointState& state) {
+        for (std::size_t v = 0; v < nv; ++v) work[v].pose = state.poses[v];
+        moved_iterations = state.moved;
+        converged = state.converged;
+        result.iterations = state.iterations;
+    };
+
     Stopwatch joint_watch;
     if (options.pairwise && poses_known) {
         // Safety net: on smooth, nearly symmetric shapes pairs can slide where the joint
@@ -310,10 +339,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         result.start = "pairwise stage and pose graph";
         if (pair_score + kSafetyGain < 1.0) {
             Stopwatch safety_watch;
-            std::vector<Pose> pair_result(nv);
-            for (std::size_t v = 0; v < nv; ++v) pair_result[v] = work[v].pose;
-            const auto counters = std::make_pair(moved_iterations, converged);
-            const int pair_iterations = result.iterations;
+            const JointState pair_result = save_state();
             for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
             std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
             joint_rounds(false, 0.6, 0.8, kSafetyStride);
@@ -324,9 +350,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
                 joint_rounds(true, 0.8, 0.9, 1);  // the finest rounds on every point
                 result.start = "initial poses (joint rounds matched more than the pairwise stage)";
             } else {
-                for (std::size_t v = 0; v < nv; ++v) work[v].pose = pair_result[v];
-                std::tie(moved_iterations, converged) = counters;
-                result.iterations = pair_iterations;
+                restore_state(pair_result);
             }
         }
     } else {
@@ -340,34 +364,22 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
     // pairs and the rounds after them turn one view 36.6 degrees about the jug's axis (the
     // rounds from the initial poses alone turn two by 26 and 30); held, no view is off by more
     // than 0.2 degrees.
-    const auto moved_far = [&](std::size_t v) {
-        const Pose d = work[v].pose * work[v].initial.inverse();
-        const Eigen::Vector3d c0 = work[v].initial * work[v].reg.centroid;
-        return rotation_error_deg(d, Pose::Identity()) > options.max_rotation_deg ||
-               (d * c0 - c0).norm() > options.max_translation_m;
-    };
     const auto count_far = [&] {
         std::size_t n = 0;
-        for (std::size_t v = 0; v < nv; ++v) n += moved_far(v) ? 1 : 0;
+        for (std::size_t v = 0; v < nv; ++v) n += moved_far(pose_change(v)) ? 1 : 0;
         return n;
     };
-    if (poses_known && options.calibration_prior_rotation_deg > 0 && count_far() > 0) {
+    const std::size_t views_far =
+        poses_known && options.calibration_prior_rotation_deg > 0 ? count_far() : 0;
+    if (views_far > 0) {
         Stopwatch held_watch;
         MultiViewResult::HeldRetry& held = result.held;
         held.ran = true;
-        held.views_far_free = count_far();
+        held.views_far_free = views_far;
         held.free_fitness = overlap_score(kSafetyStride);
-        std::vector<Pose> free_result(nv);
-        for (std::size_t v = 0; v < nv; ++v) free_result[v] = work[v].pose;
-        const auto counters = std::make_pair(moved_iterations, converged);
-        const int free_iterations = result.iterations;
-        const double sr = options.calibration_prior_rotation_deg * kDegToRad,
-                     st = options.calibration_prior_translation_m;
-        const double s2 = spacing * spacing;
-        Eigen::Matrix<double, 6, 1> prior;
-        prior << s2 / (sr * sr), s2 / (sr * sr), s2 / (sr * sr), s2 / (st * st), s2 / (st * st),
-            s2 / (st * st);
-        joint.set_prior(prior);
+        const JointState free_result = save_state();
+        joint.set_prior(detail::calibration_prior(spacing, options.calibration_prior_rotation_deg,
+                                                  options.calibration_prior_translation_m));
         for (std::size_t v = 0; v < nv; ++v) work[v].pose = work[v].initial;
         std::fill(moved_iterations.begin(), moved_iterations.end(), 0);
         joint_rounds(false, 0.9, 0.95, 1);
@@ -380,9 +392,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
             result.start = "initial poses, held by the calibration prior (joint rounds left " +
                            std::to_string(held.views_far_free) + " view(s) past the bounds)";
         } else {
-            for (std::size_t v = 0; v < nv; ++v) work[v].pose = free_result[v];
-            std::tie(moved_iterations, converged) = counters;
-            result.iterations = free_iterations;
+            restore_state(free_result);
         }
         result.safety_net_time_s += held_watch.seconds();
     }
@@ -453,15 +463,12 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         va.inlier_rmse = matched[v] ? std::sqrt(sq_sum[v] / matched[v]) : 0.0;
         va.iterations = moved_iterations[v];
         va.converged = converged[v] != 0;
-        va.rotation_change_deg = rotation_error_deg(va.correction, Pose::Identity());
         // Translation of the view's own points (its centroid), not of the world origin.
-        const Eigen::Vector3d c0 = w.initial * w.reg.centroid;
-        va.translation_change_m = (va.correction * c0 - c0).norm();
+        std::tie(va.rotation_change_deg, va.translation_change_m) = pose_change(v);
         va.pairs = view_pairs[v];
         va.ring_rotation_deg = ring_rot[v];
         va.ring_translation_m = ring_trans[v];
-        const bool moved_far = va.rotation_change_deg > options.max_rotation_deg ||
-                               va.translation_change_m > options.max_translation_m;
+        const bool far = moved_far({va.rotation_change_deg, va.translation_change_m});
         const bool ring_disagrees =
             va.ring_rotation_deg > options.prune_rotation_deg ||
             va.ring_translation_m > options.prune_translation_spacing * spacing;
@@ -472,7 +479,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         } else if (options.pairwise && !tied[v]) {
             va.verdict = Verdict::kFail;
             va.reason = "no pair ties it to the others";
-        } else if (!options.pairwise && moved_far) {
+        } else if (!options.pairwise && far) {
             va.verdict = Verdict::kFail;
             va.reason = "moved too far from its initial pose";
         } else if (ring_disagrees) {
@@ -481,7 +488,7 @@ MultiViewResult align_views(const std::vector<PointCloud>& views, const MultiVie
         } else if (va.fitness < options.warn_fitness) {
             va.verdict = Verdict::kWarn;
             va.reason = "small overlap";
-        } else if (moved_far && poses_known) {
+        } else if (far && poses_known) {
             va.verdict = Verdict::kWarn;
             va.reason = "far from its initial pose (calibration off?)";
         }

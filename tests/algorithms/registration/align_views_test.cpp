@@ -367,10 +367,9 @@ TEST(AlignViews, CalibrationPriorHoldsAViewWhereTheShapeLeavesItFree) {
     // view: a calibration 5 mm off radially is still corrected (to within a millimetre: the
     // prior, resisting the pull about the centre of the working points rather than about the
     // axis, leaves a fraction of a millimetre that the free run, slid round, does not).
-    const double s = 0.003, sr = 1.0 * M_PI / 180.0, st = 0.01;  // ŝ, σ: 1 degree, 10 mm
-    Eigen::Matrix<double, 6, 1> prior;
-    prior << s * s / (sr * sr), s * s / (sr * sr), s * s / (sr * sr), s * s / (st * st),
-        s * s / (st * st), s * s / (st * st);
+    // ŝ 3 mm, σ 1 degree and 10 mm.
+    const Eigen::Matrix<double, 6, 1> prior =
+        rgbd::registration::detail::calibration_prior(0.003, 1.0, 0.01);
     const Eigen::Matrix<double, 6, 1> none = Eigen::Matrix<double, 6, 1>::Zero();
     const Pose truth = Pose::Identity();
     const auto turn = [](double deg) {
