@@ -93,6 +93,14 @@ private:
 
 }  // namespace CGAL
 
+// CGAL's repair first tries, for every region and round, angle smoothing of a copy of the region
+// (twice: with and without its sharp edges constrained) before it cuts the region out and refills
+// it. On a real capture's closure that attempt was 70-80% of the mesh stage (the APC shelf: 125 of
+// 155 s; validation/results/2026-12-01-apc-fold-repair-profile.md) and on the synthetic objects
+// it changed nothing the refill did not do. The repair here refills only; the regions still
+// folded after it are smoothed once, in place (smooth_in_place), and refilled again.
+#define CGAL_PMP_REMOVE_SELF_INTERSECTIONS_NO_SMOOTHING
+#include <CGAL/Polygon_mesh_processing/angle_and_area_smoothing.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
@@ -128,13 +136,13 @@ std::set<Mesh::Face_index> faces_of(const FacePairs& pairs) {
 }
 
 /// CGAL's repair of the faces `involved` (they cross others), then, if the mesh was closed,
-/// its holes refilled and caps flipped; the garbage is collected. Returns whether CGAL
-/// reported success; `refilled` receives the holes closed again.
-bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::size_t& refilled) {
+/// its holes refilled and caps flipped; the garbage is collected. `refilled` receives the holes
+/// closed again.
+void repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::size_t& refilled) {
     const bool was_closed = CGAL::is_closed(mesh);
     // preserve_genus(false): an intersecting region may be removed with the handle it makes
     // (two sheets crossing are no handle of the surface the sensors saw).
-    const bool repaired = PMP::experimental::remove_self_intersections(
+    PMP::experimental::remove_self_intersections(
         involved, mesh, CGAL::parameters::preserve_genus(false).geom_traits(RepairTraits()));
     refilled = 0;
     if (was_closed && !CGAL::is_closed(mesh)) {
@@ -156,7 +164,6 @@ bool repair_faces(Mesh& mesh, const std::set<Mesh::Face_index>& involved, std::s
     PMP::experimental::remove_almost_degenerate_faces(mesh, std::cos(179.0 * M_PI / 180.0),
                                                       std::numeric_limits<double>::max(), 0.0);
     mesh.collect_garbage();
-    return repaired;
 }
 
 /// The connected components of the faces `faces` across the edges between two of them: the
@@ -180,6 +187,126 @@ std::size_t components_within(Mesh& mesh, const FaceRange& faces, std::vector<st
     mesh.remove_property_map(wall);
     mesh.remove_property_map(in);
     return n;
+}
+
+/// Angle smoothing (PMP::angle_and_area_smoothing, 100 iterations, no safety constraints, the
+/// moves projected back onto the region's input triangles, Delaunay flips: what CGAL's repair
+/// tries on a copy of a region before refilling it) of the faces `faces` and `rings` rings of
+/// faces round them, in place. The region's boundary edges are constrained, so no face outside
+/// it moves or changes. Returns the number of faces smoothed.
+std::size_t smooth_in_place(Mesh& mesh, const std::set<Mesh::Face_index>& faces, int rings) {
+    std::set<Mesh::Face_index> region = faces;
+    std::vector<Mesh::Face_index> front(faces.begin(), faces.end()), next;
+    for (int ring = 0; ring < rings; ++ring) {
+        next.clear();
+        for (auto f : front)
+            for (auto v : mesh.vertices_around_face(mesh.halfedge(f)))
+                for (auto g : mesh.faces_around_target(mesh.halfedge(v)))
+                    if (g != Mesh::null_face() && region.insert(g).second) next.push_back(g);
+        front.swap(next);
+    }
+    auto fixed = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_smooth_fixed", false).first;
+    for (auto f : region)
+        for (auto h : mesh.halfedges_around_face(mesh.halfedge(f))) {
+            const auto g = mesh.face(mesh.opposite(h));
+            if (g == Mesh::null_face() || region.count(g) == 0) fixed[mesh.edge(h)] = true;
+        }
+    PMP::angle_and_area_smoothing(region, mesh,
+                                  CGAL::parameters::number_of_iterations(100)
+                                      .use_safety_constraints(false)
+                                      .use_area_smoothing(false)
+                                      .edge_is_constrained_map(fixed)
+                                      .geom_traits(RepairTraits()));
+    mesh.remove_property_map(fixed);
+    return region.size();
+}
+
+/// The pairs of faces of `patch` that cross a face of the same patch (a connected component of
+/// `patch` across edges); `crossing` receives the number of crossing pairs among patch faces.
+FacePairs folded_pairs(Mesh& mesh, const std::vector<Mesh::Face_index>& patch,
+                       std::size_t* crossing = nullptr) {
+    std::vector<std::size_t> component;
+    components_within(mesh, patch, component);
+    FacePairs pairs;
+    PMP::self_intersections<CGAL::Parallel_if_available_tag>(patch, mesh,
+                                                             std::back_inserter(pairs));
+    if (crossing) *crossing = pairs.size();
+    FacePairs folded;
+    for (const auto& p : pairs)
+        if (component[std::size_t(p.first)] == component[std::size_t(p.second)])
+            folded.push_back(p);
+    return folded;
+}
+
+/// Passes of smoothing then refilling after the first refill, at most.
+constexpr int kSmoothingPasses = 3;
+
+/// What refill_and_smooth did.
+struct RepairPasses {
+    std::size_t refilled = 0;             ///< holes closed again after a repair
+    std::size_t smoothed = 0;             ///< faces smoothed, over the passes kept
+    int passes = 0;                       ///< smoothing passes kept
+    Report after_each = Report::array();  ///< pairs left after each refill
+    FacePairs left;                       ///< the pairs left
+};
+
+/// CGAL's repair (refill only, see above) of the faces of `pairs`, then passes of: the pairs
+/// `recount()` still finds, and two rings of faces round them, smoothed in place
+/// (smooth_in_place), and the crossing faces refilled again. A pass is kept only if it leaves
+/// fewer such pairs and no more crossing pairs in the whole mesh than before it (smoothing moves
+/// faces round a fold too, which can then cross other parts); otherwise the mesh is put back as
+/// it was and the passes end (at most kSmoothingPasses). `patch`, when
+/// given, is updated to its surviving faces and every face the repairs add
+/// (internal::track_faces).
+template <class Recount>
+RepairPasses refill_and_smooth(Mesh& mesh, const FacePairs& pairs,
+                               std::vector<Mesh::Face_index>* patch, const Recount& recount) {
+    RepairPasses out;
+    const auto refill = [&](const FacePairs& crossing) {
+        std::size_t holes = 0;
+        const std::set<Mesh::Face_index> involved = faces_of(crossing);
+        const auto repair = [&] { repair_faces(mesh, involved, holes); };
+        if (patch)
+            internal::track_faces(mesh, *patch, repair);
+        else
+            repair();
+        return holes;
+    };
+    if (pairs.empty()) return out;
+    out.refilled = refill(pairs);
+    // Counted again whatever CGAL reports: its verdict covers the regions it worked on, and a
+    // crumpled patch it called repaired still crossed itself in 3 pairs (the cap flips after
+    // it, or a refilled hole, can cross too).
+    FacePairs now = recount();
+    out.after_each.push_back(now.size());
+    std::size_t whole = now.empty() ? 0 : self_intersecting_pairs(mesh).size();
+    while (!now.empty() && out.passes < kSmoothingPasses) {
+        const Mesh before = mesh;
+        std::vector<Mesh::Face_index> patch_before;
+        if (patch) patch_before = *patch;
+        // Smoothing moves vertices and flips edges only: the patch's faces stay its faces.
+        const std::size_t smoothed = smooth_in_place(mesh, faces_of(now), 2);
+        FacePairs next = recount();
+        std::size_t holes = 0;
+        if (!next.empty()) {
+            holes = refill(next);
+            next = recount();
+        }
+        out.after_each.push_back(next.size());
+        const std::size_t whole_next = self_intersecting_pairs(mesh).size();
+        if (next.size() >= now.size() || whole_next > whole) {
+            mesh = before;
+            if (patch) *patch = std::move(patch_before);
+            break;
+        }
+        ++out.passes;
+        out.smoothed += smoothed;
+        out.refilled += holes;
+        now = std::move(next);
+        whole = whole_next;
+    }
+    out.left = std::move(now);
+    return out;
 }
 
 }  // namespace
@@ -207,18 +334,15 @@ Report repair_self_intersections(Mesh& mesh) {
     Report r;
     const auto pairs = self_intersecting_pairs(mesh);
     r["pairs_before"] = pairs.size();
-    const std::set<Mesh::Face_index> involved = faces_of(pairs);
-    r["faces_involved"] = involved.size();
+    r["faces_involved"] = faces_of(pairs).size();
     r["faces_before"] = mesh.number_of_faces();
-    std::size_t after = 0, refilled = 0;
-    if (!pairs.empty()) {
-        const bool repaired = repair_faces(mesh, involved, refilled);
-        // CGAL's verdict covers the faces it worked on; a refilled hole is checked again.
-        if (!repaired || refilled > 0) after = self_intersecting_pairs(mesh).size();
-    }
+    const RepairPasses done =
+        refill_and_smooth(mesh, pairs, nullptr, [&] { return self_intersecting_pairs(mesh); });
     r["faces_after"] = mesh.number_of_faces();
-    r["pairs_after"] = after;
-    r["holes_refilled"] = refilled;
+    r["pairs_after"] = done.left.size();
+    r["holes_refilled"] = done.refilled;
+    r["smoothing_passes"] = done.passes;
+    r["faces_smoothed"] = done.smoothed;
     r["time_s"] = watch.seconds();
     return r;
 }
@@ -226,16 +350,8 @@ Report repair_self_intersections(Mesh& mesh) {
 Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
     const Stopwatch watch;
     Report r;
-    // The patches: connected components across edges between two patch faces.
-    std::vector<std::size_t> component;
-    components_within(mesh, patch, component);
-    FacePairs pairs;
-    PMP::self_intersections<CGAL::Parallel_if_available_tag>(patch, mesh,
-                                                             std::back_inserter(pairs));
-    FacePairs folded;
-    for (const auto& p : pairs)
-        if (component[std::size_t(p.first)] == component[std::size_t(p.second)])
-            folded.push_back(p);
+    std::size_t crossing = 0;
+    const FacePairs folded = folded_pairs(mesh, patch, &crossing);
     const std::set<Mesh::Face_index> involved = faces_of(folded);
     // The regions CGAL's repair works on: the involved faces' components across edges.
     std::size_t regions = 0, largest_region = 0;
@@ -245,25 +361,18 @@ Report repair_folded_patches(Mesh& mesh, std::vector<Mesh::Face_index>& patch) {
         regions = std::size_t(std::count_if(size.begin(), size.end(), [](auto n) { return n; }));
         largest_region = *std::max_element(size.begin(), size.end());
     }
-    r["patch_pairs"] = pairs.size();
+    r["patch_pairs"] = crossing;
     r["folded_pairs"] = folded.size();
     r["faces_involved"] = involved.size();
     r["regions"] = regions;
     r["largest_region_faces"] = largest_region;
-    std::size_t refilled = 0, after = 0;
-    if (!involved.empty()) {
-        // The faces the repair adds are patch faces too.
-        bool repaired = true;
-        internal::track_faces(mesh, patch,
-                              [&] { repaired = repair_faces(mesh, involved, refilled); });
-        if (!repaired || refilled > 0) {
-            FacePairs left;
-            PMP::self_intersections(patch, mesh, std::back_inserter(left));
-            after = left.size();
-        }
-    }
-    r["holes_refilled"] = refilled;
-    r["pairs_after"] = after;
+    const RepairPasses done =
+        refill_and_smooth(mesh, folded, &patch, [&] { return folded_pairs(mesh, patch); });
+    r["holes_refilled"] = done.refilled;
+    r["smoothing_passes"] = done.passes;
+    r["faces_smoothed"] = done.smoothed;
+    r["pairs_after_each_refill"] = done.after_each;
+    r["pairs_after"] = done.left.size();
     r["time_s"] = watch.seconds();
     return r;
 }
