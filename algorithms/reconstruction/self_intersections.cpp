@@ -98,7 +98,7 @@ private:
 // it. On a real capture's closure that attempt was 70-80% of the mesh stage (the APC shelf: 125 of
 // 155 s; validation/results/2026-12-01-apc-fold-repair-profile.md) and on the synthetic objects
 // it changed nothing the refill did not do. The repair here refills only; the regions still
-// folded after it are smoothed once, in place (smooth_in_place), and refilled again.
+// folded after it are smoothed once, in place (smooth_region), and refilled again.
 #define CGAL_PMP_REMOVE_SELF_INTERSECTIONS_NO_SMOOTHING
 #include <CGAL/Polygon_mesh_processing/angle_and_area_smoothing.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
@@ -108,12 +108,14 @@ private:
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/boost/graph/helpers.h>
+#include <CGAL/box_intersection_d.h>
 
 #include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <limits>
 #include <set>
+#include <string>
 
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 
@@ -189,12 +191,9 @@ std::size_t components_within(Mesh& mesh, const FaceRange& faces, std::vector<st
     return n;
 }
 
-/// Angle smoothing (PMP::angle_and_area_smoothing, 100 iterations, no safety constraints, the
-/// moves projected back onto the region's input triangles, Delaunay flips: what CGAL's repair
-/// tries on a copy of a region before refilling it) of the faces `faces` and `rings` rings of
-/// faces round them, in place. The region's boundary edges are constrained, so no face outside
-/// it moves or changes. Returns the number of faces smoothed.
-std::size_t smooth_in_place(Mesh& mesh, const std::set<Mesh::Face_index>& faces, int rings) {
+/// The faces `faces` and `rings` rings of faces round them (across vertices).
+std::vector<Mesh::Face_index> ring_region(const Mesh& mesh, const std::set<Mesh::Face_index>& faces,
+                                          int rings) {
     std::set<Mesh::Face_index> region = faces;
     std::vector<Mesh::Face_index> front(faces.begin(), faces.end()), next;
     for (int ring = 0; ring < rings; ++ring) {
@@ -205,11 +204,21 @@ std::size_t smooth_in_place(Mesh& mesh, const std::set<Mesh::Face_index>& faces,
                     if (g != Mesh::null_face() && region.insert(g).second) next.push_back(g);
         front.swap(next);
     }
+    return {region.begin(), region.end()};
+}
+
+/// Angle smoothing (PMP::angle_and_area_smoothing, 100 iterations, no safety constraints, the
+/// moves projected back onto the region's input triangles, Delaunay flips: what CGAL's repair
+/// tries on a copy of a region before refilling it) of the faces `region`, in place. The
+/// region's boundary edges are constrained, so no face outside it moves or changes.
+void smooth_region(Mesh& mesh, const std::vector<Mesh::Face_index>& region) {
+    std::vector<char> in(mesh.num_faces(), 0);
+    for (auto f : region) in[std::size_t(f)] = 1;
     auto fixed = mesh.add_property_map<Mesh::Edge_index, bool>("e:rgbd_smooth_fixed", false).first;
     for (auto f : region)
         for (auto h : mesh.halfedges_around_face(mesh.halfedge(f))) {
             const auto g = mesh.face(mesh.opposite(h));
-            if (g == Mesh::null_face() || region.count(g) == 0) fixed[mesh.edge(h)] = true;
+            if (g == Mesh::null_face() || !in[std::size_t(g)]) fixed[mesh.edge(h)] = true;
         }
     PMP::angle_and_area_smoothing(region, mesh,
                                   CGAL::parameters::number_of_iterations(100)
@@ -218,7 +227,39 @@ std::size_t smooth_in_place(Mesh& mesh, const std::set<Mesh::Face_index>& faces,
                                       .edge_is_constrained_map(fixed)
                                       .geom_traits(RepairTraits()));
     mesh.remove_property_map(fixed);
-    return region.size();
+}
+
+/// The number of crossing pairs of `mesh` with a face of `changed` in them (pairs of two other
+/// faces are not looked at): the faces whose bounding box meets a changed face's
+/// (CGAL::box_intersection_d), then CGAL's self_intersections among them and the changed faces.
+std::size_t crossings_involving(const Mesh& mesh, const std::vector<Mesh::Face_index>& changed) {
+    using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, Mesh::Face_index>;
+    const auto box = [&](Mesh::Face_index f) {
+        CGAL::Bbox_3 b;
+        for (auto v : mesh.vertices_around_face(mesh.halfedge(f))) b += mesh.point(v).bbox();
+        return Box(b, f);
+    };
+    std::vector<char> is_changed(mesh.num_faces(), 0), in_range(mesh.num_faces(), 0);
+    std::vector<Box> mine, all;
+    mine.reserve(changed.size());
+    all.reserve(mesh.number_of_faces());
+    for (auto f : changed) {
+        mine.push_back(box(f));
+        is_changed[std::size_t(f)] = in_range[std::size_t(f)] = 1;
+    }
+    for (auto f : mesh.faces()) all.push_back(box(f));
+    CGAL::box_intersection_d(
+        mine.begin(), mine.end(), all.begin(), all.end(),
+        [&](const Box&, const Box& b) { in_range[std::size_t(b.info())] = 1; });
+    std::vector<Mesh::Face_index> range;
+    for (auto f : mesh.faces())
+        if (in_range[std::size_t(f)]) range.push_back(f);
+    FacePairs pairs;
+    PMP::self_intersections<CGAL::Parallel_if_available_tag>(range, mesh,
+                                                             std::back_inserter(pairs));
+    return std::size_t(std::count_if(pairs.begin(), pairs.end(), [&](const auto& p) {
+        return is_changed[std::size_t(p.first)] || is_changed[std::size_t(p.second)];
+    }));
 }
 
 /// The pairs of faces of `patch` that cross a face of the same patch (a connected component of
@@ -252,12 +293,12 @@ struct RepairPasses {
 
 /// CGAL's repair (refill only, see above) of the faces of `pairs`, then passes of: the pairs
 /// `recount()` still finds, and two rings of faces round them, smoothed in place
-/// (smooth_in_place), and the crossing faces refilled again. A pass is kept only if it leaves
-/// fewer such pairs and no more crossing pairs in the whole mesh than before it (smoothing moves
-/// faces round a fold too, which can then cross other parts); otherwise the mesh is put back as
-/// it was and the passes end (at most kSmoothingPasses). `patch`, when
-/// given, is updated to its surviving faces and every face the repairs add
-/// (internal::track_faces).
+/// (smooth_region), and the crossing faces refilled again. A pass is kept only if it leaves
+/// fewer such pairs, and no more crossing pairs in the whole mesh than before it (smoothing moves
+/// the faces round a fold too, which can then cross other parts; counted on the faces the pass
+/// changed, crossings_involving); otherwise the mesh is put back as it was and the passes end
+/// (at most kSmoothingPasses). `patch`, when given, is updated to its surviving faces and every
+/// face the repairs add (internal::track_faces).
 template <class Recount>
 RepairPasses refill_and_smooth(Mesh& mesh, const FacePairs& pairs,
                                std::vector<Mesh::Face_index>* patch, const Recount& recount) {
@@ -279,13 +320,19 @@ RepairPasses refill_and_smooth(Mesh& mesh, const FacePairs& pairs,
     // it, or a refilled hole, can cross too).
     FacePairs now = recount();
     out.after_each.push_back(now.size());
-    std::size_t whole = now.empty() ? 0 : self_intersecting_pairs(mesh).size();
+    const std::string changed_name = "f:rgbd_pass_changed";
     while (!now.empty() && out.passes < kSmoothingPasses) {
+        const std::vector<Mesh::Face_index> region = ring_region(mesh, faces_of(now), 2);
+        // The faces a pass can change: the region, and (the map's default) every face it adds.
+        auto changed = mesh.add_property_map<Mesh::Face_index, char>(changed_name, 1).first;
+        for (auto f : mesh.faces()) changed[f] = 0;
+        for (auto f : region) changed[f] = 1;
+        const std::size_t crossings_before = crossings_involving(mesh, region);
         const Mesh before = mesh;
         std::vector<Mesh::Face_index> patch_before;
         if (patch) patch_before = *patch;
         // Smoothing moves vertices and flips edges only: the patch's faces stay its faces.
-        const std::size_t smoothed = smooth_in_place(mesh, faces_of(now), 2);
+        smooth_region(mesh, region);
         FacePairs next = recount();
         std::size_t holes = 0;
         if (!next.empty()) {
@@ -293,17 +340,24 @@ RepairPasses refill_and_smooth(Mesh& mesh, const FacePairs& pairs,
             next = recount();
         }
         out.after_each.push_back(next.size());
-        const std::size_t whole_next = self_intersecting_pairs(mesh).size();
-        if (next.size() >= now.size() || whole_next > whole) {
+        std::vector<Mesh::Face_index> changed_after;
+        for (auto f : mesh.faces())
+            if (changed[f]) changed_after.push_back(f);
+        // Faces the refill removed round the region are not counted before: a pass that
+        // removes crossings there is judged as if it had not.
+        const bool kept = next.size() < now.size() &&
+                          crossings_involving(mesh, changed_after) <= crossings_before;
+        if (!kept) {
             mesh = before;
             if (patch) *patch = std::move(patch_before);
-            break;
         }
+        if (auto map = mesh.property_map<Mesh::Face_index, char>(changed_name); map.second)
+            mesh.remove_property_map(map.first);
+        if (!kept) break;
         ++out.passes;
-        out.smoothed += smoothed;
+        out.smoothed += region.size();
         out.refilled += holes;
         now = std::move(next);
-        whole = whole_next;
     }
     out.left = std::move(now);
     return out;
