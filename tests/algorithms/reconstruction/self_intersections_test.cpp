@@ -134,10 +134,9 @@ TEST(SelfIntersections, FoldedPatchIsRepairedAndAPatchCrossingTheRestIsLeft) {
 }
 
 // A crumpled patch: the vertices of a finer sphere's top cap pushed sideways by up to an edge
-// length, so the cap folds over itself in many places at once, in regions
-// that touch. The repair (refills, then the regions still folded smoothed and refilled again)
-// must leave the sphere closed and its patch unfolded, with no vertex outside the cap's
-// neighbourhood moved.
+// length, so the cap folds over itself in many places at once, in regions that touch. The repair
+// (refills, then the regions still folded smoothed and refilled again) must leave the sphere
+// closed and its patch unfolded, with no vertex outside the cap's neighbourhood moved.
 TEST(SelfIntersections, CrumpledPatchIsUnfolded) {
     Mesh mesh = icosphere(0.1, 4);
     std::set<std::array<double, 3>> far;  // vertices well away from the cap
