@@ -480,21 +480,20 @@ std::string help_text(const ToolSpec& spec, const po::options_description& visib
     return h.str();
 }
 
-}  // namespace
-
-namespace {
 /// glibc's allocator serves every block over its mmap threshold (128 KiB, rising to at most
 /// 32 MiB as blocks are freed) with a fresh mmap and gives it back to the kernel on free, and
 /// trims the heap top past 128 KiB: a stage that builds and drops a view-sized buffer per view
 /// (kd-trees, grids, copies of clouds) pays a page fault and a zeroed page for every 4 KiB of
-/// it, again for every view. The tools are short-lived batch processes: keep freed memory for
-/// reuse up to 1 GiB. Person job (50 views, 2 cores): 614-689 k -> 330-332 k minor faults,
-/// system time 5.7-7.6 -> 3.6-4.0 s (docs/algorithms.md, speed).
+/// it, again for every view. Keep freed memory for reuse up to 1 GiB: a batch tool runs for
+/// seconds to minutes; a long-running one (a node, the hub, the viewer) keeps a resident size
+/// near its own peak instead of returning what it freed. Person job (50 views, 2 cores): 614-689 k
+/// -> 330-332 k minor faults, system time 5.7-7.6 -> 3.6-4.0 s (docs/algorithms.md, speed).
 void keep_freed_memory() {
     constexpr int kKeep = 1 << 30;
     mallopt(M_MMAP_THRESHOLD, kKeep);
     mallopt(M_TRIM_THRESHOLD, kKeep);
 }
+
 }  // namespace
 
 int run_tool(int argc, char** argv, const ToolSpec& spec, const ToolMain& body) {
