@@ -28,66 +28,58 @@ KnownColours::Key position_key(const Eigen::Vector3d& p) {
 /// colorize()'s rule, one colour per position.
 std::vector<MeshColor> idw_colours(const std::vector<Eigen::Vector3d>& q, const ColourSources& s,
                                    const ReconstructionOptions& o, double spacing) {
-    const bool separate = s.separate;
-    const rgbd::internal::PointSearch& all_tree = *s.all_tree;
-    const auto& orig_tree = s.orig_tree;
-    const std::vector<Rgb>& all_rgb = s.all_rgb;
-    const std::vector<Rgb>& orig_rgb = s.orig_rgb;
     const double near = o.color_original_radius * spacing;
     const std::size_t k = static_cast<std::size_t>(o.color_k);
     std::vector<MeshColor> result(q.size());
     const double floor_d = std::max(1e-3 * spacing, 1e-12);
     // Consecutive positions (in space order) lie near each other, and so do their neighbours:
-    // the largest distance from this position to the previous one's neighbours bounds its own
-    // k-th nearest distance (any k points do), which keeps the searches of positions far from
-    // every point (a closure's) to a few cells. The neighbours, so the colours, are the same.
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, q.size(), 1024),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          std::vector<std::uint32_t> nn(k), last_all(k);
-                          std::vector<double> sq(k);
-                          bool have_all = false, have_orig = false;
-                          std::uint32_t last_orig = 0;
-                          for (std::size_t v = r.begin(); v != r.end(); ++v) {
-                              const Eigen::Vector3d& p = q[v];
-                              const rgbd::internal::PointSearch* tree = &all_tree;
-                              const std::vector<Rgb>* rgb = &all_rgb;
-                              if (separate) {
-                                  std::uint32_t i;
-                                  double d2;
-                                  const double bound = rgbd::internal::knn_bound(
-                                      s.orig_xyz, &last_orig, have_orig ? 1 : 0, p);
-                                  have_orig = orig_tree->knn(p, 1, &i, &d2, bound) == 1;
-                                  last_orig = i;
-                                  if (have_orig && std::sqrt(d2) <= near) {
-                                      tree = &*orig_tree;
-                                      rgb = &orig_rgb;
-                                  }
-                              }
-                              const bool all = tree == &all_tree;
-                              const double bound = rgbd::internal::knn_bound(
-                                  s.all_xyz, last_all.data(), all && have_all ? k : 0, p);
-                              const std::size_t found =
-                                  tree->knn(p, k, nn.data(), sq.data(), bound);
-                              have_all = all && found == k;
-                              if (have_all) std::copy(nn.begin(), nn.end(), last_all.begin());
-                              double w_sum = 0, rs = 0, gs = 0, bs = 0;
-                              for (std::size_t j = 0; j < found; ++j) {
-                                  const double d = std::max(std::sqrt(sq[j]), floor_d);
-                                  const double w = 1.0 / (d * d);
-                                  const Rgb& c = (*rgb)[nn[j]];
-                                  w_sum += w;
-                                  rs += w * c.r;
-                                  gs += w * c.g;
-                                  bs += w * c.b;
-                              }
-                              auto channel = [w_sum](double s) {
-                                  return static_cast<unsigned char>(
-                                      std::lround(std::clamp(s / w_sum, 0.0, 255.0)));
-                              };
-                              result[v] = found ? MeshColor(channel(rs), channel(gs), channel(bs))
-                                                : MeshColor(128, 128, 128);
-                          }
-                      });
+    // the largest distance from this position to the previous one's observed neighbours bounds
+    // its own k-th nearest observed distance (any k points do), which keeps the searches of
+    // positions far from every point (a closure's) to a few cells. The neighbours, so the
+    // colours, are the same.
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, q.size(), 1024),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            std::vector<std::uint32_t> nn(k), last(k), other_nn(k);
+            std::vector<double> sq(k), other_sq(k);
+            bool have_last = false;
+            for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                const Eigen::Vector3d& p = q[v];
+                const double bound =
+                    rgbd::internal::knn_bound(s.observed_xyz, last.data(), have_last ? k : 0, p);
+                const std::size_t found = s.observed->knn(p, k, nn.data(), sq.data(), bound);
+                have_last = found == k;
+                if (have_last) std::copy(nn.begin(), nn.end(), last.begin());
+                // The observed neighbours alone when one lies within the radius; otherwise the
+                // k nearest of all points: both sets' nearest merged by distance.
+                const bool observed_near = found > 0 && std::sqrt(sq[0]) <= near;
+                const std::size_t other_found =
+                    s.separate && !observed_near
+                        ? s.others->knn(p, k, other_nn.data(), other_sq.data())
+                        : 0;
+                double w_sum = 0, rs = 0, gs = 0, bs = 0;
+                std::size_t i = 0, j = 0;
+                for (std::size_t taken = 0; taken < k && (i < found || j < other_found); ++taken) {
+                    const bool from_observed =
+                        j >= other_found || (i < found && sq[i] <= other_sq[j]);
+                    const double d2 = from_observed ? sq[i] : other_sq[j];
+                    const Rgb& c =
+                        from_observed ? s.observed_rgb[nn[i++]] : s.other_rgb[other_nn[j++]];
+                    const double d = std::max(std::sqrt(d2), floor_d);
+                    const double w = 1.0 / (d * d);
+                    w_sum += w;
+                    rs += w * c.r;
+                    gs += w * c.g;
+                    bs += w * c.b;
+                }
+                auto channel = [w_sum](double s) {
+                    return static_cast<unsigned char>(
+                        std::lround(std::clamp(s / w_sum, 0.0, 255.0)));
+                };
+                result[v] = w_sum > 0 ? MeshColor(channel(rs), channel(gs), channel(bs))
+                                      : MeshColor(128, 128, 128);
+            }
+        });
     return result;
 }
 
@@ -98,26 +90,23 @@ bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
     const auto colors = cloud.colors();
     const auto synthetic = cloud.flag(prop::kSynthetic);
     const auto uncoloured = cloud.flag(kUncolouredFlag);
-    s.all_xyz.reserve(cloud.size());
-    s.all_rgb.reserve(cloud.size());
-    const bool flagged = synthetic.has_value() || uncoloured.has_value();
+    const auto observed = [&](PointSet::Index idx) {
+        return (!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0);
+    };
+    std::size_t observed_count = 0;
+    for (auto idx : cloud.points) observed_count += observed(idx) ? 1 : 0;
+    s.separate = observed_count > 0 && observed_count < cloud.size();
+    s.observed_xyz.reserve(s.separate ? observed_count : cloud.size());
+    s.observed_rgb.reserve(s.observed_xyz.capacity());
     for (auto idx : cloud.points) {
-        const Eigen::Vector3d p = to_eigen(cloud.points.point(idx));
-        s.all_xyz.push_back(p);
-        s.all_rgb.push_back(colors.get(idx));
-        if (flagged && (!synthetic || (*synthetic)[idx] == 0) &&
-            (!uncoloured || (*uncoloured)[idx] == 0)) {
-            s.orig_xyz.push_back(p);
-            s.orig_rgb.push_back(colors.get(idx));
-        }
+        const bool first = !s.separate || observed(idx);
+        (first ? s.observed_xyz : s.other_xyz).push_back(to_eigen(cloud.points.point(idx)));
+        (first ? s.observed_rgb : s.other_rgb).push_back(colors.get(idx));
     }
-    // The measured points searched on their own only when some points are not measured (with
-    // all of them measured, both searches would find the same neighbours).
-    s.separate = !s.orig_xyz.empty() && s.orig_xyz.size() < s.all_xyz.size();
-    // Cell grids, not kd-trees: millions of points on a dense sequence against the mesh's
-    // vertices, and a kd-tree's build is sequential.
-    s.all_tree.emplace(s.all_xyz);
-    if (s.separate) s.orig_tree.emplace(s.orig_xyz);
+    // A cell grid for the millions of observed points (searched against the mesh's vertices;
+    // a kd-tree's build is sequential), a kd-tree for the few others.
+    s.observed.emplace(s.observed_xyz);
+    if (s.separate) s.others.emplace(s.other_xyz);
     return true;
 }
 

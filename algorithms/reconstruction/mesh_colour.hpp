@@ -14,19 +14,25 @@
 #include <vector>
 
 #include "algorithms/internal/cell_grid.hpp"
+#include "algorithms/internal/kd_tree.hpp"
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 #include "toolkit/point_cloud.hpp"
 
 namespace rgbd::reconstruction::internal {
 
-/// The coloured points the mesh's colours come from, and their searches: all of them, and the
+/// The coloured points the mesh's colours come from, in two sets searched on their own: the
 /// observed ones (measured, and coloured by the colour camera: neither `synthetic` nor
-/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) on their own.
+/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) and the others (the
+/// fill's points: a few hundred on a dense sequence). The k nearest of all points are the
+/// nearest k of the two sets' k nearest, so no search over all of them is built (one cell grid
+/// of millions of points fewer). When no point is observed, or none is flagged, every point is
+/// in the first set and `separate` is false.
 struct ColourSources {
-    std::vector<Eigen::Vector3d> all_xyz, orig_xyz;
-    std::vector<Rgb> all_rgb, orig_rgb;
-    bool separate = false;
-    std::optional<rgbd::internal::PointSearch> all_tree, orig_tree;
+    std::vector<Eigen::Vector3d> observed_xyz, other_xyz;
+    std::vector<Rgb> observed_rgb, other_rgb;
+    bool separate = false;  ///< some points are observed and some are not
+    std::optional<rgbd::internal::PointSearch> observed;
+    std::optional<rgbd::internal::KdTree> others;
 };
 
 /// Fills `s` from the cloud's coloured points; false when the cloud has no colours. Independent

@@ -407,6 +407,76 @@ TEST(ReconstructSurface, BesideSurfaceRunsOnceAndChangesNothing) {
     EXPECT_THROW(rgbd::reconstruction::reconstruct_surface(cloud, o), std::runtime_error);
 }
 
+// A vertex's colour is the inverse-distance-squared mean of its k nearest points: of the observed
+// points alone when one lies within color_original_radius spacings, else of all points (the
+// observed and the fill's, searched apart and merged). Checked against a brute-force search on
+// a sphere whose colours vary from point to point, with a fill over its top and queries on and
+// well off the surface.
+TEST(ReconstructSurface, VertexColoursAreTheNearestPointsMean) {
+    namespace internal = rgbd::reconstruction::internal;
+    PointCloud cloud = rgbd::test::coloured_sphere(4000, kRadius);
+    auto synthetic = cloud.add_flag(rgbd::prop::kSynthetic);
+    auto colors = cloud.colors();
+    std::vector<Eigen::Vector3d> xyz;
+    std::vector<rgbd::Rgb> rgb;
+    std::vector<bool> observed;
+    for (auto idx : cloud.points) {
+        const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
+        const bool fill = p.z() > 0.6 * kRadius;  // the top is the fill's
+        synthetic[idx] = fill ? 1 : 0;
+        const rgbd::Rgb c{static_cast<unsigned char>(128 + 1000 * p.x()),
+                          static_cast<unsigned char>(128 + 1000 * p.y()),
+                          static_cast<unsigned char>(fill ? 250 : 10)};
+        colors.set(idx, c);
+        xyz.push_back(p);
+        rgb.push_back(c);
+        observed.push_back(!fill);
+    }
+    internal::ColourSources sources;
+    ASSERT_TRUE(internal::prepare_colours(cloud, sources));
+    EXPECT_TRUE(sources.separate);
+    const ReconstructionOptions o;
+    const double spacing = 0.003;
+    const double near = o.color_original_radius * spacing;
+    const auto k = static_cast<std::size_t>(o.color_k);
+    // Queries on the sphere and 30% outside it (a closure's vertices far from every point).
+    std::vector<Eigen::Vector3d> queries;
+    for (int i = 0; i < 600; ++i) {
+        const double z = 1.0 - 2.0 * (i + 0.25) / 600, r = std::sqrt(1.0 - z * z);
+        const Eigen::Vector3d u(r * std::cos(2.4 * i), r * std::sin(2.4 * i), z);
+        queries.push_back((i % 3 == 0 ? 1.3 : 1.0) * kRadius * u);
+    }
+    const internal::KnownColours found = internal::colour_points(queries, sources, o, spacing);
+    std::size_t fill_coloured = 0;
+    for (const Eigen::Vector3d& q : queries) {
+        std::vector<std::pair<double, std::size_t>> by_distance, observed_only;
+        for (std::size_t i = 0; i < xyz.size(); ++i) {
+            by_distance.emplace_back((xyz[i] - q).squaredNorm(), i);
+            if (observed[i]) observed_only.push_back(by_distance.back());
+        }
+        std::sort(by_distance.begin(), by_distance.end());
+        std::sort(observed_only.begin(), observed_only.end());
+        const auto& nearest =
+            std::sqrt(observed_only.front().first) <= near ? observed_only : by_distance;
+        double w_sum = 0, rs = 0, gs = 0, bs = 0;
+        for (std::size_t j = 0; j < k; ++j) {
+            const double d = std::max(std::sqrt(nearest[j].first), 1e-3 * spacing);
+            const double w = 1.0 / (d * d);
+            const rgbd::Rgb& c = rgb[nearest[j].second];
+            w_sum += w, rs += w * c.r, gs += w * c.g, bs += w * c.b;
+        }
+        const rgbd::MeshColor* c = found.find(q);
+        ASSERT_NE(c, nullptr);
+        const auto channel = [&](double s) { return long(std::lround(s / w_sum)); };
+        EXPECT_EQ(long(c->r()), channel(rs));
+        EXPECT_EQ(long(c->g()), channel(gs));
+        EXPECT_EQ(long(c->b()), channel(bs));
+        fill_coloured += c->b() > 100;
+    }
+    // The top's queries took the fill's colour (the merge reached the fill's points).
+    EXPECT_GT(fill_coloured, 50u);
+}
+
 // Colours computed before the mesh, at the positions of its vertices, are the colours colorize
 // finds; a vertex at a known position takes the known colour, the others are searched.
 TEST(ReconstructSurface, KnownColoursAreTheColoursColorizeFinds) {
