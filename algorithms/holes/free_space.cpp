@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <utility>
 
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
@@ -26,6 +27,31 @@ void FreeSpaceOptions::check() const {
 namespace {
 constexpr float kNone = std::numeric_limits<float>::infinity();
 constexpr int kPad = 3;  // pixels around the points' bounding box
+
+/// Depths [lo, hi] (along `forward` from `centre`) that hold the median depth of the points in
+/// front with near certainty: the depths of ranks n/2 -+ 4 sqrt(n) of a sample of n >= 1000
+/// (every k-th point, n about 32768): 8 standard deviations of the sample median's rank. The
+/// caller then selects the median among the few depths inside (about 5% of the points, not
+/// all of them: the selection was a quarter of the maps' cost on a 50-view sequence) and checks
+/// that the median's rank falls there. The whole line (-inf, +inf) for fewer points.
+std::pair<double, double> median_bracket(const std::vector<Eigen::Vector3d>& points,
+                                         const Eigen::Vector3d& centre,
+                                         const Eigen::Vector3d& forward,
+                                         std::vector<double>& sample) {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const std::size_t stride = points.size() / 32768;
+    if (stride < 2) return {-kInf, kInf};
+    sample.clear();
+    for (std::size_t i = 0; i < points.size(); i += stride) {
+        const double z = (points[i] - centre).dot(forward);
+        if (z > 0) sample.push_back(z);
+    }
+    if (sample.size() < 1000) return {-kInf, kInf};
+    const std::size_t half = sample.size() / 2;
+    const auto margin = static_cast<std::size_t>(4.0 * std::sqrt(double(sample.size())));
+    const double lo = kth_smallest(sample, half - margin);
+    return {lo, kth_smallest(sample, half + margin)};
+}
 }  // namespace
 
 FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
@@ -46,7 +72,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
     // Per-thread projection buffers, allocated once (not once per sensor: 3 x 8 bytes per
     // point and sensor of zeroed, freshly faulted memory was most of this constructor).
     struct Buffers {
-        std::vector<double> x, y, z, depths;
+        std::vector<double> x, y, z, depths, sample;
     };
     tbb::enumerable_thread_specific<Buffers> buffers;
     tbb::parallel_for(std::size_t(0), sensors.size(), [&](std::size_t si) {
@@ -68,7 +94,9 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
         buffer.z.resize(points.size());
         buffer.depths.clear();
         std::vector<double>&x = buffer.x, &y = buffer.y, &z = buffer.z, &depths = buffer.depths;
+        const auto [lo, hi] = median_bracket(points, m.centre, m.forward, buffer.sample);
         double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+        std::size_t front = 0, below = 0;
         for (std::size_t i = 0; i < points.size(); ++i) {
             const Eigen::Vector3d d = points[i] - m.centre;
             z[i] = d.dot(m.forward);
@@ -77,10 +105,23 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
             y[i] = d.dot(m.down) / z[i];
             x0 = std::min(x0, x[i]), x1 = std::max(x1, x[i]);
             y0 = std::min(y0, y[i]), y1 = std::max(y1, y[i]);
-            depths.push_back(z[i]);
+            ++front;
+            if (z[i] < lo)
+                ++below;
+            else if (z[i] <= hi)
+                depths.push_back(z[i]);
         }
-        if (depths.size() < 10) return;
-        m.focal = upper_median(depths) / (options.pixel * spacing_m);
+        if (front < 10) return;
+        // The upper median of the depths in front (rank front / 2): within the bracket's
+        // depths when its rank falls there, else (a bracket that missed) from all of them.
+        const std::size_t rank = front / 2;
+        if (rank < below || rank >= below + depths.size()) {
+            depths.clear();
+            for (std::size_t i = 0; i < points.size(); ++i)
+                if (z[i] > 0) depths.push_back(z[i]);
+            below = 0;
+        }
+        m.focal = kth_smallest(depths, rank - below) / (options.pixel * spacing_m);
         m.cols = static_cast<int>(std::ceil((x1 - x0) * m.focal)) + 1 + 2 * kPad;
         m.rows = static_cast<int>(std::ceil((y1 - y0) * m.focal)) + 1 + 2 * kPad;
         if (double(m.cols) * m.rows > 16e6) return;  // not an object in front of a sensor
