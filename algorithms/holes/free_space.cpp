@@ -79,6 +79,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
         const SensorView& s = sensors[si];
         Map m;
         m.sensor = s;
+        m.sensor_from_world = s.world_from_sensor.inverse();
         m.centre = s.world_from_sensor.translation();
         const Eigen::Vector3d to_object = centroid - m.centre;
         if (to_object.norm() <= 0) return;
@@ -159,7 +160,7 @@ int FreeSpace::scan(const Eigen::Vector3d& p, const Eigen::Vector3d& n, bool cou
         const double z = d.dot(m.forward);
         if (!(z > 0)) continue;
         if (m.sensor.intrinsics) {
-            const Eigen::Vector3d c = m.sensor.world_from_sensor.inverse() * p;
+            const Eigen::Vector3d c = m.sensor_from_world * p;
             if (c.z() <= 0) continue;
             const auto& k = *m.sensor.intrinsics;
             const double u = k.fx * c.x() / c.z() + k.cx, v = k.fy * c.y() / c.z() + k.cy;

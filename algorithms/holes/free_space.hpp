@@ -71,6 +71,7 @@ private:
         double u0 = 0, v0 = 0;       ///< image-plane coordinates (tan) of pixel (0, 0)'s corner
         std::vector<float> nearest;  ///< depth along forward per pixel; +inf = none
         SensorView sensor;
+        Pose sensor_from_world;  ///< sensor.world_from_sensor's inverse, for the frustum test
     };
     std::vector<Map> maps_;
     FreeSpaceOptions options_;
