@@ -90,19 +90,20 @@ bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
     const auto colors = cloud.colors();
     const auto synthetic = cloud.flag(prop::kSynthetic);
     const auto uncoloured = cloud.flag(kUncolouredFlag);
-    const auto observed = [&](PointSet::Index idx) {
-        return (!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0);
-    };
-    std::size_t observed_count = 0;
-    for (auto idx : cloud.points) observed_count += observed(idx) ? 1 : 0;
-    s.separate = observed_count > 0 && observed_count < cloud.size();
-    s.observed_xyz.reserve(s.separate ? observed_count : cloud.size());
-    s.observed_rgb.reserve(s.observed_xyz.capacity());
+    s.observed_xyz.reserve(cloud.size());
+    s.observed_rgb.reserve(cloud.size());
     for (auto idx : cloud.points) {
-        const bool first = !s.separate || observed(idx);
-        (first ? s.observed_xyz : s.other_xyz).push_back(to_eigen(cloud.points.point(idx)));
-        (first ? s.observed_rgb : s.other_rgb).push_back(colors.get(idx));
+        const bool observed =
+            (!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0);
+        (observed ? s.observed_xyz : s.other_xyz).push_back(to_eigen(cloud.points.point(idx)));
+        (observed ? s.observed_rgb : s.other_rgb).push_back(colors.get(idx));
     }
+    // No point observed: every point is in the first set (the others' order kept).
+    if (s.observed_xyz.empty()) {
+        s.observed_xyz.swap(s.other_xyz);
+        s.observed_rgb.swap(s.other_rgb);
+    }
+    s.separate = !s.other_xyz.empty();
     // A cell grid for the millions of observed points (searched against the mesh's vertices;
     // a kd-tree's build is sequential), a kd-tree for the few others.
     s.observed.emplace(s.observed_xyz);
