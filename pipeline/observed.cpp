@@ -25,6 +25,44 @@ fs::path segment_label_file(const io::Capture& capture, const std::string& senso
     return capture.root / "gt" / sensor_id / "segment" / fs::path(record.depth).filename();
 }
 
+fs::path noise_label_file(const io::Capture& capture, const std::string& sensor_id,
+                          std::size_t position) {
+    const io::FrameRecord& record = capture.frames.at(sensor_id).at(position);
+    return capture.root / "gt" / sensor_id / "labels" / fs::path(record.depth).filename();
+}
+
+namespace {
+
+/// An 8-bit one-channel label image of the depth image's size, read from `file`.
+cv::Mat read_label_image(const fs::path& file, const cv::Mat& depth) {
+    cv::Mat label = io::read_image(file.string());
+    RGBD_CHECK(label.type() == CV_8UC1 && label.cols == depth.cols && label.rows == depth.rows,
+               file.string() + ": not an 8-bit one-channel image of the depth size (" +
+                   std::to_string(depth.cols) + "x" + std::to_string(depth.rows) + ")");
+    return label;
+}
+
+/// The subject labels of one frame: its segment labels, and, where the frame has noise labels,
+/// every pixel whose depth is not a measurement of a surface (a flying pixel between two
+/// surfaces, a random outlier: they keep the segment label of the surface their ray hits)
+/// relabelled 0; the count of subject pixels so relabelled is added to `excluded`.
+cv::Mat subject_labels(const io::Capture& capture, const std::string& sensor_id,
+                       std::size_t position, const cv::Mat& depth, std::size_t& excluded) {
+    cv::Mat label = read_label_image(segment_label_file(capture, sensor_id, position), depth);
+    const fs::path noise_file = noise_label_file(capture, sensor_id, position);
+    if (!fs::exists(noise_file)) return label;
+    const cv::Mat noise = read_label_image(noise_file, depth);
+    for (std::size_t p = 0; p < label.total(); ++p) {
+        if (noise.data[p] == kNoiseLabelSurface || label.data[p] != evaluation::kLabelSubject)
+            continue;
+        label.data[p] = 0;
+        ++excluded;
+    }
+    return label;
+}
+
+}  // namespace
+
 Observations load_observations(const io::Capture& capture,
                                const std::vector<std::pair<std::string, std::size_t>>& frames,
                                const frames::CloudOptions& cloud_options,
@@ -38,6 +76,7 @@ Observations load_observations(const io::Capture& capture,
     const bool labelled =
         fs::exists(segment_label_file(capture, frames[0].first, frames[0].second));
     Report per_view = Report::array();
+    std::size_t noise_excluded = 0;
     int view_id = 0;
     bool masked = cloud_options.use_mask;
     for (const auto& [sensor_id, position] : frames) {
@@ -62,13 +101,8 @@ Observations load_observations(const io::Capture& capture,
             RGBD_CHECK(fs::exists(file), file.string() +
                                              ": missing (the capture has subject labels for "
                                              "other frames)");
-            cv::Mat label = io::read_image(file.string());
-            RGBD_CHECK(label.type() == CV_8UC1 && label.cols == frame.depth.cols &&
-                           label.rows == frame.depth.rows,
-                       file.string() + ": not an 8-bit one-channel image of the depth size (" +
-                           std::to_string(frame.depth.cols) + "x" +
-                           std::to_string(frame.depth.rows) + ")");
-            labels.push_back(std::move(label));
+            labels.push_back(
+                subject_labels(capture, sensor_id, position, frame.depth, noise_excluded));
         }
         per_view.push_back({{"sensor", sensor_id}, {"frame_index", frame.frame_index}});
     }
@@ -79,6 +113,7 @@ Observations load_observations(const io::Capture& capture,
     obs.report["views"] = obs.views.size();
     obs.report["labels"] =
         labelled ? Report((capture.root / "gt" / "<sensor>" / "segment").string()) : Report();
+    if (labelled) obs.report["noise_excluded"] = noise_excluded;
     for (std::size_t v = 0; v < obs.views.size(); ++v) per_view[v]["points"] = obs.views[v].size();
     obs.report["per_view"] = per_view;
     obs.report["poses"] = poses ? "given" : "capture";

@@ -5,6 +5,7 @@
 // gt/<sensor>/segment/NNNNNN.png when the capture has them. docs/method.md (evaluation).
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -37,13 +38,23 @@ struct Observations {
 std::filesystem::path segment_label_file(const io::Capture& capture, const std::string& sensor_id,
                                          std::size_t position);
 
+/// Where rgbd-synth puts the noise labels of a frame: gt/<sensor>/labels/ with the depth image's
+/// file name (uint8: 0 no return, 1 surface, 2 flying pixel, 3 outlier, 4 dropout, 5 shadow).
+std::filesystem::path noise_label_file(const io::Capture& capture, const std::string& sensor_id,
+                                       std::size_t position);
+
+/// The noise label of a pixel whose depth measures a surface (docs/formats.md).
+inline constexpr std::uint8_t kNoiseLabelSurface = 1;
+
 /// Loads `frames` of `capture` as views (io::load_frame, depth_to_cloud with `cloud_options`,
 /// no crop) and keeps the observed subject: the label images when the first frame has one
-/// (then every frame must), else the cylinder around where the sensors' axes converge
-/// (object_centre) minus the ground plane (evaluation::observed_subject), which is not looked
-/// for when every frame's object mask was applied (the masks left no ground). With `poses`
-/// (sensor id -> world_from_depth, e.g. a synthetic capture's truth), the views are placed with
-/// those instead of the capture's calibration; report: poses "given" or "capture".
+/// (then every frame must; where a frame also has noise labels, its flying pixels and random
+/// outliers are no observation of the subject: report "noise_excluded" counts them), else the
+/// cylinder around where the sensors' axes converge (object_centre) minus the ground plane
+/// (evaluation::observed_subject), which is not looked for when every frame's object mask was
+/// applied (the masks left no ground). With `poses` (sensor id -> world_from_depth, e.g. a
+/// synthetic capture's truth), the views are placed with those instead of the capture's
+/// calibration; report: poses "given" or "capture".
 /// @throws InputError naming the capture when no frame is selected, a frame has no pose
 ///         (rig.json world_from_depth or frames.csv pose columns), a label file is missing
 ///         while others exist, or no observed point is left; IoError for unreadable files.

@@ -1,7 +1,8 @@
 // rgbd-eval --observed: on a small synthetic ring capture of an ellipsoid (exact rig poses),
 // the true mesh explains the observations, a mesh moved by 10 cm does not, and a far-away box
 // added to the true mesh is unsupported area of exactly its share; the subject labels of
-// gt/<sensor>/segment/ select the labelled pixels only; bad inputs fail with one line.
+// gt/<sensor>/segment/ select the labelled pixels only, and the noise labels of gt/<sensor>/labels/
+// take the flying pixels and outliers out of them; bad inputs fail with one line.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -172,6 +173,46 @@ TEST(RgbdEvalObserved, SubjectLabelsSelectTheLabelledPixels) {
     const Outcome missing = run("$BIN/rgbd-eval cap/gt/mesh.ply --observed labelled -q");
     EXPECT_EQ(missing.code, 1) << missing.err;
     EXPECT_NE(missing.err.find("segment/000000.png"), std::string::npos) << missing.err;
+}
+
+TEST(RgbdEvalObserved, NoisePixelsAreNoObservationOfTheSubject) {
+    // With the default noise, rgbd-synth's flying pixels and random outliers keep the segment
+    // label of the surface their ray hits, but their depth lies off every surface: its noise
+    // labels (gt/<sensor>/labels/) take them out of the observed subject, so the truth explains
+    // nearly all of what is left. Without the noise labels they count, and explain less.
+    rgbd::test::write_ellipsoid_off(temp_root() / "ell3.off", 64, 32, 0.15, 0.25, 0.12);
+    const Outcome r =
+        run("$BIN/rgbd-synth ell3.off -o noisy --sensors 6 --height-m 0.5 --resolution-scale 0.25 "
+            "--calib-error-deg 0 --calib-error-mm 0 --seed 5 -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto judge = [](const std::string& cap) {
+        const Outcome e =
+            run("$BIN/rgbd-eval " + cap + "/gt/mesh.ply --observed " + cap + " -o noisy.json -q");
+        EXPECT_EQ(e.code, 0) << e.err;
+        return read_json(temp_root() / "noisy.json")["observed"];
+    };
+    const auto labelled = judge("noisy");
+    ASSERT_TRUE(labelled["subject"].contains("noise_excluded")) << labelled.dump(2);
+    const auto excluded = labelled["subject"]["noise_excluded"].get<std::size_t>();
+    EXPECT_GT(excluded, 10u) << labelled.dump(2);
+    EXPECT_GE(labelled["explained"].get<double>(), 0.99) << labelled.dump(2);
+    // The same capture without its noise labels: the excluded pixels are observations again.
+    const fs::path bare = temp_root() / "noisy_bare";
+    fs::remove_all(bare);
+    fs::copy(temp_root() / "noisy", bare, fs::copy_options::recursive);
+    for (const auto& sensor : fs::directory_iterator(bare / "gt"))
+        if (sensor.is_directory()) fs::remove_all(sensor.path() / "labels");
+    const auto unlabelled = judge("noisy_bare");
+    EXPECT_EQ(unlabelled["observed_points"].get<std::size_t>(),
+              labelled["observed_points"].get<std::size_t>() + excluded);
+    EXPECT_LT(unlabelled["explained"].get<double>(), labelled["explained"].get<double>());
+    // A noise label image of the wrong size: an error naming it.
+    fs::create_directories(bare / "gt" / "k2-2" / "labels");
+    cv::imwrite((bare / "gt" / "k2-2" / "labels" / "000000.png").string(),
+                cv::Mat(3, 3, CV_8UC1, cv::Scalar(1)));
+    const Outcome wrong = run("$BIN/rgbd-eval noisy_bare/gt/mesh.ply --observed noisy_bare -q");
+    EXPECT_EQ(wrong.code, 1) << wrong.err;
+    EXPECT_NE(wrong.err.find("labels/000000.png"), std::string::npos) << wrong.err;
 }
 
 TEST(RgbdEvalObserved, BadInputFailsWithOneLine) {
