@@ -91,6 +91,7 @@ void run_clean(cli::Context& ctx) {
         density.consensus_sigmas = ctx.get<double>("consensus-sigmas");
         density.cluster_spacing = ctx.get<double>("cluster-spacing");
         density.min_cluster_fraction = ctx.get<double>("min-cluster-fraction");
+        density.judge_synthetic = vm.count("judge-synthetic") != 0;
         density.seed = ctx.seed();
         density.mark = mark;
         // Every option is validated whatever the method, so a typo never passes silently.
@@ -192,7 +193,9 @@ const cli::ToolSpec kSpec{
         "produced (1/(z/f)^2 per view, occlusion-aware); a point below --consensus-ratio of it "
         "that its own view sees steeper than --theta-max-deg and that lies more than "
         "--consensus-sigmas sigma off the other views' surface is a flying pixel too; then it "
-        "drops small detached clusters; views without cameras (merged or unorganised clouds) "
+        "drops small detached clusters (linking the measured points; a super-resolved point goes "
+        "with the measured point it was made from); views without cameras (merged or unorganised "
+        "clouds) "
         "are compared with the local median density instead. Views without a grid fall back to "
         "--statistical when no method is given. --statistical is statistical outlier removal "
         "with the exact semantics of Open3D's remove_statistical_outlier (or PCL's with "
@@ -208,7 +211,7 @@ const cli::ToolSpec kSpec{
     // options are refused only next to another mode; --density's and --radius's need theirs.
     .scopes = {{{"density"},
                 {"beta", "reference", "consensus-ratio", "consensus-sigmas", "cluster-spacing",
-                 "min-cluster-fraction"}},
+                 "min-cluster-fraction", "judge-synthetic"}},
                {{"radius"}, {"min-points", "radius-m", "radius-spacing"}},
                {{"distance", "density", "radius"}, {"std-ratio"}, /*not_with=*/true},
                {{"distance", "density"}, {"convention"}, /*not_with=*/true},
@@ -294,6 +297,10 @@ const cli::ToolSpec kSpec{
             "cluster pass)")(
             "min-cluster-fraction", cli::value(denoise::DensityOptions{}.min_cluster_fraction, "X"),
             "--density: detached clusters smaller than this share of the points are removed")(
+            "judge-synthetic",
+            "--density: judge super-resolved points (rgbd-upsample's) wholly on their own; by "
+            "default each is judged on its own count against the expected density of the "
+            "measured point it was made from, and takes that point's verdict in the cluster pass")(
             "mark", "flag noise points (noise = 1) instead of deleting them")(
             "high-recall",
             "--distance: the recall operating point (--c-min 4 --c-min-wide 0 --keep-knn 0 "

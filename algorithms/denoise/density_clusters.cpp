@@ -43,16 +43,14 @@ std::vector<std::uint32_t> eps_labels(const std::vector<Eigen::Vector3d>& pts, d
 
 }  // namespace
 
-/// The cluster pass over the survivors (outlier[i] == 0): links points within eps (a multiple
-/// of the spacing, recorded as cluster_eps_m) and flags every component but the largest (ties:
-/// the one with the earliest point) that holds less than min_cluster_fraction of them.
+/// The cluster pass over the survivors (density_clusters.hpp).
 ClusterCount flag_small_clusters(const std::vector<Eigen::Vector3d>& world, double eps,
                                  double min_cluster_fraction, std::vector<std::uint8_t>& outlier,
-                                 Report& report) {
+                                 Report& report, const std::vector<std::uint8_t>* only) {
     ClusterCount result;
     std::vector<std::uint32_t> alive;
     for (std::size_t i = 0; i < world.size(); ++i)
-        if (!outlier[i]) alive.push_back(static_cast<std::uint32_t>(i));
+        if (!outlier[i] && (!only || (*only)[i])) alive.push_back(static_cast<std::uint32_t>(i));
     const std::size_t m = alive.size();
     if (m < 2) return result;
     std::vector<Eigen::Vector3d> pts(m);

@@ -17,11 +17,12 @@ struct ClusterCount {
     std::size_t clusters = 0;  ///< components of the survivors
 };
 
-/// The cluster pass over the survivors (outlier[i] == 0): links points within eps (a multiple
-/// of the spacing, recorded as cluster_eps_m) and flags every component but the largest (ties:
-/// the one with the earliest point) that holds less than min_cluster_fraction of them.
+/// The cluster pass over the survivors (outlier[i] == 0; with `only`, those with only[i] != 0):
+/// links points within eps (a multiple of the spacing, recorded as cluster_eps_m) and flags
+/// every component but the largest (ties: the one with the earliest point) that holds less than
+/// min_cluster_fraction of them.
 ClusterCount flag_small_clusters(const std::vector<Eigen::Vector3d>& world, double eps,
                                  double min_cluster_fraction, std::vector<std::uint8_t>& outlier,
-                                 Report& report);
+                                 Report& report, const std::vector<std::uint8_t>* only = nullptr);
 
 }  // namespace rgbd::denoise::detail

@@ -60,7 +60,73 @@ struct WorldPoints {
     std::vector<Eigen::Vector3d> world;
     std::vector<std::uint32_t> view_of;  ///< view index of every point of `world`
     bool have_cameras = true;            ///< every non-empty view has intrinsics and a pose
+    /// The point each point was made from (find_parents()): itself for a measured point, the
+    /// measured point of its view that a super-resolved point was made from; empty when every
+    /// point is its own parent.
+    std::vector<std::uint32_t> parent;
+    /// Whether point i is its own parent (a measured point).
+    bool own_parent(std::size_t i) const { return parent.empty() || parent[i] == i; }
 };
+
+/// The parents of the points of view v (all.parent, its slice): a measured point (not flagged
+/// synthetic) is its own; a super-resolved point's is the measured point with its pixel (it
+/// carries its parent's pixel), else the measured point of the view nearest to it. A view
+/// without measured points is its own parents. Returns how many points have another parent.
+std::size_t find_view_parents(const PointCloud& view, WorldPoints& all, std::size_t v) {
+    const std::size_t first = all.offset[v], n = all.offset[v + 1] - first;
+    for (std::size_t a = 0; a < n; ++a) all.parent[first + a] = std::uint32_t(first + a);
+    const auto synthetic = view.flag(prop::kSynthetic);
+    if (!synthetic) return 0;
+    const auto& ids = all.gathered[v].ids;
+    const auto& xyz = all.gathered[v].xyz;
+    constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+    const auto pixel = view.pixel_map();
+    const std::size_t cells = std::size_t(std::max(view.view.grid_width, 0)) *
+                              std::size_t(std::max(view.view.grid_height, 0));
+    std::vector<std::uint32_t> at_pixel;  // the measured point of every pixel of the view's grid
+    std::vector<Eigen::Vector3d> measured_xyz;
+    std::vector<std::uint32_t> measured_at;
+    if (pixel && cells > 0) at_pixel.assign(cells, kNone);
+    for (std::size_t a = 0; a < n; ++a) {
+        if ((*synthetic)[ids[a]]) continue;
+        measured_xyz.push_back(xyz[a]);
+        measured_at.push_back(static_cast<std::uint32_t>(a));
+        if (!at_pixel.empty())
+            if (const std::uint32_t px = (*pixel)[ids[a]]; px < cells)
+                at_pixel[px] = static_cast<std::uint32_t>(a);
+    }
+    if (measured_xyz.empty()) return 0;
+    std::unique_ptr<internal::KdTree> tree;  // built for the first point without a parent pixel
+    std::size_t followers = 0;
+    for (std::size_t a = 0; a < n; ++a) {
+        if (!(*synthetic)[ids[a]]) continue;
+        std::uint32_t from = kNone;
+        if (!at_pixel.empty())
+            if (const std::uint32_t px = (*pixel)[ids[a]]; px < cells) from = at_pixel[px];
+        if (from == kNone) {
+            if (!tree) tree = std::make_unique<internal::KdTree>(measured_xyz);
+            std::uint32_t nearest = 0;
+            double sq = 0.0;
+            if (tree->nearest(xyz[a], nearest, sq)) from = measured_at[nearest];
+        }
+        all.parent[first + a] = std::uint32_t(first + from);
+        ++followers;
+    }
+    return followers;
+}
+
+/// find_view_parents() for every view (in parallel); all.parent stays empty when every point is
+/// its own parent. Returns how many points have another parent.
+std::size_t find_parents(const std::vector<PointCloud>& views, WorldPoints& all) {
+    all.parent.resize(all.world.size());
+    std::vector<std::size_t> followers(views.size(), 0);
+    tbb::parallel_for(std::size_t(0), views.size(),
+                      [&](std::size_t v) { followers[v] = find_view_parents(views[v], all, v); });
+    std::size_t total = 0;
+    for (const std::size_t f : followers) total += f;
+    if (total == 0) all.parent.clear();
+    return total;
+}
 
 /// Gathers all views in the world frame: each view's points in parallel (an error names the
 /// first offending view, as a sequential pass would), then placed at their offsets. InputError
@@ -176,14 +242,19 @@ std::vector<Camera> view_cameras(const std::vector<PointCloud>& views, const Wor
 
 /// One view's spacing ŝ: the median robust spacing over the views with >= 10 points (the
 /// merged cloud's spacing shrinks with every interleaved view), or the merged cloud's when no
-/// view has that many. It scales the neighbourhood of the measured density and the link of the
+/// view has that many. It scales the neighbourhood of the measured density and, of the measured
+/// points only (`parents_only`: the points that are their own parents), the link of the
 /// cluster pass.
-double one_view_spacing(const WorldPoints& all, std::uint64_t seed) {
+double one_view_spacing(const WorldPoints& all, std::uint64_t seed, bool parents_only = false) {
     // The views' own point sets (frame-independent spacing), in parallel.
     std::vector<double> view_spacing(all.gathered.size(), -1.0);
     tbb::parallel_for(std::size_t(0), all.gathered.size(), [&](std::size_t v) {
-        if (all.gathered[v].xyz.size() >= 10)
-            view_spacing[v] = sampling::robust_spacing(all.gathered[v].xyz, 2000, seed);
+        std::vector<Eigen::Vector3d> own;
+        if (parents_only && !all.parent.empty())
+            for (std::size_t a = 0; a < all.gathered[v].xyz.size(); ++a)
+                if (all.own_parent(all.offset[v] + a)) own.push_back(all.gathered[v].xyz[a]);
+        const auto& xyz = parents_only && !all.parent.empty() ? own : all.gathered[v].xyz;
+        if (xyz.size() >= 10) view_spacing[v] = sampling::robust_spacing(xyz, 2000, seed);
     });
     std::vector<double> spacings;
     for (const double s : view_spacing)
@@ -252,6 +323,7 @@ void expect_sensor_density(const std::vector<Camera>& cameras, const WorldPoints
     for (std::size_t v = 0; v < cameras.size(); ++v)
         if (cameras[v].active) active.push_back(std::uint32_t(v));
     const auto expect = [&](std::size_t i, const std::vector<std::uint32_t>& seeing) {
+        if (!all.own_parent(i)) return;  // its parent's, below
         const Eigen::Vector3d nrm = normal[i].normalized();
         double sum = 0.0;
         for (const std::uint32_t v : seeing)
@@ -496,7 +568,7 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["method"] = "density";
     report["mark"] = options.mark;
 
-    const WorldPoints all = gather_in_world(views);
+    WorldPoints all = gather_in_world(views);
     const std::vector<Eigen::Vector3d>& world = all.world;
     const std::size_t n = world.size();
     report["input_points"] = n;
@@ -516,6 +588,10 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     if (!report_progress(progress, 0.0)) return detail::cancelled(report, watch);
     const double theta_max = options.theta_max_deg * std::numbers::pi / 180.0;
 
+    // With the sensors reference, super-resolved points take their measured parents' expected
+    // density and cluster verdict (DensityOptions::judge_synthetic).
+    if (sensors && !options.judge_synthetic)
+        report["synthetic_followers"] = find_parents(views, all);
     std::vector<Camera> cameras;
     if (sensors) cameras = view_cameras(views, all);
     stage("depth_maps");
@@ -533,6 +609,10 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
         if (!report_progress(progress, 0.3)) return detail::cancelled(report, watch);
         expect_sensor_density(cameras, all, hood, options.noise_model, std::tan(theta_max),
                               expected);
+        if (!all.parent.empty())
+            tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+                if (!all.own_parent(i)) expected[i] = expected[all.parent[i]];
+            });
     } else {
         const internal::KdTree tree(world);
         measure_local_density(tree, world, k, measured);
@@ -573,10 +653,26 @@ Report remove_density_outliers(std::vector<PointCloud>& views, const DensityOpti
     report["consensus"] = consensus_removed;
     stage("consensus");
 
+    // The cluster pass; with parents, over the measured survivors at their own spacing, the
+    // super-resolved points taking their parents' verdict.
     detail::ClusterCount clusters;
-    if (options.cluster_spacing > 0.0)
-        clusters = detail::flag_small_clusters(world, options.cluster_spacing * spacing,
-                                               options.min_cluster_fraction, outlier, report);
+    if (options.cluster_spacing > 0.0) {
+        if (all.parent.empty()) {
+            clusters = detail::flag_small_clusters(world, options.cluster_spacing * spacing,
+                                                   options.min_cluster_fraction, outlier, report);
+        } else {
+            std::vector<std::uint8_t> own(n), before = outlier;
+            for (std::size_t i = 0; i < n; ++i) own[i] = all.own_parent(i);
+            clusters = detail::flag_small_clusters(
+                world, options.cluster_spacing * one_view_spacing(all, options.seed, true),
+                options.min_cluster_fraction, outlier, report, &own);
+            for (std::size_t i = 0; i < n; ++i)
+                if (!own[i] && !outlier[i] && outlier[all.parent[i]] && !before[all.parent[i]]) {
+                    outlier[i] = 1;
+                    ++clusters.removed;
+                }
+        }
+    }
     report["cluster"] = clusters.removed;
     report["clusters"] = clusters.clusters;
     stage("cluster");

@@ -103,6 +103,15 @@ struct DensityOptions {
     double cluster_spacing = 3.0;
     /// Cluster pass: components smaller than this share of the survivors go (the largest stays).
     double min_cluster_fraction = 0.005;
+    /// Sensors reference: judge super-resolved points (flagged synthetic) wholly on their own.
+    /// By default, in a view that has measured points, a super-resolved point is judged on its
+    /// own neighbour count against its parent's expected density (the measured point of its
+    /// view it was made from: the one with its pixel, else the nearest; it lies within a depth
+    /// pixel of it), and takes its parent's verdict in the cluster pass, which links the measured
+    /// survivors at their own spacing: the same verdicts within a few points (the 10-view ring:
+    /// ...), for a fraction of the time (the expected density's sums over the cameras and the
+    /// cluster graph over 8 times the measured points after an 8-neighbour upsampling).
+    bool judge_synthetic = false;
     /// Seed of the s_hat sample.
     std::uint64_t seed = 42;
     /// Set the `noise` flag to 1 on outliers instead of deleting them.
@@ -117,7 +126,8 @@ struct DensityOptions {
 ///
 /// @param views  world-frame views, or sensor-frame views with world_from_sensor (a single
 ///               view without a pose is used in its own frame). Every coordinate finite.
-/// @return report: method, reference, spacing_m, cluster_eps_m, input_points, density
+/// @return report: method, reference, spacing_m, cluster_eps_m, input_points,
+///         synthetic_followers (points with a parent, without judge_synthetic), density
 ///         (removed by the density test), consensus (by the consensus test) and
 ///         consensus_candidates (points it examined), cluster (removed by the cluster pass),
 ///         clusters, removed (or marked), per-view counts ("views"), time_s.

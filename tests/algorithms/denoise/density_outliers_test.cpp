@@ -1,6 +1,6 @@
 // Tests of the adaptive density-based filter (docs/algorithms.md §8): two aligned views of a plane
 // with floating clusters and sparse outliers, the sensors and local references, mark ==
-// delete, errors, empty views, thread-count determinism.
+// delete, errors, empty views, thread-count determinism, super-resolved points and their parents.
 #include "algorithms/denoise/density_outliers.hpp"
 
 #include <gtest/gtest.h>
@@ -23,8 +23,11 @@ constexpr int kW = 128, kH = 96;
 
 PinholeIntrinsics intrinsics() { return test::centred_pinhole(kW, kH, 180.0); }
 
+/// The flag that marks the planted noise points (the truth of these tests).
+constexpr const char* kPlanted = "planted";
+
 /// View of the plane z = 1.5 (world) from a camera at `x` looking along +z; noise points
-/// (flag noise = 1 in the returned `truth` property "synthetic") appended.
+/// (flag kPlanted = 1) appended.
 PointCloud plane_view(int id, double x, std::size_t clusters, std::size_t outliers,
                       std::uint64_t seed) {
     PointCloud view;
@@ -35,7 +38,7 @@ PointCloud plane_view(int id, double x, std::size_t clusters, std::size_t outlie
     Pose pose = Pose::Identity();
     pose.translation() = Eigen::Vector3d(x, 0.0, 0.0);
     view.view.world_from_sensor = pose;
-    auto truth = view.add_flag(prop::kSynthetic);
+    auto truth = view.add_flag(kPlanted);
     std::mt19937_64 rng(seed);
     std::normal_distribution<double> noise(0.0, 0.0014);
     const auto k = intrinsics();
@@ -65,7 +68,7 @@ PointCloud plane_view(int id, double x, std::size_t clusters, std::size_t outlie
 }
 
 /// The report of remove_density_outliers (default options) on `views`, cleaned in place, and
-/// the shares of the planted noise and of the surface (truth: the synthetic flag) it removed.
+/// the shares of the planted noise and of the surface (truth: the kPlanted flag) it removed.
 struct Cleaned {
     Report report;
     double noise_removed = 0.0, surface_removed = 0.0;
@@ -74,11 +77,11 @@ struct Cleaned {
 Cleaned clean(std::vector<PointCloud>& views) {
     std::size_t noise = 0, surface = 0, noise_left = 0, surface_left = 0;
     for (const auto& v : views)
-        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? noise : surface)++;
+        for (auto idx : v.points) ((*v.flag(kPlanted))[idx] ? noise : surface)++;
     Cleaned c;
     c.report = remove_density_outliers(views, DensityOptions{});
     for (const auto& v : views)
-        for (auto idx : v.points) ((*v.flag(prop::kSynthetic))[idx] ? noise_left : surface_left)++;
+        for (auto idx : v.points) ((*v.flag(kPlanted))[idx] ? noise_left : surface_left)++;
     c.noise_removed = 1.0 - double(noise_left) / double(noise);
     c.surface_removed = 1.0 - double(surface_left) / double(surface);
     return c;
@@ -314,6 +317,80 @@ TEST(DensityOutliers, ConsensusFlagsSteepOffSurfacePoints) {
     EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_ratio = 1.5; }));
     EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_radius = 2.5; }));
     EXPECT_TRUE(rejects<DensityOptions>([](auto& o) { o.consensus_sigmas = 0.0; }));
+}
+
+/// The plane scene with a pixel map and, in both views, the 8 super-resolved children of every
+/// point (flagged synthetic, carrying their parent's pixel) a third of a depth pixel apart, as an
+/// 8-neighbour upsampling makes them: the planted clusters' and outliers' children are planted
+/// too. Appended last to view 0: one bad child of a surface point, 6 cm in front of the plane
+/// (planted).
+std::vector<PointCloud> upsampled_scene() {
+    std::vector<PointCloud> views = scene();
+    const double third = 1.5 / intrinsics().fx / 3.0;  // a third of the plane's pixel footprint
+    for (auto& v : views) {
+        auto pixel = v.add_pixel_map();
+        std::uint32_t i = 0;
+        for (auto idx : v.points) pixel[idx] = i++;
+        v.view.grid_width = kW;
+        v.view.grid_height = kH + 64;  // room for the appended noise points' pixels
+        auto synthetic = v.add_flag(prop::kSynthetic);
+        auto planted = *v.flag(kPlanted);
+        const std::vector<PointSet::Index> parents(v.points.begin(), v.points.end());
+        for (const auto parent : parents)
+            for (int dx = -1; dx <= 1; ++dx)
+                for (int dy = -1; dy <= 1; ++dy) {
+                    if (dx == 0 && dy == 0) continue;
+                    const auto idx = *v.points.insert(to_point(to_eigen(v.points.point(parent)) +
+                                                               third * Eigen::Vector3d(dx, dy, 0)));
+                    synthetic[idx] = 1;
+                    planted[idx] = planted[parent];
+                    pixel[idx] = pixel[parent];
+                }
+    }
+    PointCloud& v = views[0];
+    const auto bad = *v.points.insert(Point_3(0.0, 0.0, 1.44));
+    (*v.flag(prop::kSynthetic))[bad] = 1;
+    (*v.flag(kPlanted))[bad] = 1;
+    (*v.pixel_map())[bad] = std::uint32_t(kH / 2) * kW + kW / 2;
+    return views;
+}
+
+// Super-resolved points (flagged synthetic) are counted in the neighbourhoods and judged on their
+// own count against the expected density of the measured point they were made from (the one
+// with their pixel), and take its verdict in the cluster pass, which links the measured points
+// only: the planted clusters go with their children, a child 6 cm off the surface goes on its own
+// (its count is far below its parent's expected density), no surface child goes. With
+// judge_synthetic every point is judged alike (the children link the clusters too).
+TEST(DensityOutliers, SuperResolvedPointsFollowTheirParents) {
+    for (const bool judge_synthetic : {false, true}) {
+        std::vector<PointCloud> views = upsampled_scene();
+        DensityOptions o;
+        o.judge_synthetic = judge_synthetic;
+        o.mark = true;
+        const Report report = remove_density_outliers(views, o);
+        std::size_t planted = 0, planted_marked = 0, surface_marked = 0, children = 0;
+        for (const auto& v : views) {
+            const auto noise = *v.flag(prop::kNoise);
+            const auto truth = *v.flag(kPlanted);
+            const auto synthetic = v.flag(prop::kSynthetic);
+            for (auto idx : v.points) {
+                children += synthetic && (*synthetic)[idx];
+                planted += truth[idx];
+                planted_marked += truth[idx] && noise[idx];
+                surface_marked += !truth[idx] && noise[idx];
+            }
+        }
+        const std::string what =
+            std::string(judge_synthetic ? "judged alike: " : "followers: ") + report.dump();
+        EXPECT_EQ(report.contains("synthetic_followers"), !judge_synthetic) << what;
+        if (!judge_synthetic) EXPECT_EQ(report["synthetic_followers"], children) << what;
+        EXPECT_GE(double(planted_marked), 0.95 * double(planted)) << what;
+        EXPECT_LE(double(surface_marked), 0.01 * double(children)) << what;
+        // The bad child, last of view 0.
+        const PointCloud& v0 = views[0];
+        const auto last = *std::prev(v0.points.end());
+        EXPECT_EQ((*v0.flag(prop::kNoise))[last], 1) << what;
+    }
 }
 
 }  // namespace
