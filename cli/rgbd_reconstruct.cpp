@@ -192,10 +192,15 @@ void run_reconstruct(cli::Context& ctx) {
                             const std::vector<PointCloud>& views) {
         save_stage(stages_dir, index, stage, views);
     };
-    // 9. (early) the report's extraction picture needs the input points only: rendered beside
-    // the mesh stage's sequential step.
-    std::optional<cli::ReportImage> extraction;
+    // 9. (early) the report's view (fitted to the input points), its input picture and the
+    // extraction picture need the input points only: rendered beside the mesh stage's
+    // sequential steps.
+    std::optional<cli::ReportImage> extraction, input_image;
+    std::optional<cli::PictureView> view;
     hooks.beside_mesh = [&](const pipeline::ReconstructResult& r) {
+        if (r.input.vertices.empty()) return;
+        view = cli::picture_view(r.input, r.input.sensors);
+        input_image = cli::input_picture(r.input, view->camera);
         if (!r.removed.empty()) extraction = cli::extraction_picture(r.input, r.removed);
     };
     pipeline::ReconstructResult result = pipeline::reconstruct(capture, jobs, options, hooks);
@@ -277,6 +282,10 @@ void run_reconstruct(cli::Context& ctx) {
         pictures.result = &mesh;
         pictures.textured = textured ? &*textured : nullptr;
         pictures.reference = reference_mesh ? &*reference_mesh : nullptr;
+        if (view && input_image) {
+            pictures.view = &*view;
+            pictures.input_image = &*input_image;
+        }
         Report picture_info;
         tbb::this_task_arena::isolate([&] {
             cli::render_report_pictures(pictures, images, picture_info);

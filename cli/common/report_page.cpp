@@ -145,6 +145,24 @@ void write_report(const fs::path& dir, const ReportPage& page) {
         policy);
 }
 
+PictureView picture_view(const render::Geometry& fit, const std::vector<Pose>& sensors,
+                         const render::CameraOptions& camera) {
+    Eigen::Vector3d lo = fit.vertices.front(), hi = lo;
+    for (const auto& v : fit.vertices) {
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+    }
+    PictureView view;
+    view.orientation = render::guess_orientation(sensors, 0.5 * (lo + hi), std::nullopt);
+    view.camera = render::fit_camera(fit.vertices, view.orientation, camera);
+    return view;
+}
+
+ReportImage input_picture(const render::Geometry& input, const render::Camera& camera) {
+    return {"input.png", "input points (" + std::to_string(input.vertices.size()) + ")",
+            render::render_picture(input, camera, {}).image};
+}
+
 std::string render_report_pictures(const PictureInputs& in, std::vector<ReportImage>& images,
                                    Report& info) {
     using render::Geometry;
@@ -155,14 +173,11 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     if (in.textured) textured = render::from_textured_mesh(*in.textured);
     const Geometry* fit = result ? &*result : in.input;
     if (!fit) return {};
-    Eigen::Vector3d lo = fit->vertices.front(), hi = lo;
-    for (const auto& v : fit->vertices) {
-        lo = lo.cwiseMin(v);
-        hi = hi.cwiseMax(v);
-    }
-    const render::Orientation orientation = render::guess_orientation(
-        in.input ? in.input->sensors : std::vector<Pose>{}, 0.5 * (lo + hi), std::nullopt);
-    const render::Camera camera = render::fit_camera(fit->vertices, orientation, in.camera);
+    const PictureView view =
+        in.view ? *in.view
+                : picture_view(*fit, in.input ? in.input->sensors : std::vector<Pose>{}, in.camera);
+    const render::Orientation& orientation = view.orientation;
+    const render::Camera& camera = view.camera;
     render::PictureOptions plain;
     std::string against;
     if (in.reference)
@@ -179,10 +194,10 @@ std::string render_report_pictures(const PictureInputs& in, std::vector<ReportIm
     std::vector<double> result_distances, baseline_distances;
     tbb::parallel_invoke(
         [&] {
-            if (in.input)
-                input_image = {"input.png",
-                               "input points (" + std::to_string(in.input->vertices.size()) + ")",
-                               render::render_picture(*in.input, camera, plain).image};
+            if (in.input_image)
+                input_image = std::move(*in.input_image);
+            else if (in.input)
+                input_image = input_picture(*in.input, camera);
         },
         [&] {
             if (result)

@@ -58,6 +58,20 @@ void flatten(const Report& report, const std::string& prefix,
 ReportTable side_by_side(const std::string& heading,
                          const std::vector<std::pair<std::string, Report>>& columns);
 
+/// The report pictures' view: oriented from the sensors (render::guess_orientation), the camera
+/// fitted to a geometry's points (render::fit_camera).
+struct PictureView {
+    render::Orientation orientation;
+    render::Camera camera;
+};
+
+/// The view fitted to `fit` (its points, or its mesh's vertices), oriented from `sensors`.
+PictureView picture_view(const render::Geometry& fit, const std::vector<Pose>& sensors,
+                         const render::CameraOptions& camera = {});
+
+/// The input cloud's picture ("input.png") under `camera`.
+ReportImage input_picture(const render::Geometry& input, const render::Camera& camera);
+
 /// What to picture: any of these may be null.
 struct PictureInputs {
     const render::Geometry* input = nullptr;  ///< the input cloud (world frame)
@@ -68,12 +82,17 @@ struct PictureInputs {
     const Mesh* reference = nullptr;  ///< true surface: heat maps show distance to it, else
                                       ///< to the input points
     render::CameraOptions camera;     ///< size and direction (orientation from the input)
+    /// A view and an input picture made beforehand (rgbd-reconstruct renders them beside the
+    /// mesh stage, fitted to the input): used as they are, the picture moved from.
+    const PictureView* view = nullptr;
+    ReportImage* input_image = nullptr;
 };
 
 /// Renders the input, the result (and, when given, the textured result and its close-up,
 /// same cameras), the baseline and the heat maps of the result's and the
 /// baseline's per-vertex distance (to the reference, else to the input points; one colour
-/// range for both, in mm) with one camera fitted to the result (else the input). Appends to
+/// range for both, in mm) with one camera fitted to the result (else the input; or the
+/// given view, with the given input picture). Appends to
 /// `images` and returns a short description of the heat maps' distance ("to the reference").
 std::string render_report_pictures(const PictureInputs& inputs, std::vector<ReportImage>& images,
                                    Report& info);
