@@ -347,6 +347,7 @@ void refine_on_object(cli::Context& ctx, const io::Capture& capture, int anchor)
     ctx.note("depth: per-pixel mean of " + std::to_string(most_sets) + " frame set" +
              (most_sets == 1 ? "" : "s") + " (the depths near their median) from frame set " +
              std::to_string(frameset));
+    cli::colour_hidden_points(views);  // view_from_frame left them grey
     const registration::MultiViewOptions options =
         calibration::rig_refinement_options(static_cast<std::size_t>(fixed), ctx.seed());
     auto bar = ctx.progress("refine");

@@ -110,6 +110,7 @@ Observations load_observations(const io::Capture& capture,
     evaluation::SubjectOptions options = subject;
     options.remove_ground = options.remove_ground && !masked;  // masks left no ground
     obs.report = evaluation::observed_subject(obs.views, labels, centre, options);
+    colour_hidden_points(obs.views);
     obs.report["views"] = obs.views.size();
     obs.report["labels"] =
         labelled ? Report((capture.root / "gt" / "<sensor>" / "segment").string()) : Report();

@@ -94,7 +94,11 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
                            const frames::CloudOptions& cloud_options,
                            const std::optional<Eigen::Vector3d>& centre,
                            const ExtractionOptions& extraction, Report& report) {
-    PointCloud cloud = frames::depth_to_cloud(frame, cloud_options, &report);
+    // The points the colour camera did not see are coloured once the view is cut to the
+    // subject (colour_hidden_points, run by extract_stage).
+    frames::CloudOptions options = cloud_options;
+    options.colour_hidden = false;
+    PointCloud cloud = frames::depth_to_cloud(frame, options, &report);
     cloud.view.id = view_id;
     cloud.view.frame_index = frame.frame_index;
     if (const auto model = frame_noise_model(frame))
@@ -115,18 +119,30 @@ void SubjectStageOptions::check() const {
     subject.check();
 }
 
+void colour_hidden_points(std::vector<PointCloud>& views) {
+    const Rgb fallback = frames::CloudOptions{}.fallback_color;
+    tbb::parallel_for(std::size_t(0), views.size(),
+                      [&](std::size_t v) { frames::colour_uncoloured(views[v], fallback); });
+}
+
 Report extract_stage(std::vector<PointCloud>& views, const std::optional<Eigen::Vector3d>& centre,
                      const SubjectStageOptions& options, const Progress& progress,
                      std::vector<Eigen::Vector3d>* removed_world) {
     options.check();
-    if (!options.enabled || views.empty()) return Report();
+    if (!options.enabled || views.empty()) {
+        colour_hidden_points(views);
+        return Report();
+    }
     segment::SubjectOptions subject = options.subject;
     subject.crop_radius_m = options.crop_radius_m;
     subject.crop_centre = centre;
     const denoise::NoiseModel fallback = stream_noise_model(views);
     std::vector<denoise::NoiseModel> noise;
     for (const auto& v : views) noise.push_back(view_noise_model(v).value_or(fallback));
-    return segment::extract_subject(views, noise, subject, /*mark=*/false, progress, removed_world);
+    Report report =
+        segment::extract_subject(views, noise, subject, /*mark=*/false, progress, removed_world);
+    colour_hidden_points(views);
+    return report;
 }
 
 namespace {

@@ -45,7 +45,8 @@ struct SubjectStageOptions {
 
 /// Runs the object extraction on the views of one frame set (sensor frames, initial poses):
 /// the crop when `options.crop_radius_m` > 0 and `centre` is known, then
-/// segment::extract_subject with each view's noise model (view_noise_model, else the stream's).
+/// segment::extract_subject with each view's noise model (view_noise_model, else the stream's);
+/// last, also when the stage is off, colour_hidden_points() on what is left.
 /// Returns its report, with "crop" when the crop ran; null when the stage is off.
 /// `removed_world`, when given, receives the removed points in the world frame (at most 200,000,
 /// evenly strided) for the report's picture.
@@ -69,6 +70,13 @@ PointCloud view_from_frame(const RgbdFrame& frame, int view_id,
                            const frames::CloudOptions& cloud_options,
                            const std::optional<Eigen::Vector3d>& centre,
                            const ExtractionOptions& extraction, Report& report);
+
+/// The points of the views that their colour cameras did not see, which view_from_frame leaves
+/// grey (flagged uncoloured: depth_to_cloud without CloudOptions::colour_hidden), take the
+/// colour of the nearest seen point of their view (frames::colour_uncoloured), views in
+/// parallel. extract_stage does it last, on the subject's points only; a caller of
+/// view_from_frame that does not run extract_stage calls it itself.
+void colour_hidden_points(std::vector<PointCloud>& views);
 
 /// The denoisers' noise model of the frame's sensor: its noise.model, else its model, when
 /// the denoisers know the name; nullopt otherwise.

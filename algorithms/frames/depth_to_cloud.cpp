@@ -302,9 +302,10 @@ std::vector<Rgb> sample_colours(const RgbdFrame& frame, const std::vector<float>
 
 /// Pass 5: uncoloured points take the colour of the nearest coloured point (3D distance, so a
 /// background point never takes the colour of the foreground across an edge), or `fallback`
-/// when none is coloured. Returns the numbers of hidden and outside points.
+/// when none is coloured (or when not `search`: every one). Returns the numbers of hidden and
+/// outside points.
 std::pair<std::size_t, std::size_t> colour_uncoloured(const Points& pts, const Rgb& fallback,
-                                                      std::vector<Rgb>& rgb) {
+                                                      bool search, std::vector<Rgb>& rgb) {
     const std::size_t n = pts.xyz.size();
     std::size_t hidden = 0, outside = 0;
     std::vector<Eigen::Vector3d> coloured_xyz;
@@ -318,6 +319,11 @@ std::pair<std::size_t, std::size_t> colour_uncoloured(const Points& pts, const R
         }
     }
     if (hidden + outside == 0) return {hidden, outside};
+    if (!search) {
+        for (std::size_t i = 0; i < n; ++i)
+            if (pts.cstate[i] != kColoured) rgb[i] = fallback;
+        return {hidden, outside};
+    }
     const internal::KdTree tree(coloured_xyz);
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
@@ -400,7 +406,8 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
         std::vector<float> zbuffer;
         if (options.visibility_test) zbuffer = colour_zbuffer(frame, pts, options);
         rgb = sample_colours(frame, options.visibility_test ? &zbuffer : nullptr, options, pts);
-        std::tie(hidden, outside) = colour_uncoloured(pts, options.fallback_color, rgb);
+        std::tie(hidden, outside) =
+            colour_uncoloured(pts, options.fallback_color, options.colour_hidden, rgb);
     }
     PointCloud cloud = organised_cloud(frame, pts, rgb);
 
@@ -426,6 +433,37 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
         rep["time_s"] = watch.seconds();
     }
     return cloud;
+}
+
+std::size_t colour_uncoloured(PointCloud& cloud, const Rgb& fallback) {
+    const auto flag = cloud.flag(kUncoloured);
+    if (!flag || !cloud.has_colors()) return 0;
+    auto colors = cloud.colors();
+    std::vector<Eigen::Vector3d> coloured_xyz;
+    std::vector<PointSet::Index> coloured_id, uncoloured_id;
+    for (auto idx : cloud.points) {
+        if ((*flag)[idx]) {
+            uncoloured_id.push_back(idx);
+        } else {
+            coloured_xyz.push_back(to_eigen(cloud.points.point(idx)));
+            coloured_id.push_back(idx);
+        }
+    }
+    if (uncoloured_id.empty()) return 0;
+    const internal::KdTree tree(coloured_xyz);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, uncoloured_id.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t a = r.begin(); a != r.end(); ++a) {
+                              const PointSet::Index idx = uncoloured_id[a];
+                              std::uint32_t nearest = 0;
+                              double sq = 0.0;
+                              colors.set(
+                                  idx, tree.nearest(to_eigen(cloud.points.point(idx)), nearest, sq)
+                                           ? colors.get(coloured_id[nearest])
+                                           : fallback);
+                          }
+                      });
+    return uncoloured_id.size();
 }
 
 }  // namespace rgbd::frames

@@ -30,6 +30,7 @@ using pipeline::mesh_stage;
 using pipeline::object_centre;
 using pipeline::read_gt_poses;
 using pipeline::view_from_frame;
+using pipeline::colour_hidden_points;
 
 /// Which frames of a capture become views: (sensor id, position in its frame list).
 /// Multi-sensor captures: the sensors of frame set `frameset`; single-sensor sequences: the

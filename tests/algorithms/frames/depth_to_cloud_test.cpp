@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -250,6 +251,51 @@ TEST(DepthToCloud, OcclusionFlagsHiddenPlanePoints) {
                     hidden, hidden_flagged, flagged_visible, sphere_ok, sphere_points, outside);
     RecordProperty("hidden", std::to_string(hidden));
     RecordProperty("flagged_visible", std::to_string(flagged_visible));
+}
+
+// Without CloudOptions::colour_hidden the points the colour camera does not see keep the
+// fallback grey (flagged); colour_uncoloured() then gives them the colours depth_to_cloud
+// would have; on a cloud cut to the sphere, only the sphere's points colour them.
+TEST(DepthToCloud, HiddenPointsColouredLater) {
+    const SphereScene scene;
+    const RgbdFrame frame = sphere_frame(scene);
+    const PointCloud direct = depth_to_cloud(frame, CloudOptions{});
+    CloudOptions later;
+    later.colour_hidden = false;
+    PointCloud deferred = depth_to_cloud(frame, later);
+    ASSERT_EQ(deferred.size(), direct.size());
+    const auto flag = *deferred.flag(kUncoloured);
+    std::size_t flagged = 0;
+    for (PointSet::Index idx : deferred.points) {
+        if (!flag[idx]) continue;
+        ++flagged;
+        const Rgb c = deferred.colors().get(idx);
+        EXPECT_TRUE(c.r == 128 && c.g == 128 && c.b == 128);
+    }
+    ASSERT_GT(flagged, 150u);
+    EXPECT_EQ(colour_uncoloured(deferred, Rgb{128, 128, 128}), flagged);
+    for (PointSet::Index idx : deferred.points) {
+        const Rgb a = deferred.colors().get(idx), b = direct.colors().get(idx);
+        EXPECT_TRUE(a.r == b.r && a.g == b.g && a.b == b.b);
+    }
+    // Cut to the sphere and a band of plane around it: the hidden plane points there take the
+    // nearest seen point's colour among what is left, which is never farther than before.
+    PointCloud cut = depth_to_cloud(frame, later);
+    const auto kept = [&](PointSet::Index idx) {
+        const Eigen::Vector3d p = to_eigen(cut.points.point(idx));
+        return (p - scene.centre).norm() < scene.radius + 0.05;
+    };
+    std::vector<PointSet::Index> drop;
+    for (PointSet::Index idx : cut.points)
+        if (!kept(idx)) drop.push_back(idx);
+    for (auto idx : drop) cut.points.remove(idx);
+    cut.points.collect_garbage();
+    const std::size_t left = std::count_if(cut.points.begin(), cut.points.end(),
+                                           [&](auto idx) { return (*cut.flag(kUncoloured))[idx]; });
+    EXPECT_EQ(colour_uncoloured(cut, Rgb{128, 128, 128}), left);
+    // An empty cloud and a cloud without the flag are left alone.
+    PointCloud empty;
+    EXPECT_EQ(colour_uncoloured(empty, Rgb{1, 2, 3}), 0u);
 }
 
 TEST(DepthToCloud, WithoutVisibilityTestHiddenPointsTakeSphereColour) {
