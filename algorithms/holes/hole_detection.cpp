@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <string>
 
 #include "algorithms/internal/kd_tree.hpp"
@@ -297,14 +298,20 @@ BoundaryResult detect_boundaries(const SurfacePoints& points,
     Stopwatch watch;
     const std::size_t n = points.size();
     BoundaryResult r;
-    r.spacing_m =
-        options.spacing_m > 0 ? options.spacing_m : sampling::robust_spacing(points.position);
+    // One kd-tree for everything below (a sequential build, beside the spacing's parallel
+    // estimate), and the gradient's and the criteria's neighbourhoods from one pass of queries
+    // (the same graphs as build_neighbourhood's, one per option set).
+    std::optional<internal::KdTree> kd;
+    tbb::parallel_invoke([&] { kd.emplace(points.position); },
+                         [&] {
+                             r.spacing_m = options.spacing_m > 0
+                                               ? options.spacing_m
+                                               : sampling::robust_spacing(points.position);
+                         });
     RGBD_CHECK(r.spacing_m > 0, "holes: the points have zero spacing (all duplicates?)");
-    // One kd-tree for everything below, and the gradient's and the criteria's neighbourhoods
-    // from one pass of queries (the same graphs as build_neighbourhood's, one per option set).
     const GradientOptions gradient_options;
     gradient_options.check();
-    const internal::KdTree tree(points.position);
+    const internal::KdTree& tree = *kd;
     Neighbourhood graph;
     {
         std::vector<detail::Directed> directed =

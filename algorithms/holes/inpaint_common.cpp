@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseLU>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
+#include <optional>
 
 #include "algorithms/holes/exemplar_inpaint.hpp"
 #include "algorithms/holes/free_space.hpp"
@@ -232,16 +234,25 @@ void keep_candidates(Candidates& cand, const SurfacePoints& points,
                      const std::vector<SensorView>& sensors, double spacing_m,
                      const InpaintOptions& options, FillMechanism mechanism, FillResult& result,
                      Report& info) {
-    const internal::KdTree tree(points.position);
+    // The kd-tree (a sequential build) beside the free-space maps (parallel over the sensors).
+    const bool carve =
+        options.carve && !options.fill_openings && !sensors.empty() && !cand.position.empty();
+    std::optional<internal::KdTree> kd;
+    std::optional<FreeSpace> free_space;
+    tbb::parallel_invoke([&] { kd.emplace(points.position); },
+                         [&] {
+                             free_space.emplace(
+                                 carve ? points.position : std::vector<Eigen::Vector3d>{},
+                                 carve ? sensors : std::vector<SensorView>{}, spacing_m,
+                                 options.free_space);
+                         });
+    const internal::KdTree& tree = *kd;
+    const FreeSpace& free = *free_space;
     info["skipped_seen_through"] = drop_openings(cand, sensors, tree, spacing_m, options);
     const std::size_t n = cand.position.size();
     // 0 = dropped, 1 = kept, 2 = in free space.
     std::vector<std::uint8_t> keep(n, 0);
     const double c2 = options.clearance * spacing_m * options.clearance * spacing_m;
-    const bool carve = options.carve && !options.fill_openings && !sensors.empty() && n > 0;
-    const FreeSpace free(carve ? points.position : std::vector<Eigen::Vector3d>{},
-                         carve ? sensors : std::vector<SensorView>{}, spacing_m,
-                         options.free_space);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
         for (std::size_t i = range.begin(); i != range.end(); ++i) {
             if (!cand.position[i].allFinite() || !cand.normal[i].allFinite()) continue;
