@@ -478,10 +478,13 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
             walls.push_back(wall);
             continue;
         }
-        // Sensors on both sides first (cheap); the views' refits only for a candidate wall.
+        // Sensors on both sides first (cheap); the views' refits only for a candidate wall. A
+        // sensor within half the ground band of the plane sees it edge-on and tells neither
+        // side (the APC shelf's arm takes one view 3 mm off a side wall's plane).
         bool in_front = true;
         for (const auto& view : views)
-            in_front = in_front && plane->height(view.view.world_from_sensor->translation()) > 0;
+            in_front = in_front && plane->height(view.view.world_from_sensor->translation()) >
+                                       -0.5 * o.ground_band_m;
         if (!in_front) {
             wall["note"] = "sensors on both sides";
             walls.push_back(wall);
