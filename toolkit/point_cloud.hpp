@@ -29,6 +29,9 @@ inline constexpr const char* kScale = "scale";            ///< float, metres
 inline constexpr const char* kView = "view";              ///< int32, id of the source view
 inline constexpr const char* kNoise = "noise";            ///< uint8 flag, set by --mark
 inline constexpr const char* kSynthetic = "synthetic";    ///< uint8 flag, point not measured
+/// uint8 flag: a synthetic point whose colour is what the colour camera saw at its own position
+/// (super-resolution's colour-pixel points), unlike the colours a fill invents
+inline constexpr const char* kColourPixel = "colour_pixel";
 }  // namespace prop
 
 /// Which frame the coordinates of a view are expressed in.

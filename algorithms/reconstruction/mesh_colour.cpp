@@ -89,12 +89,17 @@ bool prepare_colours(const PointCloud& cloud, ColourSources& s) {
     if (!cloud.has_colors()) return false;
     const auto colors = cloud.colors();
     const auto synthetic = cloud.flag(prop::kSynthetic);
+    const auto colour_pixel = cloud.flag(prop::kColourPixel);
     const auto uncoloured = cloud.flag(kUncolouredFlag);
     s.observed_xyz.reserve(cloud.size());
     s.observed_rgb.reserve(cloud.size());
     for (auto idx : cloud.points) {
-        const bool observed =
-            (!synthetic || (*synthetic)[idx] == 0) && (!uncoloured || (*uncoloured)[idx] == 0);
+        // Whether the colour is one a colour camera saw: a measured point's (unless
+        // uncoloured) and a super-resolved one's (colour_pixel: its own colour pixel's); not the
+        // colours a fill or a stand contact invents.
+        const bool seen_colour =
+            !synthetic || (*synthetic)[idx] == 0 || (colour_pixel && (*colour_pixel)[idx] != 0);
+        const bool observed = seen_colour && (!uncoloured || (*uncoloured)[idx] == 0);
         (observed ? s.observed_xyz : s.other_xyz).push_back(to_eigen(cloud.points.point(idx)));
         (observed ? s.observed_rgb : s.other_rgb).push_back(colors.get(idx));
     }

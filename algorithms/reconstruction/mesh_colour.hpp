@@ -21,9 +21,10 @@
 namespace rgbd::reconstruction::internal {
 
 /// The coloured points the mesh's colours come from, in two sets searched on their own: the
-/// observed ones (measured, and coloured by the colour camera: neither `synthetic` nor
-/// `uncoloured`, whose colour is a copy from elsewhere or a grey fallback) and the others (the
-/// fill's points: a few hundred on a dense sequence). The k nearest of all points are the
+/// observed ones (coloured by a colour camera: measured points, and super-resolved ones flagged
+/// `colour_pixel`, whose colour is their colour pixel's; not `uncoloured`, whose colour is a
+/// copy from elsewhere or a grey fallback) and the others (the fill's and the uncoloured points:
+/// a few thousand). The k nearest of all points are the
 /// nearest k of the two sets' k nearest, so no search over all of them is built (one cell grid
 /// of millions of points fewer). When no point is observed, or none is flagged, every point is
 /// in the first set and `separate` is false.

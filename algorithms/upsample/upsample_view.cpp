@@ -478,11 +478,13 @@ private:
 };
 
 /// Appends the children to the cloud in row order (deterministic), in the view's frame: colour,
-/// synthetic flag, confidence, the parent's pixel and view id, and a normal facing the parent's
+/// synthetic flag, colour_pixel flag (`colour_pixels`: their colour is their colour pixel's),
+/// confidence, the parent's pixel and view id, and a normal facing the parent's
 /// when the cloud has normals. A cloud without colours first gets the grid points' colours.
 /// Returns the number added.
 std::size_t append_children(PointCloud& cloud, const std::vector<std::vector<Child>>& row_children,
-                            const GridPoints& g, bool has_colors, const Pose& view_from_sensor) {
+                            const GridPoints& g, bool has_colors, bool colour_pixels,
+                            const Pose& view_from_sensor) {
     const std::size_t n = cloud.size();
     const int height = g.height;
     std::vector<std::size_t> row_offset(height + 1, n);
@@ -495,6 +497,7 @@ std::size_t append_children(PointCloud& cloud, const std::vector<std::vector<Chi
             if (g.usable[i]) new_colors.set(PointSet::Index(i), g.rgb[i]);
     }
     auto flag = cloud.add_flag(prop::kSynthetic);
+    auto colour_pixel = cloud.add_flag(prop::kColourPixel);
     auto confidence = cloud.add_float(prop::kConfidence, 1.0f);
     auto pixels = cloud.add_pixel_map();
     const auto view_ids = cloud.view_map();
@@ -514,6 +517,7 @@ std::size_t append_children(PointCloud& cloud, const std::vector<std::vector<Chi
                 }
                 new_colors.set(idx, c.rgb);
                 flag[idx] = 1;
+                colour_pixel[idx] = colour_pixels ? 1 : 0;
                 confidence[idx] = c.confidence;
                 pixels[idx] = pixels[parent];
                 if (view_ids) (*view_ids)[idx] = (*view_ids)[parent];
@@ -581,7 +585,9 @@ Report upsample_view(PointCloud& cloud, const RgbdFrame& frame, const UpsampleOp
     if (!report_progress(progress, 0.8)) throw AlgorithmError(name + ": upsample cancelled");
 
     const Pose view_from_sensor = world ? *cloud.view.world_from_sensor : Pose(Pose::Identity());
-    const std::size_t added = append_children(cloud, row_children, g, has_colors, view_from_sensor);
+    const std::size_t added =
+        append_children(cloud, row_children, g, has_colors,
+                        options.method != UpsampleMethod::kMidpoints, view_from_sensor);
 
     const Counters total = sum_counts(row_counts);
     Report report;

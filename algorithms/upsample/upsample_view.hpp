@@ -16,7 +16,8 @@
 // below 2.25x the depth's, then the steps are sub-pixel and the colour carries no new detail).
 // Algorithm B (option) adds midpoints between grid neighbours (E, S; + SE, SW for 8).
 //
-// New points: flag prop::kSynthetic = 1, `pixel` = the parent depth pixel, `confidence` =
+// New points: flag prop::kSynthetic = 1, flag prop::kColourPixel = 1 (Algorithm A: their colour
+// is the colour camera's at their position), `pixel` = the parent depth pixel, `confidence` =
 // parent confidence x the mean colour (range) weight of the bilateral average (Algorithm B:
 // 0.8 x the smaller parent confidence), normal = the local plane normal when the view has
 // normals. The view's metadata alone does not give the colour image: the caller loads the

@@ -437,22 +437,27 @@ TEST(ReconstructSurface, BesideSurfaceRunsOnceAndChangesNothing) {
 }
 
 // A vertex's colour is the inverse-distance-squared mean of its k nearest points: of the observed
-// points alone when one lies within color_original_radius spacings, else of all points (the
-// observed and the fill's, searched apart and merged). Checked against a brute-force search on
-// a sphere whose colours vary from point to point, with a fill over its top and queries on and
-// well off the surface.
+// points alone (measured or super-resolved) when one lies within color_original_radius spacings,
+// else of all points (the observed and the fill's, searched apart and merged). Checked against a
+// brute-force search on a sphere whose colours vary from point to point, with a fill over its top
+// and queries on and well off the surface.
 TEST(ReconstructSurface, VertexColoursAreTheNearestPointsMean) {
     namespace internal = rgbd::reconstruction::internal;
     PointCloud cloud = rgbd::test::coloured_sphere(4000, kRadius);
     auto synthetic = cloud.add_flag(rgbd::prop::kSynthetic);
+    auto colour_pixel = cloud.add_flag(rgbd::prop::kColourPixel);
     auto colors = cloud.colors();
     std::vector<Eigen::Vector3d> xyz;
     std::vector<rgbd::Rgb> rgb;
     std::vector<bool> observed;
+    std::size_t i = 0;
     for (auto idx : cloud.points) {
         const Eigen::Vector3d p = rgbd::to_eigen(cloud.points.point(idx));
         const bool fill = p.z() > 0.6 * kRadius;  // the top is the fill's
-        synthetic[idx] = fill ? 1 : 0;
+        // Every fourth point of the rest is super-resolved: synthetic, but its colour observed.
+        const bool super_resolved = !fill && i++ % 4 == 0;
+        synthetic[idx] = fill || super_resolved ? 1 : 0;
+        colour_pixel[idx] = super_resolved ? 1 : 0;
         const rgbd::Rgb c{static_cast<unsigned char>(128 + 1000 * p.x()),
                           static_cast<unsigned char>(128 + 1000 * p.y()),
                           static_cast<unsigned char>(fill ? 250 : 10)};
