@@ -21,16 +21,22 @@ namespace {
 
 RGBD_TOOL_TEST_SCRATCH("rgbd_eval_observed_test")
 
-/// The capture, made once: 6 Kinect v2 at a quarter of their resolution around an ellipsoid
-/// (radii 0.15, 0.25, 0.12 m before rgbd-synth scales it to 0.5 m high), rig poses exact,
-/// no noise (flying pixels at the silhouettes would be observations no surface explains).
+/// A capture DIR of 6 Kinect v2 at a quarter of their resolution around an ellipsoid (radii
+/// 0.15, 0.25, 0.12 m before rgbd-synth scales it to 0.5 m high), seed 5, with rgbd-synth's
+/// `options` (noise, calibration error).
+void synth_ellipsoid(const std::string& dir, const std::string& options) {
+    rgbd::test::write_ellipsoid_off(temp_root() / (dir + ".off"), 64, 32, 0.15, 0.25, 0.12);
+    const Outcome r =
+        run("$BIN/rgbd-synth " + dir + ".off -o " + dir +
+            " --sensors 6 --height-m 0.5 --resolution-scale 0.25 --seed 5 -q " + options);
+    EXPECT_EQ(r.code, 0) << r.err;
+}
+
+/// The capture, made once: rig poses exact, no noise (flying pixels at the silhouettes would be
+/// observations no surface explains).
 fs::path capture() {
     static const fs::path cap = [] {
-        rgbd::test::write_ellipsoid_off(temp_root() / "ell.off", 64, 32, 0.15, 0.25, 0.12);
-        const Outcome r =
-            run("$BIN/rgbd-synth ell.off -o cap --sensors 6 --height-m 0.5 --resolution-scale 0.25 "
-                "--calib-error-deg 0 --calib-error-mm 0 --noise none --seed 5 -q");
-        EXPECT_EQ(r.code, 0) << r.err;
+        synth_ellipsoid("cap", "--calib-error-deg 0 --calib-error-mm 0 --noise none");
         return temp_root() / "cap";
     }();
     return cap;
@@ -90,11 +96,7 @@ TEST(RgbdEvalObserved, SyntheticCapturesArePlacedWithTheirTruePoses) {
     // rgbd-synth's rig.json poses carry a calibration error; its truth does not. By default the
     // observations go where the sensors truly saw them (the truth mesh explains them); with
     // --observed-capture-poses, where the erroneous rig puts them (it explains far fewer).
-    rgbd::test::write_ellipsoid_off(temp_root() / "ell2.off", 64, 32, 0.15, 0.25, 0.12);
-    const Outcome r =
-        run("$BIN/rgbd-synth ell2.off -o miscal --sensors 6 --height-m 0.5 --resolution-scale 0.25 "
-            "--calib-error-deg 3 --calib-error-mm 40 --noise none --seed 5 -q");
-    ASSERT_EQ(r.code, 0) << r.err;
+    synth_ellipsoid("miscal", "--calib-error-deg 3 --calib-error-mm 40 --noise none");
     const auto judge = [](const std::string& extra) {
         const Outcome e = run("$BIN/rgbd-eval miscal/gt/mesh.ply --observed miscal " + extra +
                               " -o miscal.json -q");
@@ -180,11 +182,7 @@ TEST(RgbdEvalObserved, NoisePixelsAreNoObservationOfTheSubject) {
     // label of the surface their ray hits, but their depth lies off every surface: its noise
     // labels (gt/<sensor>/labels/) take them out of the observed subject, so the truth explains
     // nearly all of what is left. Without the noise labels they count, and explain less.
-    rgbd::test::write_ellipsoid_off(temp_root() / "ell3.off", 64, 32, 0.15, 0.25, 0.12);
-    const Outcome r =
-        run("$BIN/rgbd-synth ell3.off -o noisy --sensors 6 --height-m 0.5 --resolution-scale 0.25 "
-            "--calib-error-deg 0 --calib-error-mm 0 --seed 5 -q");
-    ASSERT_EQ(r.code, 0) << r.err;
+    synth_ellipsoid("noisy", "--calib-error-deg 0 --calib-error-mm 0");
     const auto judge = [](const std::string& cap) {
         const Outcome e =
             run("$BIN/rgbd-eval " + cap + "/gt/mesh.ply --observed " + cap + " -o noisy.json -q");
