@@ -2,6 +2,7 @@
 // (rgbd::reconstruction's free-space and colour tasks, rgbd-reconstruct's evaluation).
 #pragma once
 
+#include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 
 #include <initializer_list>
@@ -14,13 +15,18 @@ namespace rgbd {
 /// still waited for, and their own exceptions are dropped for the one in flight.
 class WaitAtExit {
 public:
-    WaitAtExit(std::initializer_list<tbb::task_group*> groups) : groups_(groups) {}
+    /// `arena`: the arena the groups' tasks were run in (task_arena::execute), else null.
+    WaitAtExit(std::initializer_list<tbb::task_group*> groups, tbb::task_arena* arena = nullptr)
+        : groups_(groups), arena_(arena) {}
     WaitAtExit(const WaitAtExit&) = delete;
     WaitAtExit& operator=(const WaitAtExit&) = delete;
     ~WaitAtExit() {
         for (tbb::task_group* group : groups_) {
             try {
-                group->wait();
+                if (arena_)
+                    arena_->execute([group] { group->wait(); });
+                else
+                    group->wait();
             } catch (...) {
             }
         }
@@ -28,6 +34,7 @@ public:
 
 private:
     std::vector<tbb::task_group*> groups_;
+    tbb::task_arena* arena_ = nullptr;
 };
 
 }  // namespace rgbd
