@@ -186,6 +186,7 @@ py::object clean_density(const py::handle& views_arg, const py::kwargs& kwargs) 
     o.get("consensus_sigmas", density.consensus_sigmas);
     o.get("cluster_spacing", density.cluster_spacing);
     o.get("min_cluster_fraction", density.min_cluster_fraction);
+    density.judge_synthetic = o.flag("judge_synthetic");
     density.seed = 0;  // the tools' --seed default
     o.get("seed", density.seed);
     density.mark = o.flag("mark");
@@ -667,8 +668,8 @@ void bind_stages(py::module_& m) {
     m.def("clean_density", &clean_density, "views"_a,
           "Density-based noise removal over all aligned views, in place (rgbd-clean --density). "
           "Options: noise_model='auto', k, theta_max_deg, beta, reference='auto', "
-          "consensus_ratio, consensus_sigmas, cluster_spacing, min_cluster_fraction, seed=0, "
-          "mark, progress. Returns the report dict.");
+          "consensus_ratio, consensus_sigmas, cluster_spacing, min_cluster_fraction, "
+          "judge_synthetic, seed=0, mark, progress. Returns the report dict.");
     m.def("fill", &fill, "views"_a,
           "Hole filling on aligned views (rgbd-fill): appends the added points to the list "
           "`views` as one more view (nothing when no hole was filled). Options: rgbd-fill's "
