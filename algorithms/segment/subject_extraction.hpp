@@ -8,8 +8,10 @@
 //     platter or a table top under the object is found the same way when it is the lowest large
 //     plane in view. Flat means: the points facing the plane lie about it within
 //     ground_flat_sigmas of the sensor's own sigma_z at their depth and incidence (robust).
-// 1b. Walls: large planes of any orientation, equally flat, with every sensor in front of them
-//     and (almost) nothing behind them, cut the same way (the bin a subject stands in).
+// 1b. Walls: large planes of any orientation, equally flat (the bound scaled by the ground's own
+//     flatness: the ground shows how noisy the real sensor is), with every sensor in front of
+//     them and (almost) nothing behind them, pooled and in each view's own refit, cut the same
+//     way (the bin a subject stands in).
 //  2. Connected regions of what is left, pooled over the views in the world frame: a voxel grid
 //     (edge from the sensors' pixel footprint at the scene's median depth), voxels holding at
 //     least `solid_points` points linked by 26-adjacency (sparse flying-pixel streaks link
@@ -101,9 +103,10 @@ std::optional<ViewGround> world_ground(const std::vector<PointCloud>& views);
 /// nothing is left above the ground ("nothing above the ground") and for non-finite points.
 /// Report: ground {found, normal, offset_m, tilt_deg, sample_inliers, removed, views: [{view,
 /// removed, margin_m, rms_m, facing, flatness_sigmas}], fit_rms_m, flatness_sigmas, flat_views},
-/// walls [{normal, offset_m, sample_inliers, behind_share, flatness_sigmas, flat_views, found,
-/// removed, note}] (step 1b, with the subject's selection),
-/// crop {radius_m, removed}, voxel_m, core_views, regions, subject_regions, removed, kept, views
+/// walls [{normal, offset_m, sample_inliers, behind_share, flatness_sigmas,
+/// flatness_bound_sigmas, view_behind_share, flat_views, found, removed, note}] (step 1b, with the
+/// subject's selection), crop {radius_m, removed}, voxel_m, core_views, regions, subject_regions,
+/// removed, kept, views
 /// [{view, removed, kept}], note, time_s. `removed_world`, when given, receives the removed points
 /// in the world frame (at most 200,000, evenly strided).
 Report extract_subject(std::vector<PointCloud>& views,

@@ -165,12 +165,26 @@ TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
               << rest_removed << "\n";
     // The floor's cut takes the objects' lowest centimetre or two (the margin at grazing
     // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes. The back wall is a wall (flat,
-    // nothing behind it, every sensor in front of it) and is cut; the side walls are not flat
-    // within 3 sigma_z and stay (measured: 73% kept, 54% removed; before this change the floor
-    // was kept too and 6% of all points were removed).
-    EXPECT_GE(object_kept, 0.7);
-    EXPECT_GE(rest_removed, 0.5);
-    std::size_t walls = 0;
-    for (const auto& w : m["extraction"]["walls"]) walls += w["found"].get<bool>();
-    EXPECT_GE(walls, 1u) << m["extraction"]["walls"].dump();
+    // nothing behind it, every sensor in front of it) and is cut. So is a side wall: it is
+    // 4.7 sigma_z flat, within 3 times the floor's own flatness (2.72 sigma_z: the real F200
+    // is noisier than its model, and the floor shows by how much). The planes through the
+    // faces of the objects leaning on the side walls (11-15 degrees off them, 4.6-7.8 sigma_z)
+    // have the walls behind them in each view's own frame (11-12% of the views' points more
+    // than half a band behind) and are no walls: cut, they took the objects (kept 174,000 of
+    // 1.12 million points). Measured: 70.3% of the object points kept (73.4% when the side
+    // walls stayed: the objects' backs against the wall and the masks' fringes go with it),
+    // 68.5% of the rest removed (54.0%).
+    EXPECT_GE(object_kept, 0.68);
+    EXPECT_GE(rest_removed, 0.65);
+    std::size_t walls = 0, side_walls = 0, refused_in_views = 0;
+    for (const auto& w : m["extraction"]["walls"]) {
+        if (w.value("note", "") == "points behind it in the views") ++refused_in_views;
+        if (!w["found"].get<bool>()) continue;
+        ++walls;
+        side_walls += std::abs(w["normal"][1].get<double>()) > 0.99;
+        EXPECT_LE(w["view_behind_share"].get<double>(), 0.05) << w.dump();
+    }
+    EXPECT_GE(walls, 2u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(side_walls, 1u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(refused_in_views, 1u) << m["extraction"]["walls"].dump();
 }
