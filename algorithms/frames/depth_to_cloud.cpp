@@ -300,41 +300,18 @@ std::vector<Rgb> sample_colours(const RgbdFrame& frame, const std::vector<float>
     return rgb;
 }
 
-/// Pass 5: uncoloured points take the colour of the nearest coloured point (3D distance, so a
-/// background point never takes the colour of the foreground across an edge), or `fallback`
-/// when none is coloured (or when not `search`: every one). Returns the numbers of hidden and
-/// outside points.
-std::pair<std::size_t, std::size_t> colour_uncoloured(const Points& pts, const Rgb& fallback,
-                                                      bool search, std::vector<Rgb>& rgb) {
-    const std::size_t n = pts.xyz.size();
+/// Pass 5, first half: the points the colour camera did not see (hidden) or that fall outside
+/// its image (outside) are counted and given `fallback`; colour_uncoloured(PointCloud&) colours
+/// them from their nearest coloured point once the cloud is made (CloudOptions::colour_hidden),
+/// or later. Returns the numbers of hidden and outside points.
+std::pair<std::size_t, std::size_t> fall_back_uncoloured(const Points& pts, const Rgb& fallback,
+                                                         std::vector<Rgb>& rgb) {
     std::size_t hidden = 0, outside = 0;
-    std::vector<Eigen::Vector3d> coloured_xyz;
-    std::vector<std::uint32_t> coloured_id;
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < pts.xyz.size(); ++i) {
         hidden += pts.cstate[i] == kHidden;
         outside += pts.cstate[i] == kOutside;
-        if (pts.cstate[i] == kColoured) {
-            coloured_xyz.push_back(pts.xyz[i]);
-            coloured_id.push_back(static_cast<std::uint32_t>(i));
-        }
+        if (pts.cstate[i] != kColoured) rgb[i] = fallback;
     }
-    if (hidden + outside == 0) return {hidden, outside};
-    if (!search) {
-        for (std::size_t i = 0; i < n; ++i)
-            if (pts.cstate[i] != kColoured) rgb[i] = fallback;
-        return {hidden, outside};
-    }
-    const internal::KdTree tree(coloured_xyz);
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                if (pts.cstate[i] == kColoured) continue;
-                std::uint32_t nearest = 0;
-                double sq = 0.0;
-                rgb[i] =
-                    tree.nearest(pts.xyz[i], nearest, sq) ? rgb[coloured_id[nearest]] : fallback;
-            }
-        });
     return {hidden, outside};
 }
 
@@ -406,10 +383,12 @@ PointCloud depth_to_cloud(const RgbdFrame& frame, const CloudOptions& options, R
         std::vector<float> zbuffer;
         if (options.visibility_test) zbuffer = colour_zbuffer(frame, pts, options);
         rgb = sample_colours(frame, options.visibility_test ? &zbuffer : nullptr, options, pts);
-        std::tie(hidden, outside) =
-            colour_uncoloured(pts, options.fallback_color, options.colour_hidden, rgb);
+        std::tie(hidden, outside) = fall_back_uncoloured(pts, options.fallback_color, rgb);
     }
     PointCloud cloud = organised_cloud(frame, pts, rgb);
+    // Pass 5, second half: from the nearest coloured point (3D distance, so a background point
+    // never takes the colour of the foreground across an edge).
+    if (has_color && options.colour_hidden) colour_uncoloured(cloud, options.fallback_color);
 
     if (report) {
         std::size_t invalid = 0, window = 0, masked = 0;
