@@ -122,6 +122,27 @@ TEST_F(RgbdClean, DensityOnAlignedViewsKeepsTheViews) {
     EXPECT_NE(info.out.find("\"history\""), std::string::npos) << info.err;
 }
 
+// On a super-resolved, aligned stream the density stage judges the super-resolved points
+// against the measured points they were made from (reported as synthetic_followers);
+// --judge-synthetic judges every point on its own, and belongs to --density.
+TEST_F(RgbdClean, JudgeSyntheticJudgesSuperResolvedPointsOnTheirOwn) {
+    const Outcome up =
+        run("$BIN/rgbd-clean --distance views.ply -q | $BIN/rgbd-upsample --capture cap -q | "
+            "$BIN/rgbd-align -q > upsampled.ply");
+    ASSERT_EQ(up.code, 0) << up.err;
+    const auto parents = clean_documents("--density", "parents", "upsampled.ply");
+    const auto alone = clean_documents("--density --judge-synthetic", "alone", "upsampled.ply");
+    ASSERT_EQ(parents.size(), 1u);
+    ASSERT_EQ(alone.size(), 1u);
+    ASSERT_TRUE(parents[0].contains("synthetic_followers")) << parents[0].dump();
+    EXPECT_GT(parents[0]["synthetic_followers"].get<int>(), 1000) << parents[0].dump();
+    EXPECT_FALSE(alone[0].contains("synthetic_followers")) << alone[0].dump();
+    EXPECT_EQ(parents[0]["input_points"], alone[0]["input_points"]);
+    const Outcome wrong = run("$BIN/rgbd-clean --distance --judge-synthetic views.ply > w.ply");
+    EXPECT_EQ(wrong.code, 2) << wrong.err;
+    EXPECT_NE(wrong.err.find("judge-synthetic"), std::string::npos) << wrong.err;
+}
+
 // --high-recall is the stricter operating point: it removes more; an explicit option still
 // wins over its preset value.
 TEST_F(RgbdClean, HighRecallRemovesMoreAndExplicitOptionsWin) {
