@@ -151,22 +151,21 @@ constexpr std::size_t kSpacingSample = std::size_t{1} << 18;
 /// (fixed seed) times sqrt(sample / points), the spacing of a surface sampled that much more
 /// densely: it sets the splats' size only, and binning the 2.2 million points of a 10-view ring's
 /// extraction picture cost more than drawing them.
-double point_spacing(const std::vector<Eigen::Vector3d>& all) {
-    if (all.size() < 2) return 0.0;
-    if (all.size() > kSpacingSample) {
-        std::vector<char> taken(all.size(), 0);
+double point_spacing(const std::vector<Eigen::Vector3d>& pts) {
+    if (pts.size() < 2) return 0.0;
+    if (pts.size() > kSpacingSample) {
+        std::vector<char> taken(pts.size(), 0);
         std::vector<Eigen::Vector3d> sample;
         sample.reserve(kSpacingSample);
         std::mt19937_64 rng(7);
-        std::uniform_int_distribution<std::size_t> pick(0, all.size() - 1);
+        std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
         while (sample.size() < kSpacingSample)
             if (const std::size_t i = pick(rng); !taken[i]) {
                 taken[i] = 1;
-                sample.push_back(all[i]);
+                sample.push_back(pts[i]);
             }
-        return point_spacing(sample) * std::sqrt(double(kSpacingSample) / double(all.size()));
+        return point_spacing(sample) * std::sqrt(double(kSpacingSample) / double(pts.size()));
     }
-    const std::vector<Eigen::Vector3d>& pts = all;
     const internal::CellNeighbours grid(pts, 2.0, 8, /*ordered=*/false);
     const std::size_t probes = std::min<std::size_t>(4000, pts.size());
     std::vector<double> d(probes, 0.0);
