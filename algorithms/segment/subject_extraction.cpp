@@ -4,75 +4,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <sstream>
 #include <unordered_map>
 
 #include "algorithms/denoise/outlier_common.hpp"
 #include "algorithms/segment/ground_plane.hpp"
-#include "algorithms/segment/stand_removal.hpp"
+#include "algorithms/segment/scene_planes.hpp"
 #include "toolkit/error.hpp"
 #include "toolkit/order_statistics.hpp"
-#include "toolkit/random.hpp"
 
 namespace rgbd::segment {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
-using denoise::detail::Gathered;
-
-/// One view's live points in its sensor frame and in the world frame.
-struct ViewPoints {
-    Gathered g;                          ///< sensor-frame points and their indices
-    std::vector<Eigen::Vector3d> world;  ///< the same points in the world frame
-    std::vector<std::uint8_t> removed;   ///< per point: 1 = not the subject
-    std::vector<int> at;                 ///< pixel -> position in g (-1: none); empty: no grid
-    int width = 0, height = 0;
-    std::vector<std::uint32_t> pixel;      ///< per point: its pixel
-    std::vector<Eigen::Vector3d> normals;  ///< sensor-frame grid normals (sensor_normals)
-
-    /// The grid normals of all points in the sensor frame, computed once; empty without a grid.
-    const std::vector<Eigen::Vector3d>& sensor_normals() {
-        if (normals.empty() && !at.empty()) {
-            normals.resize(g.xyz.size());
-            for (std::size_t i = 0; i < normals.size(); ++i)
-                normals[i] = grid_normal(i, Pose::Identity());
-        }
-        return normals;
-    }
-
-    /// The unit normal of point i in the world frame from its pixel neighbours (central
-    /// differences, depth-continuous within 5%), oriented towards the sensor; zero when the
-    /// view has no grid or a neighbour is missing (the ground test then takes the point as
-    /// possibly facing up).
-    Eigen::Vector3d grid_normal(std::size_t i, const Pose& world_from_sensor) const {
-        if (at.empty()) return Eigen::Vector3d::Zero();
-        const int u = static_cast<int>(pixel[i] % width), r = static_cast<int>(pixel[i] / width);
-        const Eigen::Vector3d& p = g.xyz[i];
-        // The nearest valid pixel within 3 steps in each direction (registered depth maps
-        // have regular holes).
-        auto neighbour = [&](int du, int dr, Eigen::Vector3d& q) {
-            for (int k = 1; k <= 3; ++k) {
-                const int uu = u + k * du, rr = r + k * dr;
-                if (uu < 0 || rr < 0 || uu >= width || rr >= height) return false;
-                const int j = at[static_cast<std::size_t>(rr) * width + uu];
-                if (j < 0) continue;
-                q = g.xyz[j];
-                return std::abs(q.z() - p.z()) < 0.05 * k * p.z();
-            }
-            return false;
-        };
-        Eigen::Vector3d a, b, c, d;
-        if (!neighbour(1, 0, a) || !neighbour(-1, 0, b) || !neighbour(0, 1, c) ||
-            !neighbour(0, -1, d))
-            return Eigen::Vector3d::Zero();
-        Eigen::Vector3d n = (a - b).cross(c - d);
-        if (n.norm() < 1e-12) return Eigen::Vector3d::Zero();
-        n.normalize();
-        if (n.dot(p) > 0) n = -n;  // towards the sensor at the origin
-        return world_from_sensor.linear() * n;
-    }
-};
+using detail::ViewPoints;
 
 /// Packs integer voxel coordinates into one key (21 bits each, offset).
 std::int64_t voxel_key(const Eigen::Vector3i& c) {
@@ -312,242 +256,6 @@ void select_subject(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
         }
 }
 
-std::string plane_line(const ViewGround& g) {
-    std::ostringstream s;
-    s.precision(17);
-    s << kGroundKey << g.normal.x() << ' ' << g.normal.y() << ' ' << g.normal.z() << ' ' << g.offset
-      << ' ' << g.margin_m;
-    return s.str();
-}
-
-/// Step 1: finds the ground in the views (detail::pooled_ground), refits it per view
-/// (detail::refit_view_ground) and, when the views see it flat and as the lowest large surface,
-/// cuts above each view's plane (detail::cut_above_ground), writes that plane into the view's
-/// metadata and marks the cut points removed. Returns the report's "ground" section.
-Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& views,
-                     const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& options,
-                     std::size_t total) {
-    Report ground = {{"found", false}};
-    const auto up = cameras_up(views);
-    if (!options.remove_ground) {
-        ground["note"] = "kept (--keep-ground)";
-        return ground;
-    }
-    if (!up) {
-        ground["note"] = "no camera up (no poses)";
-        return ground;
-    }
-    std::vector<detail::GroundSample> samples;
-    const std::size_t stride =
-        std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
-    std::size_t k = 0;
-    for (std::size_t v = 0; v < vps.size(); ++v)
-        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-            if (k++ % stride == 0)
-                samples.push_back(
-                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
-    std::size_t inliers = 0;
-    const auto plane = detail::pooled_ground(samples, *up, options, inliers);
-    if (!plane) {
-        ground["note"] = "no ground plane in view";
-        return ground;
-    }
-    // Each view refits the plane in its own frame (its pose may be centimetres off before
-    // alignment). The plane is the ground when the views see it flat (half the views hold 50
-    // points facing it, and the median of their robust deviations about it is at most
-    // ground_flat_sigmas of the sensor's own depth noise at those points' depth and incidence:
-    // not the curved bottom of an object standing on nothing) and as the lowest large surface (at
-    // most 15% of the points more than half a band below it, and fewer below than above it: a cap
-    // or a ring of an object's surface has its object below it).
-    std::vector<detail::ViewGroundFit> fits(views.size());
-    std::vector<double> fitted, flatness;
-    std::size_t below = 0, above = 0, points = 0;
-    // The views' fits in parallel (each its own seed), gathered in view order.
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const Pose& pose = *views[v].view.world_from_sensor;
-        const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
-                                      plane->d + plane->n.dot(pose.translation())};
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model,
-                                            options, options.seed + 2 + v);
-    });
-    for (std::size_t v = 0; v < views.size(); ++v) {
-        if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
-        if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
-        below += fits[v].below, above += fits[v].above, points += fits[v].points;
-    }
-    const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
-    const double median_flatness = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
-    ground["fit_rms_m"] = median_rms;
-    ground["flatness_sigmas"] = median_flatness;
-    ground["flat_views"] = flatness.size();
-    ground["below_share"] = points ? double(below) / double(points) : 0.0;
-    ground["above_share"] = points ? double(above) / double(points) : 0.0;
-    ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
-    ground["offset_m"] = plane->d;
-    ground["sample_inliers"] = inliers;
-    ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
-    const double n = static_cast<double>(points);
-    if (flatness.size() * 2 < views.size()) {
-        ground["note"] =
-            "the lowest plane facing up is not seen facing up in half the views "
-            "(too few points on it face it): no ground";
-        return ground;
-    }
-    if (median_flatness > options.ground_flat_sigmas) {
-        ground["note"] = "the lowest plane facing up is not flat (median robust deviation " +
-                         std::to_string(median_flatness) + " sigma_z, " +
-                         std::to_string(median_rms * 1000.0) + " mm): no ground";
-        return ground;
-    }
-    if (below > 0.15 * n || (below > above && below + above > 0.1 * n)) {
-        ground["note"] = "the lowest plane facing up has much of the scene below it: no ground";
-        return ground;
-    }
-    ground["found"] = true;
-    Report per_view = Report::array();
-    std::size_t removed = 0;
-    for (std::size_t v = 0; v < views.size(); ++v) {
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        const detail::GroundCut cut =
-            detail::cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
-        ViewGround g;
-        g.normal = fits[v].plane.n;
-        g.offset = fits[v].plane.d;
-        g.margin_m = cut.margin_m;
-        removed += cut.cut;
-        auto& comments = views[v].view.extra_comments;
-        comments.erase(
-            std::remove_if(comments.begin(), comments.end(),
-                           [](const std::string& c) { return c.rfind(kGroundKey, 0) == 0; }),
-            comments.end());
-        comments.push_back(plane_line(g));
-        per_view.push_back({{"view", views[v].view.id},
-                            {"removed", cut.cut},
-                            {"margin_m", g.margin_m},
-                            {"rms_m", fits[v].rms_m},
-                            {"facing", fits[v].facing},
-                            {"flatness_sigmas", fits[v].normalized}});
-    }
-    ground["removed"] = removed;
-    ground["views"] = per_view;
-    return ground;
-}
-
-/// Step 1b: the walls, the large planes that bound what the sensors see (docs/algorithms.md
-/// §3): among the points left after the ground, up to 6 planes of any orientation
-/// (detail::pooled_bounding_plane), each a wall when at most wall_max_behind_share of the
-/// points lie more than a band behind it, every sensor lies in front of it (it bounds the space
-/// the sensors are in: a face of a subject seen from around has sensors behind it), and half
-/// the views see it flat in units of their sensor's noise (detail::refit_view_ground, the
-/// ground's test);
-/// each view then cuts it with the ground's noise margin (detail::cut_above_ground). An object's
-/// face has the rest of the scene behind its plane; a wall has (almost) nothing. The flatness
-/// bound is ground_flat_sigmas times `ground_flatness` (the ground's own median flatness, in
-/// sigma_z, when it was found and is above 1; else 1): the ground shows how much noisier the
-/// real sensor is than its model, and a wall of the same scene, seen by the same sensors, is
-/// judged in that noise (the APC shelf: floor 2.72 sigma_z, side walls 4.7 and 7.8). And in
-/// the median of the views that see it, at most wall_max_behind_share of a view's points lie more
-/// than half a band behind the view's own refit of the plane (the pooled test's band is widened for
-/// the calibration error between views; in one view's frame the wall is sharp).
-Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views,
-                    const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& o,
-                    double ground_flatness) {
-    const double flat_bound = o.ground_flat_sigmas * std::max(1.0, ground_flatness);
-    Report walls = Report::array();
-    std::size_t total = 0;
-    for (const auto& vp : vps)
-        for (auto r : vp.removed) total += !r;
-    if (!o.remove_walls || total == 0) return walls;
-    const std::size_t stride =
-        std::max<std::size_t>(1, total / static_cast<std::size_t>(o.max_samples));
-    std::vector<detail::GroundSample> samples;
-    std::size_t k = 0;
-    for (std::size_t v = 0; v < vps.size(); ++v)
-        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-            if (!vps[v].removed[i] && k++ % stride == 0)
-                samples.push_back(
-                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
-    Eigen::Vector3d cameras = Eigen::Vector3d::Zero();
-    for (const auto& v : views) cameras += v.view.world_from_sensor->translation();
-    cameras /= static_cast<double>(views.size());
-    std::vector<std::uint8_t> used(samples.size(), 0);
-    for (int round = 0; round < 6; ++round) {
-        std::size_t inliers = 0, behind = 0;
-        const auto plane = detail::pooled_bounding_plane(samples, used, cameras, o,
-                                                         o.seed + 100 + round, inliers, behind);
-        if (!plane) break;
-        Report wall = {{"normal", {plane->n.x(), plane->n.y(), plane->n.z()}},
-                       {"offset_m", plane->d},
-                       {"sample_inliers", inliers},
-                       {"behind_share", double(behind) / double(samples.size())},
-                       {"found", false}};
-        if (behind > o.wall_max_behind_share * samples.size()) {
-            wall["note"] = "points behind it";
-            walls.push_back(wall);
-            continue;
-        }
-        // Sensors on both sides first (cheap); the views' refits only for a candidate wall. A
-        // sensor within half the ground band of the plane sees it edge-on and tells neither
-        // side (the APC shelf's arm takes one view 3 mm off a side wall's plane).
-        bool in_front = true;
-        for (const auto& view : views)
-            in_front = in_front && plane->height(view.view.world_from_sensor->translation()) >
-                                       -0.5 * o.ground_band_m;
-        if (!in_front) {
-            wall["note"] = "sensors on both sides";
-            walls.push_back(wall);
-            continue;
-        }
-        std::vector<detail::ViewGroundFit> fits(views.size());
-        std::vector<double> flatness;
-        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-            const Pose& pose = *views[v].view.world_from_sensor;
-            const detail::Plane in_sensor{pose.linear().transpose() * plane->n,
-                                          plane->d + plane->n.dot(pose.translation())};
-            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-            fits[v] = detail::refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(),
-                                                model, o, o.seed + 200 + v);
-        });
-        std::vector<double> behind_view;
-        for (std::size_t v = 0; v < views.size(); ++v) {
-            if (fits[v].facing == 0 || fits[v].points == 0) continue;  // not seen
-            flatness.push_back(fits[v].normalized);
-            behind_view.push_back(double(fits[v].below) / double(fits[v].points));
-        }
-        const double median = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
-        const double view_behind = behind_view.empty() ? 0.0 : rank_quantile(behind_view, 0.5);
-        wall["flatness_sigmas"] = median;
-        wall["flatness_bound_sigmas"] = flat_bound;
-        wall["flat_views"] = flatness.size();
-        wall["view_behind_share"] = view_behind;
-        if (flatness.size() * 2 < views.size() || median > flat_bound) {
-            wall["note"] = "not flat in half the views";
-            walls.push_back(wall);
-            continue;
-        }
-        // Nothing behind it in each view's own refit either: a plane through a face of what
-        // leans on a wall (a book at 11-15 degrees on the APC shelf's side wall) has the wall
-        // in the wedge behind it, under the pooled test's band (views' median 11-12% of their
-        // points more than half a band behind it; the walls 0.2-2%).
-        if (view_behind > o.wall_max_behind_share) {
-            wall["note"] = "points behind it in the views";
-            walls.push_back(wall);
-            continue;
-        }
-        std::size_t removed = 0;
-        for (std::size_t v = 0; v < views.size(); ++v) {
-            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-            removed +=
-                detail::cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed).cut;
-        }
-        wall["found"] = true;
-        wall["removed"] = removed;
-        walls.push_back(wall);
-    }
-    return walls;
-}
-
 }  // namespace
 
 void SubjectOptions::check() const {
@@ -665,13 +373,13 @@ Report extract_subject(std::vector<PointCloud>& views,
     }
 
     // 1. The ground.
-    report["ground"] = remove_ground(vps, views, noise, options, total);
+    report["ground"] = detail::remove_ground(vps, views, noise, options, total);
     // The walls belong to the selection of the subject (ground only: the ground alone).
     if (options.remove_ground && options.select_subject && !crop)
-        report["walls"] = remove_walls(vps, views, noise, options,
-                                       report["ground"].value("found", false)
-                                           ? report["ground"].value("flatness_sigmas", 1.0)
-                                           : 1.0);
+        report["walls"] = detail::remove_walls(vps, views, noise, options,
+                                               report["ground"].value("found", false)
+                                                   ? report["ground"].value("flatness_sigmas", 1.0)
+                                                   : 1.0);
     report_progress(progress, 0.4);
     std::size_t left = 0;
     for (const auto& vp : vps)

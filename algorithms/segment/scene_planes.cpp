@@ -1,0 +1,240 @@
+#include "algorithms/segment/scene_planes.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <string>
+
+#include "algorithms/segment/ground_plane.hpp"
+#include "algorithms/segment/stand_removal.hpp"
+#include "toolkit/order_statistics.hpp"
+
+namespace rgbd::segment::detail {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// The metadata line that carries a view's ground plane (kGroundKey).
+std::string plane_line(const ViewGround& g) {
+    std::ostringstream s;
+    s.precision(17);
+    s << kGroundKey << g.normal.x() << ' ' << g.normal.y() << ' ' << g.normal.z() << ' ' << g.offset
+      << ' ' << g.margin_m;
+    return s.str();
+}
+
+}  // namespace
+
+/// Step 1 (scene_planes.hpp).
+Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& views,
+                     const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& options,
+                     std::size_t total) {
+    Report ground = {{"found", false}};
+    const auto up = cameras_up(views);
+    if (!options.remove_ground) {
+        ground["note"] = "kept (--keep-ground)";
+        return ground;
+    }
+    if (!up) {
+        ground["note"] = "no camera up (no poses)";
+        return ground;
+    }
+    std::vector<GroundSample> samples;
+    const std::size_t stride =
+        std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
+    std::size_t k = 0;
+    for (std::size_t v = 0; v < vps.size(); ++v)
+        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+            if (k++ % stride == 0)
+                samples.push_back(
+                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    std::size_t inliers = 0;
+    const auto plane = pooled_ground(samples, *up, options, inliers);
+    if (!plane) {
+        ground["note"] = "no ground plane in view";
+        return ground;
+    }
+    // Each view refits the plane in its own frame (its pose may be centimetres off before
+    // alignment). The plane is the ground when the views see it flat (half the views hold 50
+    // points facing it, and the median of their robust deviations about it is at most
+    // ground_flat_sigmas of the sensor's own depth noise at those points' depth and incidence:
+    // not the curved bottom of an object standing on nothing) and as the lowest large surface (at
+    // most 15% of the points more than half a band below it, and fewer below than above it: a cap
+    // or a ring of an object's surface has its object below it).
+    std::vector<ViewGroundFit> fits(views.size());
+    std::vector<double> fitted, flatness;
+    std::size_t below = 0, above = 0, points = 0;
+    // The views' fits in parallel (each its own seed), gathered in view order.
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const Pose& pose = *views[v].view.world_from_sensor;
+        const Plane in_sensor{pose.linear().transpose() * plane->n,
+                              plane->d + plane->n.dot(pose.translation())};
+        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+        fits[v] = refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model,
+                                    options, options.seed + 2 + v);
+    });
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
+        if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
+        below += fits[v].below, above += fits[v].above, points += fits[v].points;
+    }
+    const double median_rms = fitted.empty() ? 0.0 : rank_quantile(fitted, 0.5);
+    const double median_flatness = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
+    ground["fit_rms_m"] = median_rms;
+    ground["flatness_sigmas"] = median_flatness;
+    ground["flat_views"] = flatness.size();
+    ground["below_share"] = points ? double(below) / double(points) : 0.0;
+    ground["above_share"] = points ? double(above) / double(points) : 0.0;
+    ground["normal"] = {plane->n.x(), plane->n.y(), plane->n.z()};
+    ground["offset_m"] = plane->d;
+    ground["sample_inliers"] = inliers;
+    ground["tilt_deg"] = std::acos(std::clamp(plane->n.dot(*up), -1.0, 1.0)) / kDeg;
+    const double n = static_cast<double>(points);
+    if (flatness.size() * 2 < views.size()) {
+        ground["note"] =
+            "the lowest plane facing up is not seen facing up in half the views "
+            "(too few points on it face it): no ground";
+        return ground;
+    }
+    if (median_flatness > options.ground_flat_sigmas) {
+        ground["note"] = "the lowest plane facing up is not flat (median robust deviation " +
+                         std::to_string(median_flatness) + " sigma_z, " +
+                         std::to_string(median_rms * 1000.0) + " mm): no ground";
+        return ground;
+    }
+    if (below > 0.15 * n || (below > above && below + above > 0.1 * n)) {
+        ground["note"] = "the lowest plane facing up has much of the scene below it: no ground";
+        return ground;
+    }
+    ground["found"] = true;
+    Report per_view = Report::array();
+    std::size_t removed = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+        const GroundCut cut =
+            cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
+        ViewGround g;
+        g.normal = fits[v].plane.n;
+        g.offset = fits[v].plane.d;
+        g.margin_m = cut.margin_m;
+        removed += cut.cut;
+        auto& comments = views[v].view.extra_comments;
+        comments.erase(
+            std::remove_if(comments.begin(), comments.end(),
+                           [](const std::string& c) { return c.rfind(kGroundKey, 0) == 0; }),
+            comments.end());
+        comments.push_back(plane_line(g));
+        per_view.push_back({{"view", views[v].view.id},
+                            {"removed", cut.cut},
+                            {"margin_m", g.margin_m},
+                            {"rms_m", fits[v].rms_m},
+                            {"facing", fits[v].facing},
+                            {"flatness_sigmas", fits[v].normalized}});
+    }
+    ground["removed"] = removed;
+    ground["views"] = per_view;
+    return ground;
+}
+
+/// Step 1b (scene_planes.hpp).
+Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views,
+                    const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& o,
+                    double ground_flatness) {
+    const double flat_bound = o.ground_flat_sigmas * std::max(1.0, ground_flatness);
+    Report walls = Report::array();
+    std::size_t total = 0;
+    for (const auto& vp : vps)
+        for (auto r : vp.removed) total += !r;
+    if (!o.remove_walls || total == 0) return walls;
+    const std::size_t stride =
+        std::max<std::size_t>(1, total / static_cast<std::size_t>(o.max_samples));
+    std::vector<GroundSample> samples;
+    std::size_t k = 0;
+    for (std::size_t v = 0; v < vps.size(); ++v)
+        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+            if (!vps[v].removed[i] && k++ % stride == 0)
+                samples.push_back(
+                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    Eigen::Vector3d cameras = Eigen::Vector3d::Zero();
+    for (const auto& v : views) cameras += v.view.world_from_sensor->translation();
+    cameras /= static_cast<double>(views.size());
+    std::vector<std::uint8_t> used(samples.size(), 0);
+    for (int round = 0; round < 6; ++round) {
+        std::size_t inliers = 0, behind = 0;
+        const auto plane =
+            pooled_bounding_plane(samples, used, cameras, o, o.seed + 100 + round, inliers, behind);
+        if (!plane) break;
+        Report wall = {{"normal", {plane->n.x(), plane->n.y(), plane->n.z()}},
+                       {"offset_m", plane->d},
+                       {"sample_inliers", inliers},
+                       {"behind_share", double(behind) / double(samples.size())},
+                       {"found", false}};
+        if (behind > o.wall_max_behind_share * samples.size()) {
+            wall["note"] = "points behind it";
+            walls.push_back(wall);
+            continue;
+        }
+        // Sensors on both sides first (cheap); the views' refits only for a candidate wall. A
+        // sensor within half the ground band of the plane sees it edge-on and tells neither
+        // side (the APC shelf's arm takes one view 3 mm off a side wall's plane).
+        bool in_front = true;
+        for (const auto& view : views)
+            in_front = in_front && plane->height(view.view.world_from_sensor->translation()) >
+                                       -0.5 * o.ground_band_m;
+        if (!in_front) {
+            wall["note"] = "sensors on both sides";
+            walls.push_back(wall);
+            continue;
+        }
+        std::vector<ViewGroundFit> fits(views.size());
+        std::vector<double> flatness;
+        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+            const Pose& pose = *views[v].view.world_from_sensor;
+            const Plane in_sensor{pose.linear().transpose() * plane->n,
+                                  plane->d + plane->n.dot(pose.translation())};
+            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+            fits[v] = refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model, o,
+                                        o.seed + 200 + v);
+        });
+        std::vector<double> behind_view;
+        for (std::size_t v = 0; v < views.size(); ++v) {
+            if (fits[v].facing == 0 || fits[v].points == 0) continue;  // not seen
+            flatness.push_back(fits[v].normalized);
+            behind_view.push_back(double(fits[v].below) / double(fits[v].points));
+        }
+        const double median = flatness.empty() ? 0.0 : rank_quantile(flatness, 0.5);
+        const double view_behind = behind_view.empty() ? 0.0 : rank_quantile(behind_view, 0.5);
+        wall["flatness_sigmas"] = median;
+        wall["flatness_bound_sigmas"] = flat_bound;
+        wall["flat_views"] = flatness.size();
+        wall["view_behind_share"] = view_behind;
+        if (flatness.size() * 2 < views.size() || median > flat_bound) {
+            wall["note"] = "not flat in half the views";
+            walls.push_back(wall);
+            continue;
+        }
+        // Nothing behind it in each view's own refit either: a plane through a face of what
+        // leans on a wall (a book at 11-15 degrees on the APC shelf's side wall) has the wall
+        // in the wedge behind it, under the pooled test's band (views' median 11-12% of their
+        // points more than half a band behind it; the walls 0.2-2%).
+        if (view_behind > o.wall_max_behind_share) {
+            wall["note"] = "points behind it in the views";
+            walls.push_back(wall);
+            continue;
+        }
+        std::size_t removed = 0;
+        for (std::size_t v = 0; v < views.size(); ++v) {
+            const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
+            removed += cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed).cut;
+        }
+        wall["found"] = true;
+        wall["removed"] = removed;
+        walls.push_back(wall);
+    }
+    return walls;
+}
+
+}  // namespace rgbd::segment::detail
