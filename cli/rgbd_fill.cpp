@@ -217,7 +217,7 @@ const cli::ToolSpec kSpec{
             "top-min-up", cli::value(holes::InpaintOptions{}.top_min_up, "C"),
             "head top: a height-map column is known only if its highest point's outward normal "
             "has a component along the vertical axis of at least C (a chin seen from below is "
-            "not the crown; -1: every column)")(
+            "not the crown; a little below 0: a wall seen edge-on is; -1: every column)")(
             "top-fit-radii", cli::value(holes::InpaintOptions{}.top_fit_radii, "K"),
             "head top: fit the ellipsoid to the top points at most K hole radii below the "
             "highest (0: every top point)")("no-ellipsoid",

@@ -91,13 +91,17 @@ struct InpaintOptions {
     /// be filled; infinity = no test (see fill_large_holes).
     double max_step_rms = 3.0;
     double top_fraction = 0.12;  ///< §13 step 1: the top region's share of the height
-    /// §13 step 2 [M]: a column of the top-down height map is known only when its highest
-    /// point's outward normal has at least this component along the up axis. A ring below the
-    /// crown sees the chin and the jaw from below: they face down, so the body lies above them
-    /// and the column's top was not seen (taken as known, such columns pulled the inpainted
-    /// crown 5-55 mm low on a standing man whose head is above the sensors). -1 = every column
-    /// with a point (the dissertation's map).
-    double top_min_up = 0.0;
+    /// §13 step 2 [M]: a column of the top-down height map is known only when its highest point's
+    /// outward normal has at least this component along the up axis. A ring below the crown sees
+    /// the chin and the jaw from below: they face down, so the body lies above them and the
+    /// column's top was not seen (taken as known, such columns pulled the inpainted crown 5-55 mm
+    /// low on a standing man whose head is above the sensors). The bound sits a little below 0 (5.7
+    /// degrees): a wall seen edge-on tops its columns with normals that scatter around horizontal,
+    /// and with 0 half of them made thin strips of unseen tops between seen pixels, into which the
+    /// crown was carried (the standing man, seed 2: 2.5% of the crown's points 5-12 mm off); the
+    /// chin and the jaw face down by more (-0.4, 24 degrees, took some of them as seen again). -1 =
+    /// every column with a point (the dissertation's map).
+    double top_min_up = -0.1;
     /// §13 [M]: head-top hole components smaller than this share of the largest one are
     /// sampling gaps among seen pixels, not the crown (left to §11).
     double top_component = 0.1;
