@@ -195,22 +195,16 @@ Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_
     if (input_points) {
         for (const auto& p : *input_points)
             RGBD_CHECK(p.allFinite(), "mesh quality: non-finite input point");
-        // Far area: area-uniform samples to the nearest input point.
+        // Far area: area-uniform samples to the nearest input point. Grey vertices near
+        // observed points. One distance query for both when their distances agree (the input
+        // points' cell grid is built once).
         const std::string far_key =
             "far_area_fraction_" + number_key(options.far_tau_m * 1e3, "mm");
-        if (total_area > 0.0) {
-            const auto samples = sample_surface(mesh, options.samples, options.seed);
-            const auto near = within_distance(samples, *input_points, options.far_tau_m);
-            std::size_t far = 0;
-            for (char x : near) far += x == 0;
-            out[far_key] = double(far) / double(near.size());
-        } else {
-            out[far_key] = nullptr;
-        }
-        // Grey vertices near observed points.
+        std::vector<Eigen::Vector3d> samples;
+        if (total_area > 0.0) samples = sample_surface(mesh, options.samples, options.seed);
         const auto colors = vertex_colors(mesh);
+        std::vector<Eigen::Vector3d> grey;
         if (colors && !vertices.empty()) {
-            std::vector<Eigen::Vector3d> grey;
             auto near_fill = [&](unsigned char c) {
                 return std::abs(int(c) - int(options.grey_level)) <= options.grey_tolerance;
             };
@@ -219,10 +213,30 @@ Report mesh_quality(const Mesh& mesh, const std::vector<Eigen::Vector3d>* input_
                 if (near_fill(c.red()) && near_fill(c.green()) && near_fill(c.blue()))
                     grey.push_back(to_eigen(mesh.point(v)));
             }
+        }
+        std::vector<char> near_samples, near_grey;
+        if (options.far_tau_m == options.grey_tau_m && !samples.empty() && !grey.empty()) {
+            const std::size_t n = samples.size();
+            samples.insert(samples.end(), grey.begin(), grey.end());
+            near_samples = within_distance(samples, *input_points, options.far_tau_m);
+            near_grey.assign(near_samples.begin() + static_cast<std::ptrdiff_t>(n),
+                             near_samples.end());
+            near_samples.resize(n);
+        } else {
+            if (!samples.empty())
+                near_samples = within_distance(samples, *input_points, options.far_tau_m);
+            if (!grey.empty()) near_grey = within_distance(grey, *input_points, options.grey_tau_m);
+        }
+        if (total_area > 0.0) {
+            std::size_t far = 0;
+            for (char x : near_samples) far += x == 0;
+            out[far_key] = double(far) / double(near_samples.size());
+        } else {
+            out[far_key] = nullptr;
+        }
+        if (colors && !vertices.empty()) {
             std::size_t observed = 0;
-            if (!grey.empty())
-                for (char x : within_distance(grey, *input_points, options.grey_tau_m))
-                    observed += x != 0;
+            for (char x : near_grey) observed += x != 0;
             out["grey_vertices"] = observed;
             out["grey_vertex_fraction"] = double(observed) / double(vertices.size());
         } else {
