@@ -97,7 +97,7 @@ struct InpaintOptions {
     /// column's top was not seen (taken as known, such columns pulled the inpainted crown 5-55 mm
     /// low on a standing man whose head is above the sensors). The bound sits a little below 0 (5.7
     /// degrees): a wall seen edge-on tops its columns with normals that scatter around horizontal,
-    /// and with 0 half of them made thin strips of unseen tops between seen pixels, into which the
+    /// and with 0 many of them made thin strips of unseen tops between seen pixels, into which the
     /// crown was carried (the standing man, seed 2: 2.5% of the crown's points 5-12 mm off); the
     /// chin and the jaw face down by more (-0.4, 24 degrees, took some of them as seen again). -1 =
     /// every column with a point (the dissertation's map).

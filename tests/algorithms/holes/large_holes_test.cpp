@@ -319,7 +319,7 @@ TEST(HeadTop, ACrownThatIsNoEllipsoidFollowsTheRim) {
 // §13 on a head whose side is a vertical wall standing on a wider ledge (shoulders, an ear, a
 // collar): a cylinder 7 cm in radius whose flat top no sensor of the ring below sees, on a ledge
 // out to 13 cm. The columns along the wall have their highest point on it, facing sideways, and
-// the estimated normals scatter by a few degrees (here 4), so half of those tops face down by a
+// the estimated normals scatter by a few degrees (here 4), so many of those tops face down by a
 // hair. Taken as unseen tops (top_min_up 0), they made thin rings of hole pixels between the seen
 // ledge and the seen side, inside the hull of the known pixels; on the standing man of the
 // variety set (seed 2) the crown's surface was carried into such a strip along the side of the
