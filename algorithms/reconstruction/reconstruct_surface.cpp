@@ -325,8 +325,58 @@ bool CGAL::Advancing_front_surface_reconstruction<
     return true;
 }
 
+/// CGAL's `run` (5.5) without its last two steps, which the filtered front does not use:
+/// `construct_surface` copies the selected facets into a 2D triangulation data structure and
+/// `boundaries` walks its border loops (a tenth of a second after a 10-view ring's front, on the
+/// one busy core). The triangles are read from the selected facets of the 3D triangulation
+/// instead (selected_triangles()).
+template <>
+void CGAL::Advancing_front_surface_reconstruction<
+    rgbd::reconstruction::internal::FrontDelaunay,
+    rgbd::reconstruction::FrontPriority>::run(double radius_ratio_bound, double beta) {
+    K = radius_ratio_bound;
+    COS_BETA = std::cos(beta);
+    if (T.dimension() < 3) return;
+    initialize_vertices_and_cells();
+    bool re_init = false;
+    do {
+        _number_of_connected_components++;
+        if ((re_init = init(re_init))) {
+            extend_timer.start();
+            extend();
+            extend_timer.stop();
+            if ((number_of_facets() > static_cast<int>(T.number_of_vertices())) &&
+                (NB_BORDER_MAX > 0)) {
+                while (postprocessing()) {
+                    extend2_timer.start();
+                    extend();
+                    extend2_timer.stop();
+                }
+            }
+        }
+    } while (re_init && ((_number_of_connected_components < max_connected_component) ||
+                         (max_connected_component < 0)));
+    clear_vertices();
+}
+
 namespace rgbd::reconstruction {
 namespace {
+
+/// The facets the advancing front selected (from either side), as point-index triples.
+void selected_triangles(const internal::FrontDelaunay& dt,
+                        std::vector<std::array<std::size_t, 3>>& triangles) {
+    for (auto it = dt.finite_facets_begin(); it != dt.finite_facets_end(); ++it) {
+        const auto c = it->first;
+        const int ci = it->second;
+        const auto n = c->neighbor(ci);
+        const int ni = n->index(c);
+        for (const auto& [cell, i] : {std::pair{c, ci}, std::pair{n, ni}})
+            if (cell->is_selected_facet(i))
+                triangles.push_back({cell->vertex((i + 1) & 3)->id(),
+                                     cell->vertex((i + 2) & 3)->id(),
+                                     cell->vertex((i + 3) & 3)->id()});
+    }
+}
 
 /// Advancing front over points with unit normals; `priority` null = CGAL's default.
 void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
@@ -350,27 +400,27 @@ void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
         CGAL::Advancing_front_surface_reconstruction<internal::FrontDelaunay, FrontPriority> r(
             dt, with_seeds);
         r.run(o.af_radius_ratio_bound, o.af_beta);
-        CGAL::write_triple_indices(std::back_inserter(triangles), r);
+        selected_triangles(dt, triangles);
     } else {
         CGAL::Advancing_front_surface_reconstruction<internal::FrontDelaunay> r(dt);
         r.run(o.af_radius_ratio_bound, o.af_beta);
         CGAL::write_triple_indices(std::back_inserter(triangles), r);
     }
-    // Sorted, so that the face order does not depend on the triangulation's storage either.
-    for (auto& t : triangles) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    // Every triangle oriented along the mean input normal of its corners, then sorted, so that
+    // the face order depends neither on the triangulation's storage nor on the order in which
+    // the front reports a triangle's corners.
+    for (auto& t : triangles) {
+        const Eigen::Vector3d &a = xyz[t[0]], &b = xyz[t[1]], &c = xyz[t[2]];
+        const Eigen::Vector3d n = normals[t[0]] + normals[t[1]] + normals[t[2]];
+        if ((b - a).cross(c - a).dot(n) < 0) std::swap(t[1], t[2]);
+        std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    }
     std::sort(triangles.begin(), triangles.end());
     std::vector<std::vector<std::size_t>> polygons;
     polygons.reserve(triangles.size());
-    // Orient every triangle along the mean input normal of its corners, then make the soup
-    // consistently oriented (non-manifold vertices are duplicated) and build the mesh.
-    for (const auto& t : triangles) {
-        const Eigen::Vector3d &a = xyz[t[0]], &b = xyz[t[1]], &c = xyz[t[2]];
-        const Eigen::Vector3d n = normals[t[0]] + normals[t[1]] + normals[t[2]];
-        if ((b - a).cross(c - a).dot(n) >= 0)
-            polygons.push_back({t[0], t[1], t[2]});
-        else
-            polygons.push_back({t[0], t[2], t[1]});
-    }
+    for (const auto& t : triangles) polygons.push_back({t[0], t[1], t[2]});
+    // Make the soup consistently oriented (non-manifold vertices are duplicated) and build the
+    // mesh.
     PMP::repair_polygon_soup(points, polygons);
     PMP::orient_polygon_soup(points, polygons);
     PMP::polygon_soup_to_polygon_mesh(points, polygons, mesh);
