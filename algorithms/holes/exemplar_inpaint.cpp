@@ -4,6 +4,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -20,6 +21,34 @@ void ExemplarOptions::check() const {
     check_range("exemplar inpainting: the search window", search_window, Range::closed(1, 100),
                 "hole boxes");
 }
+
+namespace detail {
+
+cv::Vec3f srgb_to_lab(const cv::Vec3b& rgb) {
+    // The linear intensity of each 8-bit level (IEC 61966-2-1).
+    static const std::array<float, 256> linear = [] {
+        std::array<float, 256> table{};
+        for (int i = 0; i < 256; ++i) {
+            const double x = i / 255.0;
+            table[i] =
+                static_cast<float>(x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4));
+        }
+        return table;
+    }();
+    // sRGB to XYZ (D65), rows X and Z divided by the white point's X and Z.
+    constexpr float kXn = 0.950456f, kZn = 1.088754f;
+    const float r = linear[rgb[0]], g = linear[rgb[1]], b = linear[rgb[2]];
+    const float x = (0.412453f * r + 0.357580f * g + 0.180423f * b) / kXn;
+    const float y = 0.212671f * r + 0.715160f * g + 0.072169f * b;
+    const float z = (0.019334f * r + 0.119193f * g + 0.950227f * b) / kZn;
+    constexpr float kEdge = 0.008856f;  // (6/29)^3
+    const auto f = [](float t) { return t > kEdge ? std::cbrt(t) : 7.787f * t + 16.0f / 116.0f; };
+    const float fx = f(x), fy = f(y), fz = f(z);
+    const float l = y > kEdge ? 116.0f * fy - 16.0f : 903.3f * y;
+    return {l, 500.0f * (fx - fy), 200.0f * (fy - fz)};
+}
+
+}  // namespace detail
 
 namespace {
 
@@ -59,13 +88,10 @@ ExemplarStats exemplar_inpaint(cv::Mat& rgb, const cv::Mat& target, const cv::Ma
             }
         }
     // CIELab, L scaled to [0, 255] so that the data term's 1/255 normalises as in the paper.
-    cv::Mat lab;
-    rgb.convertTo(lab, CV_32FC3, 1.0 / 255.0);
-    cv::cvtColor(lab, lab, cv::COLOR_RGB2Lab);
     std::vector<cv::Vec3f> px(static_cast<std::size_t>(n));
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) {
-            cv::Vec3f v = lab.at<cv::Vec3f>(r, c);
+            cv::Vec3f v = detail::srgb_to_lab(rgb.at<cv::Vec3b>(r, c));
             v[0] *= 2.55f;
             px[r * cols + c] = v;
         }

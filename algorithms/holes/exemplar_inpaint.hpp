@@ -47,4 +47,15 @@ struct ExemplarStats {
 ExemplarStats exemplar_inpaint(cv::Mat& rgb, const cv::Mat& target, const cv::Mat& source,
                                const ExemplarOptions& options = {});
 
+namespace detail {
+
+/// CIE 1976 L*a*b* of an 8-bit sRGB colour (D65 white), as OpenCV's cv::COLOR_RGB2Lab of the
+/// colour scaled to [0, 1] computes it (L in [0, 100]): the sRGB transfer curve undone exactly
+/// (a table of the 256 levels), the sRGB-to-XYZ matrix over the white point, then the cube-root
+/// law with its linear segment below (6/29)^3. OpenCV builds its Lab tables on first use with
+/// software floating point, 0.1 s of one core in every process that fills a hole.
+cv::Vec3f srgb_to_lab(const cv::Vec3b& rgb);
+
+}  // namespace detail
+
 }  // namespace rgbd::holes
