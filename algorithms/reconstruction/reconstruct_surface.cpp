@@ -416,14 +416,12 @@ void advancing_front(const std::vector<Eigen::Vector3d>& xyz,
         std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
     }
     std::sort(triangles.begin(), triangles.end());
-    std::vector<std::vector<std::size_t>> polygons;
-    polygons.reserve(triangles.size());
-    for (const auto& t : triangles) polygons.push_back({t[0], t[1], t[2]});
     // Make the soup consistently oriented (non-manifold vertices are duplicated) and build the
-    // mesh.
-    PMP::repair_polygon_soup(points, polygons);
-    PMP::orient_polygon_soup(points, polygons);
-    PMP::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+    // mesh. The triangles stay fixed-size arrays: a vector per triangle cost the sequential
+    // tail an allocation and a free per face.
+    PMP::repair_polygon_soup(points, triangles);
+    PMP::orient_polygon_soup(points, triangles);
+    PMP::polygon_soup_to_polygon_mesh(points, triangles, mesh);
     // orient_polygon_soup may flip whole components; restore agreement with the normals.
     if (CGAL::is_closed(mesh) && !PMP::is_outward_oriented(mesh))
         PMP::reverse_face_orientations(mesh);
