@@ -2,10 +2,6 @@
 
 #include <tbb/parallel_for.h>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -74,41 +70,6 @@ void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
 inline bool votes_for(const Plane& plane, const Eigen::Vector3d& p, const Eigen::Vector3d& n,
                       double band, double cos_tilt) {
     return std::abs(plane.height(p)) <= band && std::abs(n.dot(plane.n)) >= cos_tilt;
-}
-
-/// The number of the m samples (px, py, pz) with normal (nx, ny, nz) that vote for `plane`
-/// (votes_for). Two samples at a time with SSE2: the same IEEE operations in the same order as
-/// Plane::height and Eigen's dot, so the same count as votes_for (which the compiler does not
-/// vectorise).
-std::size_t count_plane_votes(const double* px, const double* py, const double* pz,
-                              const double* nx, const double* ny, const double* nz, std::size_t m,
-                              const Plane& plane, double band, double cos_tilt) {
-    std::size_t j = 0, count = 0;
-#if defined(__SSE2__)
-    const double a = plane.n.x(), b = plane.n.y(), c = plane.n.z(), d = plane.d;
-    const __m128d va = _mm_set1_pd(a), vb = _mm_set1_pd(b), vc = _mm_set1_pd(c),
-                  vd = _mm_set1_pd(d), vband = _mm_set1_pd(band), vcos = _mm_set1_pd(cos_tilt),
-                  sign = _mm_set1_pd(-0.0);
-    __m128i lanes = _mm_setzero_si128();  // minus the number of votes in each lane
-    for (; j + 2 <= m; j += 2) {
-        const __m128d h = _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_loadu_pd(px + j), va),
-                                                           _mm_mul_pd(_mm_loadu_pd(py + j), vb)),
-                                                _mm_mul_pd(_mm_loadu_pd(pz + j), vc)),
-                                     vd);
-        const __m128d t = _mm_add_pd(
-            _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(nx + j), va), _mm_mul_pd(_mm_loadu_pd(ny + j), vb)),
-            _mm_mul_pd(_mm_loadu_pd(nz + j), vc));
-        const __m128d in = _mm_and_pd(_mm_cmple_pd(_mm_andnot_pd(sign, h), vband),
-                                      _mm_cmpge_pd(_mm_andnot_pd(sign, t), vcos));
-        lanes = _mm_add_epi64(lanes, _mm_castpd_si128(in));
-    }
-    alignas(16) std::int64_t sums[2];
-    _mm_store_si128(reinterpret_cast<__m128i*>(sums), lanes);
-    count = static_cast<std::size_t>(-(sums[0] + sums[1]));
-#endif
-    for (; j < m; ++j)
-        count += votes_for(plane, {px[j], py[j], pz[j]}, {nx[j], ny[j], nz[j]}, band, cos_tilt);
-    return count;
 }
 
 }  // namespace
@@ -185,8 +146,11 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
         px[j] = s.p.x(), py[j] = s.p.y(), pz[j] = s.p.z();
         nx[j] = s.n.x(), ny[j] = s.n.y(), nz[j] = s.n.z();
     }
+    internal::PlaneVoteInput soa_in;
+    soa_in.px = px, soa_in.py = py, soa_in.pz = pz, soa_in.m = m;
+    soa_in.nx = nx, soa_in.ny = ny, soa_in.nz = nz;
     auto count_votes = [&](const Plane& p, double band) {
-        return count_plane_votes(px, py, pz, nx, ny, nz, m, p, band, cos_tilt);
+        return internal::count_plane_votes(soa_in, p.n, p.d, band, cos_tilt);
     };
     auto votes = [&](const Plane& p, double band, std::vector<Eigen::Vector3d>* in) {
         if (!in) return count_votes(p, band);

@@ -11,6 +11,8 @@
 #include <random>
 #include <vector>
 
+#include "algorithms/internal/plane_fit.hpp"
+
 namespace {
 
 using rgbd::segment::detail::GroundSample;
@@ -36,6 +38,46 @@ TEST(PooledBoundingPlane, VotesNeedTheSamplesToFaceThePlane) {
     EXPECT_LT(std::abs(plane->d), 1e-9);
     EXPECT_EQ(inliers, 2000u);
     for (std::size_t i = 0; i < samples.size(); ++i) EXPECT_EQ(used[i], i < 2000 ? 1 : 0) << i;
+}
+
+// internal::count_plane_votes counts 4 (AVX2) or 2 (SSE2) points at a time: the same count as
+// the scalar test |n . p + d| <= band (and |n . normal| >= cos_tilt) with Eigen's dot, for every
+// remainder of the vector loop, with points exactly on the band's edge and NaN coordinates.
+TEST(PlaneVotes, TheVectorCountIsTheScalarCount) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (std::size_t m : {0u, 1u, 2u, 3u, 5u, 6u, 7u, 1000u, 1003u}) {
+        std::vector<Eigen::Vector3d> p(m), nrm(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            p[i] = Eigen::Vector3d(u(rng), u(rng), 0.05 * u(rng));
+            nrm[i] = Eigen::Vector3d(0.3 * u(rng), 0.3 * u(rng), 1.0).normalized();
+        }
+        const Eigen::Vector3d n = Eigen::Vector3d(0.02, -0.01, 1.0).normalized();
+        const double d = 0.001, band = 0.02;
+        if (m > 3) {
+            p[1].z() = (band - d - n.x() * p[1].x() - n.y() * p[1].y()) / n.z();  // near the edge
+            p[2].x() = std::nan("");
+        }
+        std::vector<double> soa(6 * m);
+        for (std::size_t i = 0; i < m; ++i)
+            for (int k = 0; k < 3; ++k) soa[k * m + i] = p[i][k], soa[(3 + k) * m + i] = nrm[i][k];
+        rgbd::internal::PlaneVoteInput in;
+        in.px = soa.data(), in.py = in.px + m, in.pz = in.py + m, in.m = m;
+        std::size_t near = 0, facing = 0;
+        const double cos_tilt = std::cos(10.0 * M_PI / 180.0);
+        for (std::size_t i = 0; i < m; ++i) {
+            const bool within = std::abs(n.dot(p[i]) + d) <= band;
+            near += within;
+            facing += within && std::abs(n.dot(nrm[i])) >= cos_tilt;
+        }
+        EXPECT_EQ(rgbd::internal::count_plane_votes(in, n, d, band, -1.0), near) << m;
+        in.nx = in.pz + m, in.ny = in.nx + m, in.nz = in.ny + m;
+        EXPECT_EQ(rgbd::internal::count_plane_votes(in, n, d, band, cos_tilt), facing) << m;
+        if (m == 1000) {
+            EXPECT_GT(near, 100u);
+            EXPECT_LT(facing, near);
+        }
+    }
 }
 
 }  // namespace
