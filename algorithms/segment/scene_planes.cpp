@@ -26,6 +26,31 @@ std::string plane_line(const ViewGround& g) {
     return s.str();
 }
 
+/// Every stride-th of the views' points (of those not removed, with `live_only`), in view and
+/// point order, with its world position and grid normal: the planes' samples. The views run in
+/// parallel (a grid normal is a small fit), each from its first point's rank in that order.
+std::vector<GroundSample> strided_samples(const std::vector<ViewPoints>& vps,
+                                          const std::vector<PointCloud>& views, std::size_t stride,
+                                          bool live_only) {
+    std::vector<std::size_t> first(vps.size() + 1, 0);  // rank of each view's first point
+    for (std::size_t v = 0; v < vps.size(); ++v)
+        first[v + 1] = first[v] + (live_only ? static_cast<std::size_t>(std::count(
+                                                   vps[v].removed.begin(), vps[v].removed.end(), 0))
+                                             : vps[v].world.size());
+    std::vector<std::vector<GroundSample>> per_view(vps.size());
+    tbb::parallel_for(std::size_t(0), vps.size(), [&](std::size_t v) {
+        std::size_t k = first[v];
+        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
+            if ((!live_only || !vps[v].removed[i]) && k++ % stride == 0)
+                per_view[v].push_back(
+                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    });
+    std::vector<GroundSample> samples;
+    samples.reserve(first.back() / stride + vps.size());
+    for (const auto& s : per_view) samples.insert(samples.end(), s.begin(), s.end());
+    return samples;
+}
+
 }  // namespace
 
 /// Step 1 (scene_planes.hpp).
@@ -42,15 +67,9 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
         ground["note"] = "no camera up (no poses)";
         return ground;
     }
-    std::vector<GroundSample> samples;
     const std::size_t stride =
         std::max<std::size_t>(1, total / static_cast<std::size_t>(options.max_samples));
-    std::size_t k = 0;
-    for (std::size_t v = 0; v < vps.size(); ++v)
-        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-            if (k++ % stride == 0)
-                samples.push_back(
-                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    const std::vector<GroundSample> samples = strided_samples(vps, views, stride, false);
     std::size_t inliers = 0;
     const auto plane = pooled_ground(samples, *up, options, inliers);
     if (!plane) {
@@ -112,10 +131,14 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     ground["found"] = true;
     Report per_view = Report::array();
     std::size_t removed = 0;
-    for (std::size_t v = 0; v < views.size(); ++v) {
+    // The views' cuts in parallel (each marks its own points), reported in view order.
+    std::vector<GroundCut> cuts(views.size());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
         const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        const GroundCut cut =
-            cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
+        cuts[v] = cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
+    });
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        const GroundCut& cut = cuts[v];
         ViewGround g;
         g.normal = fits[v].plane.n;
         g.offset = fits[v].plane.d;
@@ -151,13 +174,7 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
     if (!o.remove_walls || total == 0) return walls;
     const std::size_t stride =
         std::max<std::size_t>(1, total / static_cast<std::size_t>(o.max_samples));
-    std::vector<GroundSample> samples;
-    std::size_t k = 0;
-    for (std::size_t v = 0; v < vps.size(); ++v)
-        for (std::size_t i = 0; i < vps[v].world.size(); ++i)
-            if (!vps[v].removed[i] && k++ % stride == 0)
-                samples.push_back(
-                    {vps[v].world[i], vps[v].grid_normal(i, *views[v].view.world_from_sensor)});
+    const std::vector<GroundSample> samples = strided_samples(vps, views, stride, true);
     Eigen::Vector3d cameras = Eigen::Vector3d::Zero();
     for (const auto& v : views) cameras += v.view.world_from_sensor->translation();
     cameras /= static_cast<double>(views.size());
@@ -225,11 +242,13 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
             walls.push_back(wall);
             continue;
         }
-        std::size_t removed = 0;
-        for (std::size_t v = 0; v < views.size(); ++v) {
+        std::vector<std::size_t> cut(views.size(), 0);
+        tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
             const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-            removed += cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed).cut;
-        }
+            cut[v] = cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed).cut;
+        });
+        std::size_t removed = 0;
+        for (const std::size_t c : cut) removed += c;
         wall["found"] = true;
         wall["removed"] = removed;
         walls.push_back(wall);
