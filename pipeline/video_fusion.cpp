@@ -10,6 +10,7 @@
 #include "algorithms/sampling/merge_views.hpp"
 #include "algorithms/sampling/voxel_downsample.hpp"
 #include "toolkit/error.hpp"
+#include "toolkit/srgb.hpp"
 
 namespace rgbd::pipeline {
 
@@ -70,23 +71,9 @@ PointCloud fusion_view(const RgbdFrame& frame, int view_id, const VideoFusionOpt
 
 namespace {
 
-/// sRGB 8-bit -> linear, once.
-const std::array<float, 256>& srgb_to_linear() {
-    static const std::array<float, 256> table = [] {
-        std::array<float, 256> t{};
-        for (int v = 0; v < 256; ++v) {
-            const double c = v / 255.0;
-            t[v] =
-                static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
-        }
-        return t;
-    }();
-    return table;
-}
-
 /// CIE L*a*b* (D65) of a mean sRGB colour given as sums over `n` points.
 Eigen::Vector3f lab_of(const Eigen::Vector3f& rgb_mean) {
-    const auto& lin = srgb_to_linear();
+    const auto& lin = srgb_linear_table();
     const auto channel = [&](float v) {
         const int i = std::clamp(static_cast<int>(std::lround(v)), 0, 255);
         return lin[i];

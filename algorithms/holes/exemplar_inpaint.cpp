@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "toolkit/error.hpp"
+#include "toolkit/srgb.hpp"
 
 namespace rgbd::holes {
 
@@ -25,16 +26,7 @@ void ExemplarOptions::check() const {
 namespace detail {
 
 cv::Vec3f srgb_to_lab(const cv::Vec3b& rgb) {
-    // The linear intensity of each 8-bit level (IEC 61966-2-1).
-    static const std::array<float, 256> linear = [] {
-        std::array<float, 256> table{};
-        for (int i = 0; i < 256; ++i) {
-            const double x = i / 255.0;
-            table[i] =
-                static_cast<float>(x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4));
-        }
-        return table;
-    }();
+    const std::array<float, 256>& linear = srgb_linear_table();
     // sRGB to XYZ (D65), rows X and Z divided by the white point's X and Z.
     constexpr float kXn = 0.950456f, kZn = 1.088754f;
     const float r = linear[rgb[0]], g = linear[rgb[1]], b = linear[rgb[2]];
