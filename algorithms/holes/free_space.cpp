@@ -100,6 +100,20 @@ __attribute__((noinline)) void extend_box(const float* __restrict z, const float
     box = {x0, x1, y0, y1};
 }
 
+/// Projects the points of `rel` step by step (project_step, seen from c with axes f, r, d) into
+/// the buffers z, x, y of kStep floats, and calls visit(count) after each step's `count` points.
+template <typename Visit>
+void for_each_step(const PointArrays& rel, const std::array<float, 3>& c,
+                   const std::array<float, 3>& f, const std::array<float, 3>& r,
+                   const std::array<float, 3>& d, float* z, float* x, float* y, Visit&& visit) {
+    const std::size_t n = rel.x.size();
+    for (std::size_t begin = 0; begin < n; begin += kStep) {
+        const std::size_t count = std::min(kStep, n - begin);
+        project_step(&rel.x[begin], &rel.y[begin], &rel.z[begin], count, c, f, r, d, z, x, y);
+        visit(count);
+    }
+}
+
 std::array<float, 3> to_float(const Eigen::Vector3d& v) {
     return {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())};
 }
@@ -165,9 +179,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
             std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()};
         std::size_t front = 0, below = 0;
         const float lo_f = static_cast<float>(lo), hi_f = static_cast<float>(hi);
-        for (std::size_t begin = 0; begin < n; begin += kStep) {
-            const std::size_t count = std::min(kStep, n - begin);
-            project_step(&rel.x[begin], &rel.y[begin], &rel.z[begin], count, c, f, r, d, z, x, y);
+        for_each_step(rel, c, f, r, d, z, x, y, [&](std::size_t count) {
             extend_box(z, x, y, count, box);
             for (std::size_t i = 0; i < count; ++i) {
                 const float zi = z[i];
@@ -178,7 +190,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
                 else if (zi <= hi_f)
                     depths.push_back(zi);
             }
-        }
+        });
         const float x0 = box[0], x1 = box[1], y0 = box[2], y1 = box[3];
         if (front < 10) return;
         // The upper median of the depths in front (rank front / 2): within the bracket's
@@ -186,13 +198,10 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
         const std::size_t rank = front / 2;
         if (rank < below || rank >= below + depths.size()) {
             depths.clear();
-            for (std::size_t begin = 0; begin < n; begin += kStep) {
-                const std::size_t count = std::min(kStep, n - begin);
-                project_step(&rel.x[begin], &rel.y[begin], &rel.z[begin], count, c, f, r, d, z, x,
-                             y);
+            for_each_step(rel, c, f, r, d, z, x, y, [&](std::size_t count) {
                 for (std::size_t i = 0; i < count; ++i)
                     if (z[i] > 0) depths.push_back(z[i]);
-            }
+            });
             below = 0;
         }
         m.focal = kth_smallest(depths, rank - below) / (options.pixel * spacing_m);
@@ -205,9 +214,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
         // Second pass: the nearest depth per pixel.
         const float u0 = static_cast<float>(m.u0), v0 = static_cast<float>(m.v0),
                     focal = static_cast<float>(m.focal);
-        for (std::size_t begin = 0; begin < n; begin += kStep) {
-            const std::size_t count = std::min(kStep, n - begin);
-            project_step(&rel.x[begin], &rel.y[begin], &rel.z[begin], count, c, f, r, d, z, x, y);
+        for_each_step(rel, c, f, r, d, z, x, y, [&](std::size_t count) {
             for (std::size_t i = 0; i < count; ++i) {
                 if (!(z[i] > 0)) continue;
                 const int col = static_cast<int>((x[i] - u0) * focal);
@@ -216,7 +223,7 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
                 float& nearest = m.nearest[std::size_t(row) * m.cols + col];
                 nearest = std::min(nearest, z[i]);
             }
-        }
+        });
         built[si] = std::move(m);
     });
     for (auto& m : built)

@@ -114,8 +114,7 @@ PointCloud bounded(const PointCloud& cloud, std::size_t max_points, double spaci
         while (first > 1 && !too_many(first - 1)) --first;
     }
     for (int k = first; k < kAttempts; ++k) {
-        if (k > 0 && too_many(k)) continue;
-        if (k == 0 && count0 > max_points) continue;
+        if (k == 0 ? count0 > max_points : too_many(k)) continue;
         voxel = voxels[k];
         PointCloud down = sampling::voxel_downsample(cloud, voxel);
         if (down.size() <= max_points) return down;
