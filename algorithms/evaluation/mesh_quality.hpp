@@ -15,7 +15,7 @@
 // - far area: area-uniform samples of the mesh farther than far_tau_m from every input point
 //   (nearest point, kd-tree), as a share of the samples = of the area.
 // - grey vertex: a vertex whose colour equals the mesher's fill colour for vertices without
-//   colour (128, 128, 128, reconstruction/reconstruct_surface.cpp and holes/large_holes.cpp)
+//   colour (128, 128, 128, reconstruction/mesh_colour.cpp and holes/large_holes.cpp)
 //   within grey_tolerance per channel, while an input point lies within grey_tau_m: the
 //   colour was lost although the surface was observed. Share of all vertices.
 // - self-intersecting pairs: pairs of faces that cross other than at a shared edge or vertex
