@@ -185,7 +185,7 @@ py::object optional_pose(const std::optional<Pose>& pose) {
 py::array_t<double> cloud_points(const PointCloud& cloud) {
     py::array_t<double> out({static_cast<py::ssize_t>(cloud.size()), py::ssize_t{3}});
     double* d = out.mutable_data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         const Point_3& p = cloud.points.point(i);
         *d++ = p.x();
         *d++ = p.y();
@@ -198,7 +198,7 @@ py::object cloud_normals(const PointCloud& cloud) {
     if (!cloud.points.has_normal_map()) return py::none();
     py::array_t<double> out({static_cast<py::ssize_t>(cloud.size()), py::ssize_t{3}});
     double* d = out.mutable_data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         const Vector_3& n = cloud.points.normal(i);
         *d++ = n.x();
         *d++ = n.y();
@@ -212,7 +212,7 @@ py::object cloud_colors(const PointCloud& cloud) {
     const auto maps = cloud.colors();
     py::array_t<std::uint8_t> out({static_cast<py::ssize_t>(cloud.size()), py::ssize_t{3}});
     std::uint8_t* d = out.mutable_data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         const Rgb c = maps.get(i);
         *d++ = c.r;
         *d++ = c.g;
@@ -226,7 +226,7 @@ void set_points(PointCloud& cloud, const py::array& input) {
     const Doubles a = Doubles::ensure(input);
     check_finite(a, "points");
     const double* d = a.data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         cloud.points.point(i) = Point_3(d[0], d[1], d[2]);
         d += 3;
     }
@@ -242,7 +242,7 @@ void set_normals(PointCloud& cloud, const py::object& input) {
     check_finite(a, "normals");
     cloud.points.add_normal_map();
     const double* d = a.data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         cloud.points.normal(i) = Vector_3(d[0], d[1], d[2]);
         d += 3;
     }
@@ -258,7 +258,7 @@ void set_colors(PointCloud& cloud, const py::object& input) {
     const Bytes a = colours_of(input.cast<py::array>(), static_cast<long long>(cloud.size()));
     const auto maps = cloud.add_colors();
     const std::uint8_t* d = a.data();
-    for (const auto i : cloud.points) {
+    for (auto i : cloud.points) {
         maps.set(i, {d[0], d[1], d[2]});
         d += 3;
     }
@@ -282,7 +282,7 @@ py::object cloud_property(const PointCloud& cloud, const std::string& name) {
         using T = std::decay_t<decltype(map[*cloud.points.begin()])>;
         py::array_t<T> out(static_cast<py::ssize_t>(cloud.size()));
         T* d = out.mutable_data();
-        for (const auto i : cloud.points) *d++ = map[i];
+        for (auto i : cloud.points) *d++ = map[i];
         return py::object(out);
     };
     if (auto [m, found] = cloud.points.property_map<std::uint8_t>(name); found) return copy(m);
@@ -641,4 +641,5 @@ PYBIND11_MODULE(_rgbd_toolkit, m) {
         "path"_a, "Reads a triangle mesh (.ply, .off, .obj).");
 
     bind_stages(m);
+    bind_results(m);
 }

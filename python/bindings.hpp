@@ -8,11 +8,15 @@
 
 #include <exception>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
+#include "algorithms/denoise/sensor_noise.hpp"
+#include "io/capture_folder.hpp"
 #include "toolkit/point_cloud.hpp"
 #include "toolkit/progress.hpp"
 #include "toolkit/report.hpp"
@@ -123,7 +127,23 @@ private:
 /// A Report as a Python object (dict, list, numbers, strings; NaN as None).
 py::object to_python(const Report& report);
 
-/// Registers the pipeline stages and reconstruct() on the module (bindings_stages.cpp).
+/// A capture argument: an opened Capture, or a path opened with io::open_capture.
+io::Capture capture_of(const py::object& capture);
+
+/// The frames a tool selects with --frameset / --frames / --sensors (cli::select_frames, so
+/// that the same capture gives the same views here and in the tools).
+std::vector<std::pair<std::string, std::size_t>> selected_frames(
+    const io::Capture& capture, long long frameset, const std::string& frames,
+    const std::vector<std::string>& sensors);
+
+/// The `noise_model` option: "auto" -> nullopt, else the named model (InputError naming the
+/// valid ones).
+std::optional<denoise::NoiseModel> noise_model_option(Options& options);
+
+/// Registers the pipeline stages on the module (bindings_stages.cpp).
 void bind_stages(py::module_& m);
+
+/// Registers texture(), evaluate(), evaluate_poses() and reconstruct() (bindings_results.cpp).
+void bind_results(py::module_& m);
 
 }  // namespace rgbd::python
