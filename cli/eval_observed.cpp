@@ -13,6 +13,7 @@
 
 #include "algorithms/normals/estimate_normals.hpp"
 #include "cli/common/stages.hpp"
+#include "cli/common/temp_folder.hpp"
 #include "io/capture_folder.hpp"
 #include "io/mesh_io.hpp"
 #include "toolkit/error.hpp"
@@ -32,20 +33,6 @@ std::string number(double x) {
     s << x;
     return s.str();
 }
-
-/// A temporary folder removed on destruction.
-struct TempFolder {
-    fs::path path;
-    TempFolder() {
-        path = fs::temp_directory_path() / ("rgbd-eval-observed-" + std::to_string(::getpid()));
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempFolder() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
 
 /// POINTS.ply: float x y z nx ny nz (world), int view, uchar red green blue; views without
 /// normals (fewer than 3 points) are left out. VIEWS.json: each view's pinhole and pose.
@@ -176,7 +163,7 @@ std::vector<ObservedBaseline> run_observed_baselines(pipeline::Observations& obs
     for (auto& v : observations.views)
         if (!v.points.has_normal_map() && v.size() >= 3)
             normals::estimate_normals(v, normal_options);
-    TempFolder tmp;
+    const cli::TempFolder tmp("rgbd-eval-observed-");
     const fs::path points = tmp.path / "observed.ply", cameras = tmp.path / "views.json";
     write_peer_input(points, cameras, observations.views);
     std::vector<ObservedBaseline> out;

@@ -22,6 +22,7 @@
 #include "algorithms/render/picture.hpp"
 #include "cli/common/report_page.hpp"
 #include "cli/common/stages.hpp"
+#include "cli/common/temp_folder.hpp"
 #include "cli/common/tool.hpp"
 #include "cli/eval_colour.hpp"
 #include "cli/eval_observed.hpp"
@@ -37,20 +38,6 @@ namespace {
 
 constexpr const char* kPeerScript = "open3d_screened_poisson.py";
 constexpr const char* kPython = "/usr/bin/python3";
-
-/// A temporary folder removed on destruction.
-struct TempDir {
-    fs::path path;
-    TempDir() {
-        path = fs::temp_directory_path() / ("rgbd-eval-" + std::to_string(::getpid()));
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
 
 /// Writes the input points for the peer: x y z, normals (given when every view has them),
 /// the position of each point's sensor (NaN when unknown), colours (grey when absent).
@@ -128,7 +115,7 @@ std::vector<BaselineRun> run_screened_poisson(const std::vector<PointCloud>& inp
     RGBD_CHECK_AS(IoError, fs::exists(kPython),
                   std::string("--baseline screened-poisson needs Debian's ") + kPython +
                       " with python3-open3d");
-    TempDir tmp;
+    const cli::TempFolder tmp("rgbd-eval-");
     const fs::path points = tmp.path / "input.ply";
     const bool normals = write_peer_input(points, input);
     bool colored = !input.empty();
