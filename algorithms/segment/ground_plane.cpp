@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <opencv2/imgproc.hpp>
 #include <vector>
 
 #include "algorithms/internal/plane_fit.hpp"
@@ -17,20 +18,91 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+/// A view's refit of a wall stays within this of the pooled plane's normal, degrees: the cone
+/// of its RANSAC. The refit absorbs the calibration error between views (about a degree); a
+/// side wall is seen at grazing incidence, where a least-squares fit tilts towards the rays
+/// (the APC shelf's second side wall seen at 75 degrees: 9-16 degrees), and a tilted plane cuts
+/// a wedge off what stands in front of the wall. Such a view keeps the RANSAC's plane. (The
+/// ground's refit keeps ground_max_tilt_deg: its least-squares tilt is what tells the curved
+/// top of a ball from a floor.)
+constexpr double kRefitConeDeg = 5.0;
+
 /// internal::fit_plane into a Plane.
 bool fit_plane(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& up, Plane& out,
                double* rms = nullptr) {
     return internal::fit_plane(points, up, out.n, out.d, rms);
 }
 
+/// The half-sample mode of `values` (Bickel and Fruehwirth, "On a fast, robust estimator of
+/// the mode", 2006): the shortest interval holding half of the values, repeatedly, until two or
+/// three are left. Robust to anything under half of the values, on either side. Sorts `values`.
+double half_sample_mode(std::vector<double>& values) {
+    std::sort(values.begin(), values.end());
+    std::size_t lo = 0, n = values.size();
+    while (n > 3) {
+        const std::size_t half = (n + 1) / 2;
+        std::size_t best = lo;
+        for (std::size_t i = lo; i + half <= lo + n; ++i)
+            if (values[i + half - 1] - values[i] < values[best + half - 1] - values[best]) best = i;
+        lo = best, n = half;
+    }
+    if (n == 3)
+        return values[lo + 1] - values[lo] < values[lo + 2] - values[lo + 1]
+                   ? 0.5 * (values[lo] + values[lo + 1])
+                   : (values[lo + 1] - values[lo] > values[lo + 2] - values[lo + 1]
+                          ? 0.5 * (values[lo + 1] + values[lo + 2])
+                          : values[lo + 1]);
+    return n == 2 ? 0.5 * (values[lo] + values[lo + 1]) : values[lo];
+}
+
+/// Moves `plane` along its normal onto the surface it was fitted to: to the half-sample mode of
+/// the heights of the points of `facing` within `band` of it. What stands on or against the
+/// surface (under half of the points) then does not pull the plane off it.
+void centre_on_surface(const std::vector<Eigen::Vector3d>& facing, double band, Plane& plane) {
+    // At most about 16,384 heights (every k-th point): the mode of a plane seen by a sensor
+    // holds tens of thousands, and the sort is the cost.
+    const std::size_t stride = facing.size() / 16384 + 1;
+    std::vector<double> heights;
+    heights.reserve(facing.size() / stride + 1);
+    for (std::size_t i = 0; i < facing.size(); i += stride) {
+        const double h = plane.height(facing[i]);
+        if (std::abs(h) <= band) heights.push_back(h);
+    }
+    if (heights.size() < 50) return;
+    plane.d -= half_sample_mode(heights);
+}
+
+/// A height's distance from a plane: in metres and in units of the sensor's sigma_z.
+struct Deviation {
+    double metres = 0;
+    double sigmas = 0;
+};
+
+/// The robust deviation (1.4826 x the median |height|) in metres and in units of sigma_z.
+Deviation robust_deviation(const std::vector<Deviation>& d) {
+    std::vector<double> m(d.size()), s(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) m[i] = d[i].metres, s[i] = d[i].sigmas;
+    return {1.4826 * rank_quantile(m, 0.5), 1.4826 * rank_quantile(s, 0.5)};
+}
+
 /// The surface facing the plane: the points within half a band of `fit.plane` whose grid
 /// normal lies within ground_max_tilt_deg of it (all of them without normals). Least squares on
-/// them, then on those within 3 robust deviations (at least 5 mm); their robust deviation
+/// them (a plane that tilts more than that from `fit.plane` ends the fit), then on those within
+/// 3 robust deviations (at least 5 mm); fit.robust_m and fit.normalized: their robust deviation
 /// (1.4826 x the median |height|) in metres and in units of the sensor's sigma_z at each point's
-/// depth and incidence. The plane and fit.rms_m become this fit's when it holds 50 points.
+/// depth and incidence (the surface's flatness), and fit.rms_m the same. A `wall` differs:
+/// a least-squares plane out of the cone keeps the previous orientation; each round moves the
+/// plane along its normal to the mode of the heights (centre_on_surface), so that what stands
+/// against the wall does not pull it forward (the APC shelf's joke book, 1-2 cm in front of a
+/// side wall); and fit.rms_m, the noise the cut allows for, is the lesser of the robust
+/// deviation and the one of the points behind the plane, where nothing stands (the joke book:
+/// 8-13 mm two-sided in the views that see the wall at 60-75 degrees, 1-3 mm behind), the next
+/// round's band 3 of these. The plane and these figures become this fit's when it holds 50
+/// points; `on_plane` receives the points of that fit.
 void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
                       const std::vector<Eigen::Vector3d>& normals, denoise::NoiseModel model,
-                      const SubjectOptions& o, ViewGroundFit& fit) {
+                      const SubjectOptions& o, bool wall, ViewGroundFit& fit,
+                      std::vector<Eigen::Vector3d>& on_plane) {
     const double cos_tilt = std::cos(o.ground_max_tilt_deg * kDeg);
     std::vector<Eigen::Vector3d> facing;
     for (std::size_t i = 0; i < xyz.size(); ++i)
@@ -39,31 +111,66 @@ void measure_flatness(const std::vector<Eigen::Vector3d>& xyz,
             facing.push_back(xyz[i]);
     Plane plane = fit.plane;
     double band = 0.5 * o.ground_band_m;
-    std::vector<double> abs_h, norm_h;
+    std::vector<Deviation> both, behind;
+    Deviation spread, least;
+    std::vector<Eigen::Vector3d> in;
     for (int round = 0; round < 2; ++round) {
-        std::vector<Eigen::Vector3d> in;
+        in.clear();
         for (const auto& q : facing)
             if (std::abs(plane.height(q)) <= band) in.push_back(q);
         Plane refined;
-        if (in.size() < 50 || !fit_plane(in, fit.plane.n, refined) ||
-            refined.n.dot(fit.plane.n) < cos_tilt)
+        if (in.size() < 50 || !fit_plane(in, fit.plane.n, refined)) return;
+        if (refined.n.dot(fit.plane.n) >= cos_tilt)
+            plane = refined;
+        else if (!wall)
             return;
-        plane = refined;
-        abs_h.clear(), norm_h.clear();
+        // A wall out of the cone keeps its orientation; its offset is the surface's mode.
+        if (wall) centre_on_surface(facing, band, plane);
+        both.clear(), behind.clear();
         for (const auto& q : in) {
-            const double h = std::abs(plane.height(q));
+            const double h = plane.height(q);
             const double cos_theta = std::clamp(std::abs(q.normalized().dot(plane.n)), 0.0, 1.0);
             const double theta = std::min(std::acos(cos_theta), 80.0 * kDeg);
-            abs_h.push_back(h);
-            norm_h.push_back(h / denoise::sigma_z_m(model, q.z(), theta));
+            const Deviation d{std::abs(h), std::abs(h) / denoise::sigma_z_m(model, q.z(), theta)};
+            both.push_back(d);
+            if (h < 0) behind.push_back(d);
         }
-        band = std::max(3.0 * 1.4826 * rank_quantile(abs_h, 0.5), 0.005);
+        spread = robust_deviation(both);
+        least = spread;
+        if (wall && behind.size() >= 25) {
+            const Deviation back = robust_deviation(behind);
+            least = {std::min(spread.metres, back.metres), std::min(spread.sigmas, back.sigmas)};
+        }
+        band = std::max(3.0 * least.metres, 0.005);
     }
     fit.plane = plane;
-    fit.facing = abs_h.size();
-    fit.robust_m = 1.4826 * rank_quantile(abs_h, 0.5);
-    fit.normalized = 1.4826 * rank_quantile(norm_h, 0.5);
-    fit.rms_m = fit.robust_m;
+    fit.facing = both.size();
+    fit.robust_m = spread.metres;
+    fit.normalized = spread.sigmas;
+    fit.rms_m = least.metres;
+    on_plane = std::move(in);
+}
+
+/// The points of `xyz` more than `half` behind `plane` (sensor frame) whose ray from the sensor
+/// crosses the plane inside the convex hull of `on_plane` (the surface seen on it).
+std::size_t seen_through(const std::vector<Eigen::Vector3d>& xyz, const Plane& plane,
+                         const std::vector<Eigen::Vector3d>& on_plane, double half) {
+    if (on_plane.size() < 3 || plane.d <= 0) return 0;
+    const Eigen::Vector3d u = plane.n.unitOrthogonal(), v = plane.n.cross(u);
+    std::vector<cv::Point2f> pts, hull;
+    pts.reserve(on_plane.size());
+    for (const auto& q : on_plane) pts.emplace_back(float(q.dot(u)), float(q.dot(v)));
+    cv::convexHull(pts, hull);
+    if (hull.size() < 3) return 0;
+    std::size_t count = 0;
+    for (const auto& q : xyz) {
+        const double h = plane.height(q);
+        if (h >= -half) continue;
+        const Eigen::Vector3d c = (-plane.d / plane.n.dot(q)) * q;
+        count +=
+            cv::pointPolygonTest(hull, cv::Point2f(float(c.dot(u)), float(c.dot(v))), false) >= 0;
+    }
+    return count;
 }
 
 /// Whether a sample at p with normal n votes for `plane`: within `band` of it and facing it.
@@ -204,7 +311,7 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
                                 const std::vector<Eigen::Vector3d>& normals,
                                 denoise::NoiseModel model, const SubjectOptions& o,
-                                std::uint64_t seed) {
+                                std::uint64_t seed, bool wall) {
     ViewGroundFit fit;
     fit.plane = pooled;
     fit.points = xyz.size();
@@ -215,29 +322,38 @@ ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const P
     if (near.size() >= 50) {
         Plane local;
         std::size_t score = 0;
-        if (ransac_plane(near, pooled.n, std::cos(5.0 * kDeg), 0.2 * o.ground_band_m,
+        if (ransac_plane(near, pooled.n, std::cos(kRefitConeDeg * kDeg), 0.2 * o.ground_band_m,
                          std::max(50, o.iterations / 4), seed, local, score)) {
             // Two least-squares rounds: on the points within half a band of the RANSAC plane,
-            // then on those within 3 RMS of that fit.
+            // then on those within 3 RMS of that fit; a round whose plane leaves the RANSAC's
+            // cone is not taken (the RANSAC plane or the first round stays).
             std::vector<Eigen::Vector3d> in;
             for (const auto& q : near)
                 if (std::abs(local.height(q)) <= half) in.push_back(q);
+            const double cos_cone = std::cos((wall ? kRefitConeDeg : o.ground_max_tilt_deg) * kDeg);
             Plane first;
             double r = 0;
-            if (in.size() >= 50 && fit_plane(in, pooled.n, first, &r) &&
-                first.n.dot(pooled.n) > std::cos(o.ground_max_tilt_deg * kDeg)) {
-                std::vector<Eigen::Vector3d> tight;
-                for (const auto& q : in)
-                    if (std::abs(first.height(q)) <= std::max(3.0 * r, 0.005)) tight.push_back(q);
-                Plane second;
-                if (fit_plane(tight, pooled.n, second, &r)) {
-                    fit.plane = second;
-                    fit.rms_m = r;
+            if (in.size() >= 50 && fit_plane(in, pooled.n, first, &r)) {
+                if (wall) fit.plane = local, fit.rms_m = r;
+                if (first.n.dot(pooled.n) > cos_cone) {
+                    if (wall) fit.plane = first;
+                    std::vector<Eigen::Vector3d> tight;
+                    for (const auto& q : in)
+                        if (std::abs(first.height(q)) <= std::max(3.0 * r, 0.005))
+                            tight.push_back(q);
+                    Plane second;
+                    if (fit_plane(tight, pooled.n, second, &r) &&
+                        (!wall || second.n.dot(pooled.n) > cos_cone)) {
+                        fit.plane = second;
+                        fit.rms_m = r;
+                    }
                 }
             }
         }
     }
-    if (fit.rms_m > 0) measure_flatness(xyz, normals, model, o, fit);
+    std::vector<Eigen::Vector3d> on_plane;
+    if (fit.rms_m > 0) measure_flatness(xyz, normals, model, o, wall, fit, on_plane);
+    if (wall) fit.through = seen_through(xyz, fit.plane, on_plane, half);
     for (const auto& q : xyz) {
         const double h = fit.plane.height(q);
         fit.below += h < -half;

@@ -58,10 +58,13 @@ std::optional<Plane> pooled_bounding_plane(const std::vector<GroundSample>& samp
 /// One view's refit of the pooled plane in its sensor frame.
 struct ViewGroundFit {
     Plane plane;            ///< the view's plane (the pooled one when it could not refit)
-    double rms_m = 0;       ///< RMS of the refit's points about it; 0 = not refitted
+    double rms_m = 0;       ///< the noise about it the cut allows for (see below); 0 = not refitted
     std::size_t below = 0;  ///< the view's points more than half a band below the plane
     std::size_t above = 0;  ///< ... and more than half a band above it
     std::size_t points = 0;
+    /// ... of those below it, the ones its surface would hide: their line of sight from the
+    /// sensor crosses the plane inside the convex hull of the facing points (walls only)
+    std::size_t through = 0;
     std::size_t facing = 0;  ///< the points facing the plane its flatness is measured on
     double robust_m = 0;     ///< their robust deviation about it (1.4826 x median |h|), m
     double normalized = 0;   ///< the same in units of the sensor's sigma_z at each point
@@ -71,16 +74,23 @@ struct ViewGroundFit {
 /// among the points within a band of it for the plane within 5 degrees of it that holds the
 /// most within a fifth of a band (the view's own offset and tilt: a pose a few centimetres or a
 /// degree off), least squares on its points within half a band, then on those within 3 RMS
-/// (at least 5 mm). Then its flatness, on the points facing it (grid normals `normals`, sensor
-/// frame, one per point or none; within ground_max_tilt_deg of its normal) within half a band:
-/// least squares on them, then on those within 3 robust deviations; their robust deviation in
-/// metres and in units of sigma_z(z, theta) of `model` at each point's depth and incidence
-/// (a floor: about the sensor's noise; the curved bottom of an object: many times it). With 50
-/// such points the plane and rms_m (then the robust deviation) are that fit's.
+/// (at least 5 mm), each within ground_max_tilt_deg of the pooled plane. Then its flatness, on
+/// the points facing it (grid normals `normals`, sensor frame, one per point or none; within
+/// ground_max_tilt_deg of its normal) within half a band: least squares on them, then on those
+/// within 3 robust deviations; their robust deviation in metres and in units of
+/// sigma_z(z, theta) of `model` at each point's depth and incidence (a floor: about the
+/// sensor's noise; the curved bottom of an object: many times it). With 50 such points the
+/// plane, robust_m, normalized and rms_m (= robust_m) are that fit's.
+/// A `wall` (step 1b) is refitted so that what stands against it does not move its cut: its
+/// least-squares planes stay within 5 degrees of the pooled one (a view that sees it at grazing
+/// incidence keeps the RANSAC's orientation), each is moved to the half-sample mode of its
+/// points' heights, the band of the second round is 3 noise deviations, and rms_m is the lesser
+/// of robust_m and the deviation of the points behind the plane (docs/algorithms.md §3). A
+/// wall's fit also counts `through` (what it would hide is not seen).
 ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const Plane& pooled,
                                 const std::vector<Eigen::Vector3d>& normals,
                                 denoise::NoiseModel model, const SubjectOptions& options,
-                                std::uint64_t seed);
+                                std::uint64_t seed, bool wall = false);
 
 /// What cut_above_ground did in one view.
 struct GroundCut {

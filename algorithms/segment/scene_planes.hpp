@@ -34,10 +34,13 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
 /// bound is ground_flat_sigmas times `ground_flatness` (the ground's own median flatness, in
 /// sigma_z, when it was found and is above 1; else 1): the ground shows how much noisier the
 /// real sensor is than its model, and a wall of the same scene, seen by the same sensors, is
-/// judged in that noise (the APC shelf: floor 2.72 sigma_z, side walls 4.7 and 7.8). And in
-/// the median of the views that see it, at most wall_max_behind_share of a view's points lie more
-/// than half a band behind the view's own refit of the plane (the pooled test's band is widened for
-/// the calibration error between views; in one view's frame the wall is sharp).
+/// judged in that noise. And in the median of the views that see it, at most
+/// wall_max_through_share of a view's points are seen through the view's own refit of the plane
+/// (more than half a band behind it, their line of sight crossing it inside the convex hull of
+/// its facing points: a wall hides what is behind it). The candidates refused as not flat or
+/// seen through may be slices through a wall and what leans on it: after the six rounds, their
+/// samples are searched again in four rounds with a wall_split_tilt_deg voting cone, each
+/// candidate judged alike (report `second_pass`).
 Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>& views,
                     const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& o,
                     double ground_flatness);

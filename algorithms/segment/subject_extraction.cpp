@@ -264,6 +264,9 @@ void SubjectOptions::check() const {
     check_range("extraction: ground min share", ground_min_share, Range::open(0, 1));
     check_range("extraction: ground sigmas", ground_sigmas, Range::closed_open(0, 100));
     check_range("extraction: wall max behind share", wall_max_behind_share, Range::closed(0, 1));
+    check_range("extraction: wall max through share", wall_max_through_share, Range::closed(0, 1));
+    check_range("extraction: wall split tilt", wall_split_tilt_deg, Range::open_closed(0, 90),
+                "deg");
     check_range("extraction: ground flat sigmas", ground_flat_sigmas, Range::open(0, 100));
     check_range("extraction: ground min margin", ground_min_margin_m, Range::closed_open(0, 1),
                 "m");

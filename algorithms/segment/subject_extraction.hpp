@@ -58,6 +58,14 @@ struct SubjectOptions {
     /// share of the points more than a band behind them are cut like the ground.
     bool remove_walls = true;
     double wall_max_behind_share = 0.05;
+    /// ... and, in the median of the views that see it, at most this share of a view's points
+    /// lie behind it where the wall would hide them: their line of sight crosses the plane
+    /// inside the convex hull of the wall's own points (the APC shelf's side walls: 0.00-0.04%;
+    /// planes through a box leaning on a wall: 1.7-6.5%).
+    double wall_max_through_share = 0.005;
+    /// The candidates refused as not flat or seen through may be slices through a wall and what
+    /// leans on it: their samples are searched again with this narrower voting cone, degrees.
+    double wall_split_tilt_deg = 10.0;
     double ground_min_margin_m = 0.003;  ///< the margin is never less than this, metres
     double voxel_m = 0.0;                ///< connectivity voxel, metres; 0 = 3 pixel footprints at
                                          ///< the median depth, at least 5 mm

@@ -141,8 +141,8 @@ TEST(ExtractionScene, KeepGroundKeepsTheFloor) {
 // Real data (issue 35 item 6): 15 views of a shelf bin by a RealSense F200 on a robot arm
 // (../shared/data/multiview/apc_realsense_f200_shelf, exact arm poses). The bin's floor is seen
 // at 73-83 deg incidence; its flatness, judged in units of the sensor's own noise there, makes
-// it the ground: it is removed, the back wall too, and the four objects on it are kept (the
-// toolbox's object masks tell which pixels are objects).
+// it the ground: it is removed, the bin's three walls too, and the four objects on it are kept
+// (the toolbox's object masks tell which pixels are objects).
 TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
     const fs::path cap = fs::path(RGBD_SHARED_DATA) / "multiview/apc_realsense_f200_shelf";
     if (!fs::exists(cap / "cam.info.txt")) GTEST_SKIP() << "no " << cap;
@@ -164,27 +164,30 @@ TEST(ExtractionScene, RealShelfBinFloorIsTheGroundAndTheObjectsAreKept) {
     std::cout << "APC: object points kept " << object_kept << ", other points removed "
               << rest_removed << "\n";
     // The floor's cut takes the objects' lowest centimetre or two (the margin at grazing
-    // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes. The back wall is a wall (flat,
-    // nothing behind it, every sensor in front of it) and is cut. So is a side wall: it is
-    // 4.7 sigma_z flat, within 3 times the floor's own flatness (2.72 sigma_z: the real F200
-    // is noisier than its model, and the floor shows by how much). The planes through the
-    // faces of the objects leaning on the side walls (11-15 degrees off them, 4.6-7.8 sigma_z)
-    // have the walls behind them in each view's own frame (11-12% of the views' points more
-    // than half a band behind) and are no walls: cut, they took the objects (kept 174,000 of
-    // 1.12 million points). Measured: 70.3% of the object points kept (73.4% when the side
-    // walls stayed: the objects' backs against the wall and the masks' fringes go with it),
-    // 68.5% of the rest removed (54.0%).
-    EXPECT_GE(object_kept, 0.68);
-    EXPECT_GE(rest_removed, 0.65);
-    std::size_t walls = 0, side_walls = 0, refused_in_views = 0;
+    // incidence is 3 sigma_z of 3-6 mm) and the masks' fringes. The back wall and both side
+    // walls are walls (flat, nothing seen through them, every sensor in front of them) and are
+    // cut. A plane through a side wall and the objects leaning on it (11-15 degrees off) is
+    // refused (not flat, or the wall seen through it in the views); the refused slices'
+    // samples, searched again with a 10-degree cone, give the second side wall. Each view's
+    // cut lies at the mode of the wall's heights, with the noise measured behind the wall
+    // (a book stands 1-2 cm in front of it). Measured: 68.9% of the object points kept (70.3%
+    // when the second side wall stayed: the masks' fringes on the wall go with it), 80.0% of
+    // the rest removed (68.5%).
+    EXPECT_GE(object_kept, 0.66);
+    EXPECT_GE(rest_removed, 0.78);
+    std::size_t walls = 0, side_walls[2] = {0, 0}, refused_slices = 0;
     for (const auto& w : m["extraction"]["walls"]) {
-        if (w.value("note", "") == "points behind it in the views") ++refused_in_views;
+        const std::string note = w.value("note", "");
+        if (note == "seen through in the views" || note == "not flat in half the views")
+            ++refused_slices;
         if (!w["found"].get<bool>()) continue;
         ++walls;
-        side_walls += std::abs(w["normal"][1].get<double>()) > 0.99;
-        EXPECT_LE(w["view_behind_share"].get<double>(), 0.05) << w.dump();
+        const double ny = w["normal"][1].get<double>();
+        if (std::abs(ny) > 0.99) ++side_walls[ny > 0];
+        EXPECT_LE(w["view_through_share"].get<double>(), 0.005) << w.dump();
     }
-    EXPECT_GE(walls, 2u) << m["extraction"]["walls"].dump();
-    EXPECT_GE(side_walls, 1u) << m["extraction"]["walls"].dump();
-    EXPECT_GE(refused_in_views, 1u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(walls, 3u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(side_walls[0], 1u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(side_walls[1], 1u) << m["extraction"]["walls"].dump();
+    EXPECT_GE(refused_slices, 1u) << m["extraction"]["walls"].dump();
 }

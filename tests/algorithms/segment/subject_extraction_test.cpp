@@ -258,10 +258,10 @@ TEST(SubjectExtraction, AWallThroughASensorIsStillAWall) {
     Scene scene = make_scene(1.0, 10.0, true, true, false, false, x0);
     const Report report = segment::extract_subject(scene.views, {denoise::NoiseModel::kKinectV2});
     // The walls that cut points (a later round may find the cut wall's leftover samples again,
-    // 2 cm off, with nothing left to cut).
+    // 2 cm behind it, with a few stray points left to cut: 0-3 of the wall's 57,000).
     int walls = 0;
     for (const auto& w : report["walls"]) {
-        if (!w["found"].get<bool>() || w["removed"].get<std::size_t>() == 0) continue;
+        if (!w["found"].get<bool>() || w["removed"].get<std::size_t>() < 100) continue;
         ++walls;
         EXPECT_LT(w["normal"][0].get<double>(), -0.99) << w.dump();
         EXPECT_NEAR(-w["offset_m"].get<double>() * w["normal"][0].get<double>(), x0, 0.01)
