@@ -334,7 +334,10 @@ ViewGroundFit refit_view_ground(const std::vector<Eigen::Vector3d>& xyz, const P
             Plane first;
             double r = 0;
             if (in.size() >= 50 && fit_plane(in, pooled.n, first, &r)) {
-                if (wall) fit.plane = local, fit.rms_m = r;
+                if (wall) {  // a wall keeps the RANSAC plane when the least squares leave it
+                    fit.plane = local;
+                    fit.rms_m = r;
+                }
                 if (first.n.dot(pooled.n) > cos_cone) {
                     if (wall) fit.plane = first;
                     std::vector<Eigen::Vector3d> tight;

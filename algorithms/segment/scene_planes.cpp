@@ -51,6 +51,36 @@ std::vector<GroundSample> strided_samples(const std::vector<ViewPoints>& vps,
     return samples;
 }
 
+/// Every view's refit of the world-frame `plane` in its own sensor frame (refit_view_ground,
+/// with its sensor's noise model and the seed `seed` + the view's index), in parallel.
+std::vector<ViewGroundFit> refit_in_views(const Plane& plane, std::vector<ViewPoints>& vps,
+                                          const std::vector<PointCloud>& views,
+                                          const std::vector<denoise::NoiseModel>& noise,
+                                          const SubjectOptions& o, std::uint64_t seed, bool wall) {
+    std::vector<ViewGroundFit> fits(views.size());
+    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
+        const Pose& pose = *views[v].view.world_from_sensor;
+        const Plane in_sensor{pose.linear().transpose() * plane.n,
+                              plane.d + plane.n.dot(pose.translation())};
+        fits[v] = refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(),
+                                    noise.size() == 1 ? noise[0] : noise[v], o, seed + v, wall);
+    });
+    return fits;
+}
+
+/// Every view's cut above its refit (cut_above_ground), in parallel: each marks its own points.
+std::vector<GroundCut> cut_in_views(std::vector<ViewPoints>& vps,
+                                    const std::vector<ViewGroundFit>& fits,
+                                    const std::vector<denoise::NoiseModel>& noise,
+                                    const SubjectOptions& o) {
+    std::vector<GroundCut> cuts(vps.size());
+    tbb::parallel_for(std::size_t(0), vps.size(), [&](std::size_t v) {
+        cuts[v] = cut_above_ground(vps[v].g.xyz, fits[v], noise.size() == 1 ? noise[0] : noise[v],
+                                   o, vps[v].removed);
+    });
+    return cuts;
+}
+
 }  // namespace
 
 /// Step 1 (scene_planes.hpp).
@@ -83,18 +113,10 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     // not the curved bottom of an object standing on nothing) and as the lowest large surface (at
     // most 15% of the points more than half a band below it, and fewer below than above it: a cap
     // or a ring of an object's surface has its object below it).
-    std::vector<ViewGroundFit> fits(views.size());
+    const std::vector<ViewGroundFit> fits =
+        refit_in_views(*plane, vps, views, noise, options, options.seed + 2, false);
     std::vector<double> fitted, flatness;
     std::size_t below = 0, above = 0, points = 0;
-    // The views' fits in parallel (each its own seed), gathered in view order.
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const Pose& pose = *views[v].view.world_from_sensor;
-        const Plane in_sensor{pose.linear().transpose() * plane->n,
-                              plane->d + plane->n.dot(pose.translation())};
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        fits[v] = refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model,
-                                    options, options.seed + 2 + v);
-    });
     for (std::size_t v = 0; v < views.size(); ++v) {
         if (fits[v].facing > 0) flatness.push_back(fits[v].normalized);
         if (fits[v].rms_m > 0) fitted.push_back(fits[v].rms_m);
@@ -131,12 +153,7 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
     ground["found"] = true;
     Report per_view = Report::array();
     std::size_t removed = 0;
-    // The views' cuts in parallel (each marks its own points), reported in view order.
-    std::vector<GroundCut> cuts(views.size());
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        cuts[v] = cut_above_ground(vps[v].g.xyz, fits[v], model, options, vps[v].removed);
-    });
+    const std::vector<GroundCut> cuts = cut_in_views(vps, fits, noise, options);
     for (std::size_t v = 0; v < views.size(); ++v) {
         const GroundCut& cut = cuts[v];
         ViewGround g;
@@ -164,12 +181,16 @@ Report remove_ground(std::vector<ViewPoints>& vps, std::vector<PointCloud>& view
 
 namespace {
 
+/// What judge_wall decided.
+enum class WallVerdict { kWall, kSensorsOnBothSides, kNotFlat, kSeenThrough };
+
 /// The tests a wall candidate passes after the pooled one (scene_planes.hpp, step 1b): every
 /// sensor in front of it, flat in half the views, nothing seen through it in the views' median;
 /// a wall is cut in every view. Fills `wall` (found, note, the views' figures).
-void judge_wall(const Plane& plane, std::vector<ViewPoints>& vps,
-                const std::vector<PointCloud>& views, const std::vector<denoise::NoiseModel>& noise,
-                const SubjectOptions& o, double flat_bound, std::uint64_t seed, Report& wall) {
+WallVerdict judge_wall(const Plane& plane, std::vector<ViewPoints>& vps,
+                       const std::vector<PointCloud>& views,
+                       const std::vector<denoise::NoiseModel>& noise, const SubjectOptions& o,
+                       double flat_bound, std::uint64_t seed, Report& wall) {
     // Sensors on both sides first (cheap); the views' refits only for a candidate wall. A
     // sensor within half the ground band of the plane sees it edge-on and tells neither side
     // (the APC shelf's arm takes one view 3 mm off a side wall's plane).
@@ -179,17 +200,9 @@ void judge_wall(const Plane& plane, std::vector<ViewPoints>& vps,
                                    -0.5 * o.ground_band_m;
     if (!in_front) {
         wall["note"] = "sensors on both sides";
-        return;
+        return WallVerdict::kSensorsOnBothSides;
     }
-    std::vector<ViewGroundFit> fits(views.size());
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const Pose& pose = *views[v].view.world_from_sensor;
-        const Plane in_sensor{pose.linear().transpose() * plane.n,
-                              plane.d + plane.n.dot(pose.translation())};
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        fits[v] = refit_view_ground(vps[v].g.xyz, in_sensor, vps[v].sensor_normals(), model, o,
-                                    seed + v, true);
-    });
+    const std::vector<ViewGroundFit> fits = refit_in_views(plane, vps, views, noise, o, seed, true);
     std::vector<double> flatness, behind_view, through_view;
     for (std::size_t v = 0; v < views.size(); ++v) {
         if (fits[v].facing == 0 || fits[v].points == 0) continue;  // not seen
@@ -208,7 +221,7 @@ void judge_wall(const Plane& plane, std::vector<ViewPoints>& vps,
     wall["view_through_share"] = through;
     if (flatness.size() * 2 < views.size() || flat > flat_bound) {
         wall["note"] = "not flat in half the views";
-        return;
+        return WallVerdict::kNotFlat;
     }
     // Nothing seen through it in each view's own refit either: a plane through a face of what
     // leans on a wall (a box at 11-15 degrees on the APC shelf's side wall) has the wall in the
@@ -217,23 +230,18 @@ void judge_wall(const Plane& plane, std::vector<ViewPoints>& vps,
     // extent (the shelf's front lip, 3.5 cm behind a side wall's plane) do not count.
     if (through > o.wall_max_through_share) {
         wall["note"] = "seen through in the views";
-        return;
+        return WallVerdict::kSeenThrough;
     }
-    // The views' cuts in parallel (each marks its own points).
-    std::vector<GroundCut> cuts(views.size());
-    tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t v) {
-        const denoise::NoiseModel model = noise.size() == 1 ? noise[0] : noise[v];
-        cuts[v] = cut_above_ground(vps[v].g.xyz, fits[v], model, o, vps[v].removed);
-    });
     std::size_t removed = 0;
     std::vector<double> margins;
-    for (const GroundCut& cut : cuts) {
+    for (const GroundCut& cut : cut_in_views(vps, fits, noise, o)) {
         removed += cut.cut;
         margins.push_back(cut.margin_m);
     }
     wall["margin_m"] = median(margins);
     wall["found"] = true;
     wall["removed"] = removed;
+    return WallVerdict::kWall;
 }
 
 /// The report of a candidate after the pooled test.
@@ -279,9 +287,9 @@ Report remove_walls(std::vector<ViewPoints>& vps, const std::vector<PointCloud>&
             if (behind > o.wall_max_behind_share * samples.size()) {
                 wall["note"] = "points behind it";
             } else {
-                judge_wall(*plane, vps, views, noise, o, flat_bound, o.seed + 200, wall);
-                const std::string note = wall.value("note", "");
-                if (note == "not flat in half the views" || note == "seen through in the views")
+                const WallVerdict verdict =
+                    judge_wall(*plane, vps, views, noise, o, flat_bound, o.seed + 200, wall);
+                if (verdict == WallVerdict::kNotFlat || verdict == WallVerdict::kSeenThrough)
                     for (std::size_t i = 0; i < samples.size(); ++i)
                         refused[i] |= used[i] && !used_before[i];
             }
