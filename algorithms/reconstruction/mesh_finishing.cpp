@@ -161,6 +161,28 @@ bool seen_through(const Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
     return static_cast<double>(empty) > max_share * static_cast<double>(faces.size());
 }
 
+/// Rim edges that the stages after the extraction's ground cut (distance and density outlier
+/// removal, the mesher's thinning and its boundary) can wear off a cut that stood on the ground,
+/// on top of the cut's margin. Measured on the variety set in a room (floor, walls, clutter, a
+/// person; validation/results/2026-12-07-bases-on-the-floor.md): the rims of subjects standing on
+/// the floor lay 0.5-3.5 rim edges above the cut's margin.
+constexpr double kWornEdges = 3.0;
+
+/// The median length of the edges of the loops of `borders` flagged in `flags` (metres; 0 when
+/// none).
+double median_edge_length(const Mesh& mesh, const std::vector<Halfedge>& borders,
+                          const std::vector<char>& flags) {
+    std::vector<double> lengths;
+    for (std::size_t i = 0; i < borders.size(); ++i) {
+        if (!flags[i]) continue;
+        for (Halfedge x : CGAL::halfedges_around_face(borders[i], mesh))
+            lengths.push_back(
+                (to_eigen(mesh.point(mesh.target(x))) - to_eigen(mesh.point(mesh.source(x))))
+                    .norm());
+    }
+    return lengths.empty() ? 0.0 : rank_quantile(lengths, 0.5);
+}
+
 }  // namespace
 
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
@@ -212,8 +234,14 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
             for (const auto& p : rim) heights.push_back(n.dot(p) + d);
             const double deep = rank_quantile(heights, 0.2);
             const LoopPlane plane = fit_loop_plane(rim);
-            const double reach = std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms);
+            // What lies between the rim and the ground went in the extraction's cut (its margin)
+            // or was worn off the cut's edge by the cleaning and meshing stages that follow, each
+            // working at about the point spacing: the rim's edge length measures it.
+            const double edge = median_edge_length(mesh, borders, on_support);
+            const double reach =
+                std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms) + kWornEdges * edge;
             base["rim_above_ground_m"] = deep;
+            base["reach_m"] = reach;
             if (deep <= reach) {
                 support.down = -n;
                 support.point = -d * n;  // n . point + d = 0
