@@ -13,6 +13,8 @@ Objects (--objects):
   chair on the floor, a jug with a thin handle, a puppet on the SR300 turntable rig; each with
   its own rgbd-synth arguments from DIR/objects.json, its scene options (--floor ...) only when
   rgbd-synth lists them; --objects then names any of them (default: all of the set);
+  --scene "--scene room" renders every ring object of the set in a room instead (floor, 2 walls,
+  4 clutter objects, a person: validation/results/2026-12-07-bases-on-the-floor.md);
 - person: the real sequence shared/data/multiview/uva_cv2_person_kinect1 (Kinect v1 class,
   per-frame camera.xml poses, no true surface), frames --person-frames (positions A:B).
 
@@ -579,6 +581,9 @@ def main():
     ap.add_argument("--seeds", default="1",
                     help="comma-separated seeds of the synthetic rings (the person: the first)")
     ap.add_argument("--chain", default="auto", choices=["auto", "reconstruct", "pipe"])
+    ap.add_argument("--scene", default=None, metavar="ARGS",
+                    help="rgbd-synth scene options for every ring object of the set instead of "
+                    "its own (e.g. \"--scene room\": floor, walls, clutter, a person)")
     ap.add_argument("--out", default=None, help="also write the table to this markdown file")
     a = ap.parse_args()
     a.work = os.path.abspath(a.work or tempfile.mkdtemp(prefix="ablation_"))
@@ -590,6 +595,12 @@ def main():
         variety.make(a.objects_dir, None, a.shared)
     if a.objects_dir:
         OBJSET.update(variety.load(os.path.abspath(a.objects_dir)))
+    if a.scene is not None:
+        if not OBJSET:
+            sys.exit("ablation: --scene needs an object set (--objects-dir or --variety)")
+        for entry in OBJSET.values():
+            if entry.get("rig", "ring") == "ring":
+                entry["scene"] = a.scene.split()
     if a.objects is None or a.objects == "all":
         a.objects = ",".join(OBJSET) if OBJSET else "bunny,max_planck,bust_man_wreath,person"
     a.objects = [x for x in a.objects.split(",") if x]
