@@ -242,9 +242,21 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
                 std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms) + kWornEdges * edge;
             base["rim_above_ground_m"] = deep;
             base["reach_m"] = reach;
+            base["rim_tilt_deg"] =
+                std::acos(std::min(1.0, std::abs(plane.robust_normal.dot(n)))) * 180.0 / M_PI;
             if (deep <= reach) {
-                support.down = -n;
-                support.point = -d * n;  // n . point + d = 0
+                // The object rests on the ground on its cut: the base keeps the cut's own plane
+                // (the rim's, `support` from support_loops) and goes down until its lowest point
+                // over the rim touches the ground. A cut parallel to the ground lies on it; an
+                // oblique cut (a neck cut at a slant, feet of different heights) touches it at
+                // one side, where the old base on the ground plane put a wedge under it.
+                double lowest = std::numeric_limits<double>::infinity();
+                for (const auto& p : rim) {
+                    // p moved along up onto the cut's plane, its height above the ground
+                    const double t = (p - support.point).dot(support.down) / up->dot(support.down);
+                    lowest = std::min(lowest, n.dot(p - t * *up) + d);
+                }
+                support.point -= lowest / n.dot(*up) * *up;
                 base["kind"] = "ground";
             }
         }

@@ -40,20 +40,22 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// `ground_margin_m`: when the cut's rim reaches down to the ground (its deep quintile within
 /// the margin plus 3 robust RMS of the rim's plane, at least 1 cm, plus 3 of the rim's median
 /// edge lengths, what the cleaning and meshing after the cut wear off its edge), the object
-/// stood on the ground: the base goes on it. Otherwise the base is the rim's own plane at its deep
-/// quintile (never lower than the rim's lowest vertex: no skirt below what the sensors saw). Once
-/// every loop is closed, each closed connected component with a negative signed volume (inside out)
-/// is reversed (report: components_reversed). With `seen_empty` (whether a sensor saw the point
-/// with that outward normal as empty space), every faired or refined patch, and the flat base of a
-/// cut that does not rest on the ground (report: flat_cuts_carvable), is carved back out of that
-/// space, for at most `carve_steps` steps (0 = not carved; report: carved_patches,
-/// carved_vertices): displaced inward along its normals where it was seen empty, smoothly, no
-/// deeper than half a vertex's distance to the rim; then the patches with more than
-/// `seen_through_max` of their face centres still seen empty are counted (report: seen_through):
-/// surface the sensors contradict. They are kept. The result is closed (CGAL::is_closed). Report:
-/// holes, faired, refined, flat_cuts, fans, faces_added, largest_hole_edges, up (null when
-/// unknown), base ("ground" or "rim", with rim_above_ground_m and reach_m when a ground is known),
-/// time_s. `added` (optional) receives the faces created.
+/// stood on the ground: the base keeps the cut's own plane and goes down until its lowest point
+/// over the rim touches the ground (an oblique cut rests on one side, no wedge under it). Otherwise
+/// the base is the rim's own plane at its deep quintile (never lower than the rim's lowest vertex:
+/// no skirt below what the sensors saw). Once every loop is closed, each closed connected component
+/// with a negative signed volume (inside out) is reversed (report: components_reversed). With
+/// `seen_empty` (whether a sensor saw the point with that outward normal as empty space), every
+/// faired or refined patch, and the flat base of a cut that does not rest on the ground (report:
+/// flat_cuts_carvable), is carved back out of that space, for at most `carve_steps` steps (0 = not
+/// carved; report: carved_patches, carved_vertices): displaced inward along its normals where it
+/// was seen empty, smoothly, no deeper than half a vertex's distance to the rim; then the patches
+/// with more than `seen_through_max` of their face centres still seen empty are counted (report:
+/// seen_through): surface the sensors contradict. They are kept. The result is closed
+/// (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans, faces_added,
+/// largest_hole_edges, up (null when unknown), base ("ground" or "rim", with rim_above_ground_m,
+/// reach_m and rim_tilt_deg, the cut's tilt to the ground, when a ground is known), time_s. `added`
+/// (optional) receives the faces created.
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up = std::nullopt,
                    std::size_t fair_max_edges = 300, std::vector<Mesh::Face_index>* added = nullptr,
                    const std::optional<Eigen::Vector4d>& ground = std::nullopt,

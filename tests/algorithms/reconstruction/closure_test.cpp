@@ -7,6 +7,8 @@
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -221,4 +223,49 @@ TEST(ReconstructSurface, ARimAFewEdgesAboveTheGroundRestsOnItAFarGroundIsNotReac
             EXPECT_LT(lowest(mesh), rim_z + 0.002) << report.dump();
         }
     }
+}
+
+// A cut at a slant to the ground (a neck cut at an angle, feet of different heights) rests on
+// the ground on its lowest side: the base keeps the cut's plane. A base laid on the ground plane
+// instead put a wedge under it (the devil's head in a room: F@2mm 0.916, alone 0.968).
+TEST(ReconstructSurface, AnObliqueCutRestsOnTheGroundInItsOwnPlane) {
+    const Eigen::Vector3d up(0, 0, -1);
+    Mesh mesh = sphere_with_crown_hole(40, false);
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    for (auto v : mesh.vertices()) {
+        const auto& p = mesh.point(v);
+        const Eigen::Vector3d q = tilt * Eigen::Vector3d(p.x(), p.y(), p.z());
+        mesh.point(v) = rgbd::Point_3(q.x(), q.y(), q.z());
+    }
+    double rim_low = -1;  // the rim's lowest point: largest z (up is -z)
+    for (auto h : mesh.halfedges())
+        if (mesh.is_border(h)) rim_low = std::max(rim_low, mesh.point(mesh.target(h)).z());
+    const double ground_z = rim_low + 0.005;
+    const Eigen::Vector4d ground(up.x(), up.y(), up.z(), ground_z);
+    const std::size_t before = mesh.number_of_vertices();
+    const rgbd::Report report = rgbd::reconstruction::internal::close_holes(
+        mesh, up, 1000, nullptr, ground, 0.003, {}, 0.5, 0);
+    ASSERT_TRUE(CGAL::is_closed(mesh));
+    EXPECT_EQ(report["base"]["kind"], "ground") << report.dump();
+    EXPECT_NEAR(report["base"]["rim_tilt_deg"].get<double>(), 10.0, 0.5) << report.dump();
+    // The base's vertices (every vertex the closure added: the walls have none inside) lie in
+    // one plane tilted like the cut, and its lowest point touches the ground.
+    std::vector<Eigen::Vector3d> base;
+    double deepest = -1;
+    for (auto v : mesh.vertices()) {
+        const auto& p = mesh.point(v);
+        deepest = std::max(deepest, p.z());
+        if (std::size_t(v) >= before) base.emplace_back(p.x(), p.y(), p.z());
+    }
+    ASSERT_GE(base.size(), 20u);
+    EXPECT_NEAR(deepest, ground_z, 1e-4) << report.dump();
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : base) centre += p;
+    centre /= double(base.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : base) cov += (p - centre) * (p - centre).transpose();
+    const Eigen::Vector3d normal =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+    EXPECT_NEAR(std::acos(std::abs(normal.z())) * 180.0 / M_PI, 10.0, 1.0);
 }
