@@ -7,13 +7,13 @@
 #include <CGAL/boost/graph/helpers.h>
 #include <gtest/gtest.h>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
 
+#include "algorithms/internal/plane_fit.hpp"
 #include "algorithms/reconstruction/mesh_finishing.hpp"
 #include "algorithms/reconstruction/reconstruct_surface.hpp"
 #include "sphere_cloud.hpp"
@@ -260,12 +260,8 @@ TEST(ReconstructSurface, AnObliqueCutRestsOnTheGroundInItsOwnPlane) {
     }
     ASSERT_GE(base.size(), 20u);
     EXPECT_NEAR(deepest, ground_z, 1e-4) << report.dump();
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const auto& p : base) centre += p;
-    centre /= double(base.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : base) cov += (p - centre) * (p - centre).transpose();
-    const Eigen::Vector3d normal =
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+    Eigen::Vector3d normal;
+    double offset = 0;
+    ASSERT_TRUE(rgbd::internal::fit_plane(base, -up, normal, offset));
     EXPECT_NEAR(std::acos(std::abs(normal.z())) * 180.0 / M_PI, 10.0, 1.0);
 }
