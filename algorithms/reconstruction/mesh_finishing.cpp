@@ -183,6 +183,53 @@ double median_edge_length(const Mesh& mesh, const std::vector<Halfedge>& borders
     return lengths.empty() ? 0.0 : rank_quantile(lengths, 0.5);
 }
 
+/// Where the base of the cut the object stood on goes (docs/algorithms.md §14). `support` is
+/// the rim's own plane at its deep quintile (support_loops); `rim` its vertices, flagged in
+/// `on_support` among `borders`. With a ground that the rim reaches (its deep quintile within the
+/// cut's margin plus 3 robust RMS of the rim's plane, at least 1 cm, plus kWornEdges rim edges),
+/// `support` is moved down along `up` until its lowest point over the rim touches the ground.
+/// Report: kind ("ground" or "rim"), and with a ground rim_above_ground_m, reach_m and
+/// rim_tilt_deg.
+Report place_base(const Mesh& mesh, const std::vector<Halfedge>& borders,
+                  const std::vector<char>& on_support, const std::vector<Eigen::Vector3d>& rim,
+                  const Eigen::Vector3d& up, const std::optional<Eigen::Vector4d>& ground,
+                  double ground_margin_m, SupportPlane& support) {
+    Report base;
+    base["kind"] = "rim";
+    if (!ground || !ground->head<3>().allFinite() || !std::isfinite((*ground)(3))) return base;
+    const Eigen::Vector3d n = ground->head<3>().normalized();
+    const double d = (*ground)(3) / ground->head<3>().norm();
+    // The rim's deep quintile above the ground, and its spread.
+    std::vector<double> heights;
+    for (const auto& p : rim) heights.push_back(n.dot(p) + d);
+    const double deep = rank_quantile(heights, 0.2);
+    const LoopPlane plane = fit_loop_plane(rim);
+    // What lies between the rim and the ground went in the extraction's cut (its margin) or was
+    // worn off the cut's edge by the cleaning and meshing stages that follow, each working at
+    // about the point spacing: the rim's edge length measures it.
+    const double edge = median_edge_length(mesh, borders, on_support);
+    const double reach =
+        std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms) + kWornEdges * edge;
+    base["rim_above_ground_m"] = deep;
+    base["reach_m"] = reach;
+    base["rim_tilt_deg"] =
+        std::acos(std::min(1.0, std::abs(plane.robust_normal.dot(n)))) * 180.0 / M_PI;
+    if (deep > reach) return base;
+    // The object rests on the ground on its cut: the base keeps the cut's own plane and goes down
+    // until its lowest point over the rim touches the ground. A cut parallel to the ground lies
+    // on it; an oblique cut (a neck cut at a slant, feet of different heights) touches it at one
+    // side, where a base on the ground plane put a wedge under it.
+    double lowest = std::numeric_limits<double>::infinity();
+    for (const auto& p : rim) {
+        // p moved along up onto the cut's plane, its height above the ground
+        const double t = (p - support.point).dot(support.down) / up.dot(support.down);
+        lowest = std::min(lowest, n.dot(p - t * up) + d);
+    }
+    support.point -= lowest / n.dot(up) * up;
+    base["kind"] = "ground";
+    return base;
+}
+
 }  // namespace
 
 Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
@@ -224,43 +271,8 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
         up ? support_loops(mesh, borders, *up, low, high, support, &rim)
            : std::vector<char>(borders.size(), 0);
     Report base;
-    if (up && !rim.empty()) {
-        base["kind"] = "rim";
-        if (ground && ground->head<3>().allFinite() && std::isfinite((*ground)(3))) {
-            const Eigen::Vector3d n = ground->head<3>().normalized();
-            const double d = (*ground)(3) / ground->head<3>().norm();
-            // The rim's deep quintile above the ground, and its spread.
-            std::vector<double> heights;
-            for (const auto& p : rim) heights.push_back(n.dot(p) + d);
-            const double deep = rank_quantile(heights, 0.2);
-            const LoopPlane plane = fit_loop_plane(rim);
-            // What lies between the rim and the ground went in the extraction's cut (its margin)
-            // or was worn off the cut's edge by the cleaning and meshing stages that follow, each
-            // working at about the point spacing: the rim's edge length measures it.
-            const double edge = median_edge_length(mesh, borders, on_support);
-            const double reach =
-                std::max(0.01, ground_margin_m + 3.0 * plane.robust_rms) + kWornEdges * edge;
-            base["rim_above_ground_m"] = deep;
-            base["reach_m"] = reach;
-            base["rim_tilt_deg"] =
-                std::acos(std::min(1.0, std::abs(plane.robust_normal.dot(n)))) * 180.0 / M_PI;
-            if (deep <= reach) {
-                // The object rests on the ground on its cut: the base keeps the cut's own plane
-                // (the rim's, `support` from support_loops) and goes down until its lowest point
-                // over the rim touches the ground. A cut parallel to the ground lies on it; an
-                // oblique cut (a neck cut at a slant, feet of different heights) touches it at
-                // one side, where the old base on the ground plane put a wedge under it.
-                double lowest = std::numeric_limits<double>::infinity();
-                for (const auto& p : rim) {
-                    // p moved along up onto the cut's plane, its height above the ground
-                    const double t = (p - support.point).dot(support.down) / up->dot(support.down);
-                    lowest = std::min(lowest, n.dot(p - t * *up) + d);
-                }
-                support.point -= lowest / n.dot(*up) * *up;
-                base["kind"] = "ground";
-            }
-        }
-    }
+    if (up && !rim.empty())
+        base = place_base(mesh, borders, on_support, rim, *up, ground, ground_margin_m, support);
     for (std::size_t loop = 0; loop < borders.size(); ++loop) {
         Halfedge h = borders[loop];
         if (!mesh.is_border(h)) continue;  // closed by an earlier fill
