@@ -122,7 +122,7 @@ std::array<float, 3> to_float(const Eigen::Vector3d& v) {
 
 FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
                      const std::vector<SensorView>& sensors, double spacing_m,
-                     const FreeSpaceOptions& options)
+                     const FreeSpaceOptions& options, const std::vector<Eigen::Vector3d>& evidence)
     : options_(options), spacing_(spacing_m) {
     options.check();
     RGBD_CHECK(std::isfinite(spacing_m) && spacing_m > 0,
@@ -131,17 +131,22 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (const auto& p : points) centroid += p;
     centroid /= double(points.size());
-    const std::size_t n = points.size();
     PointArrays rel;
-    rel.x.resize(n), rel.y.resize(n), rel.z.resize(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16384), [&](const auto& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-            const Eigen::Vector3d q = points[i] - centroid;
-            rel.x[i] = static_cast<float>(q.x());
-            rel.y[i] = static_cast<float>(q.y());
-            rel.z[i] = static_cast<float>(q.z());
-        }
-    });
+    const auto relative = [&centroid](const std::vector<Eigen::Vector3d>& from, PointArrays& to) {
+        const std::size_t count = from.size();
+        to.x.resize(count), to.y.resize(count), to.z.resize(count);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 16384), [&](const auto& range) {
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                const Eigen::Vector3d q = from[i] - centroid;
+                to.x[i] = static_cast<float>(q.x());
+                to.y[i] = static_cast<float>(q.y());
+                to.z[i] = static_cast<float>(q.z());
+            }
+        });
+    };
+    relative(points, rel);
+    PointArrays more;  // the evidence, in the same frame
+    relative(evidence, more);
     // One map per sensor, the sensors in parallel (each map is independent of the others; the
     // nearest depth per pixel is a minimum, so the order of the points does not matter), kept
     // in the sensors' order. A sensor's two passes go over all the points while its map (a
@@ -205,25 +210,46 @@ FreeSpace::FreeSpace(const std::vector<Eigen::Vector3d>& points,
             below = 0;
         }
         m.focal = kth_smallest(depths, rank - below) / (options.pixel * spacing_m);
-        m.cols = static_cast<int>(std::ceil((x1 - x0) * m.focal)) + 1 + 2 * kPad;
-        m.rows = static_cast<int>(std::ceil((y1 - y0) * m.focal)) + 1 + 2 * kPad;
-        if (double(m.cols) * m.rows > 16e6) return;  // not an object in front of a sensor
-        m.u0 = x0 - kPad / m.focal;
-        m.v0 = y0 - kPad / m.focal;
+        m.inner_cols = static_cast<int>(std::ceil((x1 - x0) * m.focal)) + 1 + 2 * kPad;
+        m.inner_rows = static_cast<int>(std::ceil((y1 - y0) * m.focal)) + 1 + 2 * kPad;
+        if (double(m.inner_cols) * m.inner_rows > 16e6)
+            return;  // not an object in front of a sensor
+        // The evidence's box, in whole pixels beyond the points' own, at most half the points'
+        // width (height) on each side.
+        std::array<float, 4> wide = box;
+        for_each_step(more, c, f, r, d, z, x, y,
+                      [&](std::size_t count) { extend_box(z, x, y, count, wide); });
+        const auto grow = [&m](float beyond, int limit) {
+            const double pixels = std::ceil(std::max(0.0f, beyond) * m.focal);
+            return static_cast<int>(std::min(pixels, double(limit / 2)));
+        };
+        const int left = grow(x0 - wide[0], m.inner_cols), right = grow(wide[1] - x1, m.inner_cols);
+        const int top = grow(y0 - wide[2], m.inner_rows), bottom = grow(wide[3] - y1, m.inner_rows);
+        m.col0 = left, m.row0 = top;
+        m.cols = m.inner_cols + left + right;
+        m.rows = m.inner_rows + top + bottom;
+        if (double(m.cols) * m.rows > 16e6) return;
+        m.u0 = x0 - (kPad + left) / m.focal;
+        m.v0 = y0 - (kPad + top) / m.focal;
         m.nearest.assign(std::size_t(m.cols) * m.rows, kNone);
-        // Second pass: the nearest depth per pixel.
+        if (!more.x.empty()) m.evidence.assign(m.nearest.size(), kNone);
+        // Second pass: the nearest depth per pixel, of the points and of the evidence.
         const float u0 = static_cast<float>(m.u0), v0 = static_cast<float>(m.v0),
                     focal = static_cast<float>(m.focal);
-        for_each_step(rel, c, f, r, d, z, x, y, [&](std::size_t count) {
-            for (std::size_t i = 0; i < count; ++i) {
-                if (!(z[i] > 0)) continue;
-                const int col = static_cast<int>((x[i] - u0) * focal);
-                const int row = static_cast<int>((y[i] - v0) * focal);
-                if (col < 0 || row < 0 || col >= m.cols || row >= m.rows) continue;
-                float& nearest = m.nearest[std::size_t(row) * m.cols + col];
-                nearest = std::min(nearest, z[i]);
-            }
-        });
+        const auto splat_into = [&](std::vector<float>& image) {
+            return [&](std::size_t count) {
+                for (std::size_t i = 0; i < count; ++i) {
+                    if (!(z[i] > 0)) continue;
+                    const int col = static_cast<int>((x[i] - u0) * focal);
+                    const int row = static_cast<int>((y[i] - v0) * focal);
+                    if (col < 0 || row < 0 || col >= m.cols || row >= m.rows) continue;
+                    float& nearest = image[std::size_t(row) * m.cols + col];
+                    nearest = std::min(nearest, z[i]);
+                }
+            };
+        };
+        for_each_step(rel, c, f, r, d, z, x, y, splat_into(m.nearest));
+        if (!more.x.empty()) for_each_step(more, c, f, r, d, z, x, y, splat_into(m.evidence));
         built[si] = std::move(m);
     });
     for (auto& m : built)
@@ -256,21 +282,36 @@ int FreeSpace::scan(const Eigen::Vector3d& p, const Eigen::Vector3d& n, bool cou
         const int c = static_cast<int>(std::floor((d.dot(m.right) / z - m.u0) * m.focal));
         const int r = static_cast<int>(std::floor((d.dot(m.down) / z - m.v0) * m.focal));
         if (c < 0 || r < 0 || c >= m.cols || r >= m.rows) continue;
-        float near3 = kNone, near5 = kNone;
+        float near3 = kNone, near5 = kNone, more3 = kNone;
         const int w = options_.background_window;
         for (int dr = -w; dr <= w; ++dr)
             for (int dc = -w; dc <= w; ++dc) {
                 const int r2 = r + dr, c2 = c + dc;
                 if (r2 < 0 || c2 < 0 || r2 >= m.rows || c2 >= m.cols) continue;
-                const float depth = m.nearest[std::size_t(r2) * m.cols + c2];
+                const std::size_t at = std::size_t(r2) * m.cols + c2;
+                const float depth = m.nearest[at];
                 near5 = std::min(near5, depth);
-                if (std::abs(dr) <= 1 && std::abs(dc) <= 1) near3 = std::min(near3, depth);
+                if (std::abs(dr) <= 1 && std::abs(dc) <= 1) {
+                    near3 = std::min(near3, depth);
+                    if (!m.evidence.empty()) more3 = std::min(more3, m.evidence[at]);
+                }
             }
+        const double behind = z + options_.margin * spacing_;
         if (near3 < kNone) {
             // Something measured in front of p (the view of it was blocked), or p on the
             // measured surface: no evidence. Everything behind by the margin: seen through,
             // when the sensor would have measured p's surface (facing it, not grazing).
-            if (n.dot(-d.normalized()) >= cos_face && near3 > z + options_.margin * spacing_) {
+            if (n.dot(-d.normalized()) >= cos_face && std::min(near3, more3) > behind) {
+                if (!count) return static_cast<int>(s);
+                ++hits;
+            }
+            continue;
+        }
+        if (near5 == kNone && more3 < kNone) {
+            // Outside the object's silhouette, the sensor measured something else (the floor
+            // beside the object): seen through whatever p's normal when it lies behind p, no
+            // evidence when it lies in front (clutter before p).
+            if (more3 > behind) {
                 if (!count) return static_cast<int>(s);
                 ++hits;
             }
@@ -280,8 +321,9 @@ int FreeSpace::scan(const Eigen::Vector3d& p, const Eigen::Vector3d& n, bool cou
         // object projects inside it from every sensor.
         // No return anywhere near the ray, well inside the sensor's view of the object.
         const int border = kPad + options_.background_border;
-        if (options_.background && near5 == kNone && c >= border && r >= border &&
-            c < m.cols - border && r < m.rows - border) {
+        const int ci = c - m.col0, ri = r - m.row0;  // in the points' own frame
+        if (options_.background && near5 == kNone && ci >= border && ri >= border &&
+            ci < m.inner_cols - border && ri < m.inner_rows - border) {
             if (!count) return static_cast<int>(s);
             ++hits;
         }

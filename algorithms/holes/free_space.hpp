@@ -4,9 +4,13 @@
 // and measured nothing there: its ray went on to a surface well behind the point, or to the
 // background. A real surface there would have been measured by that sensor, so the point lies in
 // observed free space (a bulge outside the object, like the base of a bust extended outward by the
-// large-hole inpainting). Peers: space carving / the visual hull (Kutulakos and Seitz, "A theory of
-// shape by space carving", IJCV 2000); KinectFusion's TSDF marks the same space empty by ray
-// casting. See also: algorithms/holes/large_holes.hpp (the fills that call it).
+// large-hole inpainting). More measurements of the same sensors that are not the object's (the
+// floor beside it, which the extraction removed) may be given as evidence: a ray that met them
+// behind a point passed through it (outside the object's silhouette whatever the point's normal),
+// and they block the view of what lies behind them. Peers: space carving / the visual hull
+// (Kutulakos and Seitz, "A theory of shape by space carving", IJCV 2000); KinectFusion's TSDF marks
+// the same space empty by ray casting. See also: algorithms/holes/large_holes.hpp (the fills that
+// call it).
 #pragma once
 
 #include <Eigen/Core>
@@ -45,8 +49,14 @@ class FreeSpace {
 public:
     /// `points` are the measured surface in the sensors' frame, `spacing_m` its point spacing
     /// (metres). No sensors: nothing is ever free space.
+    /// `evidence` (optional, world frame): more measurements of the same sensors that are not
+    /// the object's (the floor beside it, what the extraction removed). They enter the maps'
+    /// nearest depths only: the maps' scale, their placement and the background test's frame
+    /// (the bounding box of `points`) are those of `points` alone, each map grown by whole
+    /// pixels to hold them (to at most 4 times its pixels).
     FreeSpace(const std::vector<Eigen::Vector3d>& points, const std::vector<SensorView>& sensors,
-              double spacing_m, const FreeSpaceOptions& options);
+              double spacing_m, const FreeSpaceOptions& options,
+              const std::vector<Eigen::Vector3d>& evidence = {});
 
     /// Index of the first sensor that saw the point `p` (unit normal `n`, outward) as empty
     /// space: p in front of it (and in its image when its intrinsics are known), and either n
@@ -68,8 +78,12 @@ private:
         Eigen::Vector3d centre, forward, right, down;
         double focal = 0;  ///< pixels per unit of tan(angle)
         int cols = 0, rows = 0;
-        double u0 = 0, v0 = 0;       ///< image-plane coordinates (tan) of pixel (0, 0)'s corner
-        std::vector<float> nearest;  ///< depth along forward per pixel; +inf = none
+        /// The pixels [col0, col0 + inner_cols) x [row0, row0 + inner_rows) frame the points'
+        /// own bounding box (the background test's border is counted from it).
+        int col0 = 0, row0 = 0, inner_cols = 0, inner_rows = 0;
+        double u0 = 0, v0 = 0;        ///< image-plane coordinates (tan) of pixel (0, 0)'s corner
+        std::vector<float> nearest;   ///< depth along forward per pixel; +inf = none
+        std::vector<float> evidence;  ///< the same of the evidence; empty without any
         SensorView sensor;
         Pose sensor_from_world;  ///< sensor.world_from_sensor's inverse, for the frustum test
     };

@@ -56,6 +56,47 @@ TEST(FreeSpace, AHoleInAPlaneSeenAgainstTheBackgroundIsEmpty) {
     EXPECT_EQ(free.seen_empty({0.0, 0.5, 0.0}, n), -1);
 }
 
+// Evidence beside the object (the floor the extraction removed, ReconstructionOptions::
+// evidence_points): a ray that met it behind a point outside the object's silhouette passed
+// through that point, whatever the point's normal; evidence in front of the point blocks the
+// view; without evidence the answers are those of the object's points alone.
+TEST(FreeSpace, EvidenceBehindAPointBesideTheObjectSeesThroughItEvidenceInFrontDoesNot) {
+    // The plane x = 0 (20 x 20 cm), one sensor 1.5 m away on +x; the "floor" z = -0.15 seen
+    // below the plane from x = 0.3 to -0.3 (behind points 3 cm below the plane's lower edge when
+    // they lie in front of x = 0).
+    std::vector<Eigen::Vector3d> plane, floor, clutter;
+    for (double y = -0.1; y <= 0.1; y += kSpacing)
+        for (double z = -0.1; z <= 0.1; z += kSpacing) plane.emplace_back(0, y, z);
+    for (double x = -0.3; x <= 0.3; x += kSpacing)
+        for (double y = -0.1; y <= 0.1; y += kSpacing) floor.emplace_back(x, y, -0.15);
+    const std::vector<SensorView> sensors{look_at({1.5, 0, 0}, {0, 0, 0})};
+    const FreeSpace alone(plane, sensors, kSpacing, FreeSpaceOptions{});
+    const FreeSpace with_floor(plane, sensors, kSpacing, FreeSpaceOptions{}, floor);
+    const Eigen::Vector3d below(0.02, 0.0, -0.13), down(0, 0, -1), facing(1, 0, 0);
+    // Below the plane's silhouette (beyond the background window): the sensor's ray went on to
+    // the floor, 1.7 m away, behind the point: seen through even facing away (a skirt's floor).
+    EXPECT_EQ(with_floor.seen_empty(below, down), 0);
+    EXPECT_EQ(with_floor.seen_empty(below, facing), 0);
+    // On the plane's own surface, and behind it: as without the evidence.
+    EXPECT_EQ(with_floor.seen_empty({0.0, 0.01, 0.0}, facing), -1);
+    EXPECT_EQ(with_floor.seen_empty({-0.02, 0.01, 0.0}, facing), -1);
+    EXPECT_EQ(with_floor.seen_empty({0.02, 0.01, 0.0}, facing),
+              alone.seen_empty({0.02, 0.01, 0.0}, facing));
+    // Clutter in front of the point (a box between it and the sensor): no evidence.
+    for (double y = -0.1; y <= 0.1; y += kSpacing)
+        for (double z = -0.16; z <= -0.11; z += kSpacing) clutter.emplace_back(0.2, y, z);
+    std::vector<Eigen::Vector3d> both = floor;
+    both.insert(both.end(), clutter.begin(), clutter.end());
+    EXPECT_EQ(FreeSpace(plane, sensors, kSpacing, FreeSpaceOptions{}, both).seen_empty(below, down),
+              -1);
+    // Without evidence, the maps are the points' alone: the same answers on a grid of queries.
+    const FreeSpace none(plane, sensors, kSpacing, FreeSpaceOptions{}, {});
+    for (double x = -0.05; x <= 0.05; x += 0.01)
+        for (double z = -0.12; z <= 0.12; z += 0.01)
+            EXPECT_EQ(none.seen_empty({x, 0.01, z}, facing),
+                      alone.seen_empty({x, 0.01, z}, facing));
+}
+
 // The maps of a large cloud (where the median depth that scales their pixel is selected
 // within a sampled bracket) do not depend on the order of the points: the same answers when the
 // sampled points are the farthest ones (the bracket misses the median and the selection falls
