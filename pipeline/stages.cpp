@@ -14,6 +14,7 @@
 #include "algorithms/sampling/merge_views.hpp"
 #include "io/mesh_io.hpp"
 #include "io/ply_stream.hpp"
+#include "pipeline/source_evidence.hpp"
 #include "toolkit/error.hpp"
 
 namespace rgbd::pipeline {
@@ -235,6 +236,10 @@ std::size_t add_stand_contact(std::vector<PointCloud>& views,
     return n;
 }
 
+/// The ground evidence of the closure: the source pixels within this many cut margins of their
+/// view's ground plane.
+constexpr double kGroundEvidenceBand = 2.0;
+
 Mesh mesh_stage(std::vector<PointCloud>&& views,
                 const reconstruction::ReconstructionOptions& options, Report& report,
                 const Progress& progress) {
@@ -266,6 +271,24 @@ Mesh mesh_stage(std::vector<PointCloud>&& views,
                 with_up.sensors.push_back({*view.view.world_from_sensor, view.view.intrinsics});
     ensure_view_normals(views);
     for (auto& view : views) to_world_frame(view);
+    // The ground the extraction removed around the subject (the floor beside its base, and
+    // the subject's own band below the cut), read again from the views' frames: free-space
+    // evidence for the closure (within twice each view's cut margin of its ground plane).
+    if (with_up.watertight && !with_up.sensors.empty() && with_up.evidence_points.empty()) {
+        Eigen::AlignedBox3d box;
+        for (const auto& view : views)
+            for (auto idx : view.points) box.extend(to_eigen(view.points.point(idx)));
+        if (!box.isEmpty()) {
+            const double grow = 0.5 * box.sizes().maxCoeff();
+            box.min().array() -= grow;
+            box.max().array() += grow;
+            Stopwatch watch;
+            SourceMeasurements source = source_measurements(views, box, kGroundEvidenceBand);
+            report["evidence"] = source.to_json();
+            report["evidence"]["time_s"] = watch.seconds();
+            with_up.evidence_points = std::move(source.points);
+        }
+    }
     PointCloud merged =
         views.size() == 1 ? std::move(views.front()) : sampling::merge_views(std::move(views));
     if (!merged.points.has_normal_map()) {

@@ -208,17 +208,18 @@ void surface_from_points(const std::vector<Pwn>& pwn, double average_spacing, do
 }
 
 /// The space the sensors saw empty (holes::FreeSpace) from the cloud's measured points (not
-/// the fill's synthetic ones), for the watertight closure's carving.
+/// the fill's synthetic ones) and `more` of the sensors' measurements around them
+/// (ReconstructionOptions::evidence_points), for the watertight closure's carving.
 holes::FreeSpace measured_free_space(const PointCloud& cloud,
                                      const std::vector<holes::SensorView>& sensors,
-                                     double spacing) {
+                                     const std::vector<Eigen::Vector3d>& more, double spacing) {
     std::vector<Eigen::Vector3d> measured;
     const auto synthetic = cloud.flag(prop::kSynthetic);
     for (auto idx : cloud.points)
         if (!synthetic || !(*synthetic)[idx]) measured.push_back(to_eigen(cloud.points.point(idx)));
     holes::FreeSpaceOptions evidence;
     evidence.background_window = 3;
-    return holes::FreeSpace(measured, sensors, spacing, evidence);
+    return holes::FreeSpace(measured, sensors, spacing, evidence, more);
 }
 
 /// The oriented points the surface goes through: the cloud within the point budget
@@ -333,8 +334,10 @@ Mesh reconstruct_surface(const PointCloud& cloud, const ReconstructionOptions& o
     std::optional<holes::FreeSpace> free;
     tbb::task_group evidence_task;
     if (options.watertight && !options.sensors.empty())
-        evidence_task.run(
-            [&] { free.emplace(measured_free_space(cloud, options.sensors, spacing)); });
+        evidence_task.run([&] {
+            free.emplace(
+                measured_free_space(cloud, options.sensors, options.evidence_points, spacing));
+        });
     const WaitAtExit wait_for_evidence{&evidence_task};
     internal::ColourSources colour_sources;
     internal::KnownColours known_colours;

@@ -61,10 +61,17 @@ struct ReconstructionOptions {
     /// seen through (holes.seen_through): an opening the sensors looked into, such as the back
     /// of a mask. They stay closed (removing them opened simple closed objects).
     std::vector<holes::SensorView> sensors;
+    /// More measurements of the same sensors (world frame, metres) that are not the subject's:
+    /// what the object extraction and the cleaning removed around it (the floor beside its base,
+    /// pipeline/source_evidence.hpp). They go into the free-space maps with the measured input
+    /// points, never into the surface: a ray that met the floor beyond a patch passed through it.
+    std::vector<Eigen::Vector3d> evidence_points;
     double seen_through_max = 0.5;
-    /// `watertight` with `sensors`: every faired closure patch is first carved out of the space
-    /// at least `carve_votes` sensors saw empty (mesh_finishing.hpp: close_holes), for at most
-    /// `carve_steps` steps of half its edge length (0 = no carving). The background test uses a
+    /// `watertight` with `sensors`: every faired closure patch, and the walls of a base on the
+    /// ground (their feet moved inward on the base: a skirt round a rounded bottom), is first
+    /// carved out of the space at least `carve_votes` sensors saw empty (mesh_finishing.hpp:
+    /// close_holes), for at most `carve_steps` steps of half its edge length (0 = no carving).
+    /// The background test uses a
     /// window of 3 pixels around the ray (holes::FreeSpaceOptions::background_window), one more
     /// than the fill's: the sensors lose the object's grazing rim, so the measured silhouette
     /// is a little smaller than the object's. On the bull of the variety set (seed 1), one
