@@ -69,7 +69,10 @@ const cli::ToolSpec kSpec{
         "surface is invented where no sensor looked, so unseen regions stay open. --watertight "
         "closes every remaining hole into a closed 2-manifold: the loop at the bottom of the "
         "object (up from the sensors' poses) is the cut it stood on and gets straight sides "
-        "down to a flat base; every other hole is triangulated, refined and faired; patches "
+        "down to a flat base (on the ground the extraction found, when the cut reaches it: "
+        "there the sides are carved inward where the sensors saw the floor through them, "
+        "read again from each view's source frame, rgbd:view.source); every other hole is "
+        "triangulated, refined and faired; patches "
         "that fold onto themselves are repaired (--repair-self-intersections repairs every "
         "face crossing another). --method "
         "poisson solves CGAL's (unscreened) Poisson reconstruction and gives a closed surface; "
@@ -88,8 +91,8 @@ const cli::ToolSpec kSpec{
                         "front, poisson or advancing-front")(
             "watertight", "close every hole: the result is a closed 2-manifold")(
             "no-carve-closure",
-            "--watertight: keep the faired hole patches as they are (default: carved back out "
-            "of the space at least two sensors saw empty)")(
+            "--watertight: keep the faired hole patches and a ground base's sides as they are "
+            "(default: carved back out of the space at least two sensors saw empty)")(
             "repair-self-intersections",
             "remove the faces that cross others and refill their holes, last (a closed mesh "
             "then bounds a volume; see the report's self_intersections)")(

@@ -133,8 +133,9 @@ SupportPlane support_plane(const std::vector<Eigen::Vector3d>& rim, const Eigen:
 /// Vertices already below it drop a twentieth of a mean edge, so no wall triangle is degenerate.
 /// Two triangles per loop edge. Returns a border halfedge of the new loop (planar but for those
 /// few vertices).
-Mesh::Halfedge_index extrude_to_support(Mesh& mesh, Mesh::Halfedge_index h,
-                                        const SupportPlane& support, const Eigen::Vector3d& up) {
+Mesh::Halfedge_index extrude_to_support(
+    Mesh& mesh, Mesh::Halfedge_index h, const SupportPlane& support, const Eigen::Vector3d& up,
+    std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>>* walls) {
     const double drop_rate = std::max(-support.down.dot(up), 1e-3);  // > cos 30 for a cut
     std::vector<Mesh::Vertex_index> top;
     double edge = 0;
@@ -151,6 +152,8 @@ Mesh::Halfedge_index extrude_to_support(Mesh& mesh, Mesh::Halfedge_index h,
         const double drop = std::max(min_drop, -(a - support.point).dot(support.down) / drop_rate);
         bottom[i] = mesh.add_vertex(to_point(a - drop * up));
     }
+    if (walls)
+        for (std::size_t i = 0; i < n; ++i) walls->emplace_back(top[i], bottom[i]);
     for (std::size_t i = 0; i < n; ++i) {
         const std::size_t j = (i + 1) % n;
         mesh.add_face(top[i], top[j], bottom[j]);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 #include "toolkit/mesh.hpp"
@@ -59,9 +60,10 @@ SupportPlane support_plane(const std::vector<Eigen::Vector3d>& rim, const Eigen:
 /// Extends the loop of border halfedge h straight down (along -up) to the support plane.
 /// Vertices already below it drop a twentieth of a mean edge, so no wall triangle is degenerate.
 /// Two triangles per loop edge. Returns a border halfedge of the new loop (planar but for those
-/// few vertices).
-Mesh::Halfedge_index extrude_to_support(Mesh& mesh, Mesh::Halfedge_index h,
-                                        const SupportPlane& support, const Eigen::Vector3d& up);
+/// few vertices). `walls` (optional) receives each wall's (top, bottom) vertices in loop order.
+Mesh::Halfedge_index extrude_to_support(
+    Mesh& mesh, Mesh::Halfedge_index h, const SupportPlane& support, const Eigen::Vector3d& up,
+    std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>>* walls = nullptr);
 
 /// With up: the loops that make up the cut the object stood on. The support cuts
 /// (is_support_cut) and every other loop of at least 8 edges that lies at the bottom: within

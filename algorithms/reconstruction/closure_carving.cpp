@@ -110,4 +110,140 @@ std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
     return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));
 }
 
+namespace {
+
+/// Distance from a along unit direction d (2D) to the nearest crossing of the closed polygon
+/// `loop` (2D), without the two edges at its vertex i; +inf when there is none.
+double ray_to_polygon(const std::vector<Eigen::Vector2d>& loop, std::size_t i,
+                      const Eigen::Vector2d& a, const Eigen::Vector2d& d) {
+    const std::size_t n = loop.size();
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t l = (k + 1) % n;
+        if (k == i || l == i) continue;
+        const Eigen::Vector2d e = loop[l] - loop[k];
+        const double den = d.x() * e.y() - d.y() * e.x();
+        if (std::abs(den) < 1e-15) continue;
+        const Eigen::Vector2d w = loop[k] - a;
+        const double t = (w.x() * e.y() - w.y() * e.x()) / den;  // along d
+        const double u = (w.x() * d.y() - w.y() * d.x()) / den;  // along e
+        if (t > 0 && u >= 0 && u <= 1) best = std::min(best, t);
+    }
+    return best;
+}
+
+/// Whether the closed polygon `loop` (2D) is simple: no two edges that do not share a vertex
+/// cross or touch.
+bool is_simple(const std::vector<Eigen::Vector2d>& loop) {
+    const std::size_t n = loop.size();
+    const auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                          const Eigen::Vector2d& c) {
+        return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector2d &a = loop[i], &b = loop[(i + 1) % n];
+        for (std::size_t j = i + 2; j < n; ++j) {
+            if (i == 0 && j == n - 1) continue;  // neighbours through the first vertex
+            const Eigen::Vector2d &c = loop[j], &d = loop[(j + 1) % n];
+            const double d1 = cross(a, b, c), d2 = cross(a, b, d);
+            const double d3 = cross(c, d, a), d4 = cross(c, d, b);
+            if (((d1 <= 0 && d2 >= 0) || (d1 >= 0 && d2 <= 0)) &&
+                ((d3 <= 0 && d4 >= 0) || (d3 >= 0 && d4 <= 0)))
+                return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+std::size_t carve_walls(Mesh& mesh,
+                        const std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>>& walls,
+                        const Eigen::Vector3d& point, const Eigen::Vector3d& down,
+                        const SeenEmpty& seen_empty, int max_steps) {
+    const std::size_t n = walls.size();
+    if (n < 8 || !seen_empty || max_steps <= 0) return 0;
+    // The base plane's frame: normal u (up), axes a and b in it.
+    const Eigen::Vector3d u = -down.normalized();
+    const Eigen::Vector3d seed =
+        std::abs(u.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d a = (seed - seed.dot(u) * u).normalized(), b = u.cross(a);
+    std::vector<Eigen::Vector3d> top(n), foot(n);
+    std::vector<Eigen::Vector2d> loop(n);
+    double length = 0, area = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        top[i] = to_eigen(mesh.point(walls[i].first));
+        foot[i] = to_eigen(mesh.point(walls[i].second));
+        loop[i] = {(top[i] - point).dot(a), (top[i] - point).dot(b)};
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t j = (i + 1) % n;
+        length += (top[j] - top[i]).norm();
+        area += loop[i].x() * loop[j].y() - loop[j].x() * loop[i].y();
+    }
+    const double step = 0.5 * length / static_cast<double>(n);
+    if (!(step > 0) || area == 0) return 0;
+    // Outward in the plane: the loop's edges turned a right angle away from its inside (the
+    // sign of its area about u), averaged at each vertex.
+    const double side = area > 0 ? 1.0 : -1.0;
+    std::vector<Eigen::Vector3d> outward(n);
+    std::vector<double> deepest(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector2d e0 = loop[i] - loop[(i + n - 1) % n],
+                              e1 = loop[(i + 1) % n] - loop[i];
+        Eigen::Vector2d o = Eigen::Vector2d(e0.y(), -e0.x()) + Eigen::Vector2d(e1.y(), -e1.x());
+        if (o.squaredNorm() < 1e-24) continue;
+        o = side * o.normalized();
+        outward[i] = o.x() * a + o.y() * b;
+        const double across = ray_to_polygon(loop, i, loop[i], -o);
+        deepest[i] = std::isfinite(across) ? 0.4 * across : 0.0;
+    }
+    std::vector<double> depth(n, 0.0), smoothed(n);
+    std::vector<char> empty(n, 0);
+    const auto foot_at = [&](std::size_t i, double d) { return foot[i] - d * outward[i]; };
+    for (int k = 0; k < max_steps; ++k) {
+        tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+            empty[i] = 0;
+            if (depth[i] + step > deepest[i]) return;
+            const Eigen::Vector3d f = foot_at(i, depth[i]), wall = f - top[i];
+            if (wall.squaredNorm() < 1e-18) return;
+            const Eigen::Vector3d along = wall.normalized();
+            Eigen::Vector3d normal = outward[i] - outward[i].dot(along) * along;
+            if (normal.squaredNorm() < 1e-18) return;
+            normal.normalize();
+            for (const double t : {1.0 / 3.0, 2.0 / 3.0})
+                if (seen_empty(top[i] + t * wall, normal)) {
+                    empty[i] = 1;
+                    return;
+                }
+        });
+        if (std::find(empty.begin(), empty.end(), 1) == empty.end()) break;
+        for (std::size_t i = 0; i < n; ++i)
+            if (empty[i]) depth[i] += step;
+        for (std::size_t i = 0; i < n; ++i)
+            smoothed[i] = std::min(
+                deepest[i], 0.5 * depth[i] + 0.25 * (depth[(i + n - 1) % n] + depth[(i + 1) % n]));
+        depth.swap(smoothed);
+    }
+    // The base must stay a simple polygon to be capped: where feet moved in from opposite sides
+    // of a narrow part cross, every displacement is halved until they do not (none at the last).
+    std::vector<Eigen::Vector2d> feet(n);
+    for (int halving = 0;; ++halving) {
+        for (std::size_t i = 0; i < n; ++i) {
+            const Eigen::Vector3d f = foot_at(i, depth[i]) - point;
+            feet[i] = {f.dot(a), f.dot(b)};
+        }
+        if (is_simple(feet)) break;
+        for (double& d : depth) d = halving < 4 ? 0.5 * d : 0.0;
+        if (halving >= 4) break;
+    }
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        if (depth[i] > 0) {
+            mesh.point(walls[i].second) = to_point(foot_at(i, depth[i]));
+            ++count;
+        }
+    return count;
+}
+
 }  // namespace rgbd::reconstruction::internal

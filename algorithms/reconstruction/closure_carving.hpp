@@ -4,7 +4,9 @@
 // outward and carves each patch back to the boundary of that space.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 #include "algorithms/reconstruction/mesh_finishing.hpp"
@@ -35,6 +37,24 @@ std::size_t orient_outward(Mesh& mesh);
 /// of vertices seen empty at least once.
 std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
                         const std::vector<Mesh::Vertex_index>& vertices,
+                        const SeenEmpty& seen_empty, int max_steps);
+
+/// Space carving of the walls of a base that rests on the ground (close_holes, before the base
+/// is capped): each wall runs from a rim vertex (`walls[i].first`, measured, fixed) down to its
+/// foot on the base plane (`walls[i].second`; the walls in loop order, the plane through `point`
+/// with downward unit normal `down`). A straight wall is a skirt round a bottom that curves inward
+/// below the last rim the sensors kept (a seated bear, a bevelled plinth): the sensors saw the
+/// floor through it. Each step moves the feet the wall was seen empty at (`seen_empty` at a third
+/// and two thirds of the way down, with the wall's outward normal) inward in the base plane, along
+/// the rim's outward normal there, by half the rim's mean edge length, then smooths the feet's
+/// displacements once along the loop; until no wall is seen empty or after `max_steps` steps. No
+/// foot goes further in than 0.4 of the way across the base (along its inward direction to the
+/// loop's far side), so that the base keeps its extent where the evidence is noisy, and the feet
+/// stay a simple polygon (all displacements halved until they do; none after 4 halvings).
+/// Returns the number of feet moved.
+std::size_t carve_walls(Mesh& mesh,
+                        const std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>>& walls,
+                        const Eigen::Vector3d& point, const Eigen::Vector3d& down,
                         const SeenEmpty& seen_empty, int max_steps);
 
 }  // namespace rgbd::reconstruction::internal

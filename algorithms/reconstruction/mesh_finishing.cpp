@@ -183,6 +183,36 @@ double median_edge_length(const Mesh& mesh, const std::vector<Halfedge>& borders
     return lengths.empty() ? 0.0 : rank_quantile(lengths, 0.5);
 }
 
+/// The sides of a cut's loop `h` carried down to the base (extrude_to_support): to the shared
+/// `support` plane, or, off the ground, to the loop's own rim when the shared plane lies lower
+/// (counted in `own_rim`); on the ground, carved out of the space the sensors saw empty
+/// (carve_walls, the feet moved counted in `feet_moved`). Returns the new bottom loop.
+Halfedge cut_walls(Mesh& mesh, Halfedge h, const SupportPlane& support, const Eigen::Vector3d& up,
+                   bool on_ground, const SeenEmpty& seen_empty, int carve_steps,
+                   std::size_t& own_rim, std::size_t& feet_moved) {
+    // No skirt: without the ground, a loop's walls never go further down than its own rim's
+    // deep quintile (plus its noise); a plane pooled with lower loops (an island of noise below,
+    // a ragged part) would carry them through space the sensors saw empty.
+    SupportPlane own = support;
+    if (!on_ground) {
+        const std::vector<Eigen::Vector3d> points = loop_points(mesh, h);
+        const SupportPlane mine = support_plane(points, up);
+        const LoopPlane plane = fit_loop_plane(points);
+        const double below = (support.point - mine.point).dot(mine.down);
+        if (below > std::max(0.002, 3.0 * plane.robust_rms)) {
+            own = mine;
+            ++own_rim;
+        }
+    }
+    // On the ground: the walls carved out of the space the sensors saw empty (the floor seen
+    // through a skirt round a rounded bottom).
+    std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>> walls;
+    h = extrude_to_support(mesh, h, own, up, on_ground ? &walls : nullptr);
+    if (on_ground && seen_empty && carve_steps > 0)
+        feet_moved += carve_walls(mesh, walls, own.point, own.down, seen_empty, carve_steps);
+    return h;
+}
+
 /// Where the base of the cut the object stood on goes (docs/algorithms.md §14). `support` is
 /// the rim's own plane at its deep quintile (support_loops); `rim` its vertices, flagged in
 /// `on_support` among `borders`. With a ground that the rim reaches (its deep quintile within the
@@ -263,7 +293,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     };
     // Faired or refined patches, and bases not on the ground: carved once all are closed.
     std::vector<Patch> patches;
-    std::size_t carvable_cuts = 0;
+    std::size_t carvable_cuts = 0, feet_moved = 0;
     const std::size_t faces_before = mesh.number_of_faces();
     SupportPlane support;
     std::vector<Eigen::Vector3d> rim;
@@ -273,6 +303,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     Report base;
     if (up && !rim.empty())
         base = place_base(mesh, borders, on_support, rim, *up, ground, ground_margin_m, support);
+    const bool on_ground = base.is_object() && base.value("kind", std::string()) == "ground";
     for (std::size_t loop = 0; loop < borders.size(); ++loop) {
         Halfedge h = borders[loop];
         if (!mesh.is_border(h)) continue;  // closed by an earlier fill
@@ -296,24 +327,9 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
         if (cut) {
             // The object stood on its cut: the sides go down to it (the sensors rarely see
             // their last millimetres), then the base is flat.
-            if (up) {
-                // No skirt: without the ground, a loop's walls never go further down than its
-                // own rim's deep quintile (plus its noise); a plane pooled with lower loops (an
-                // island of noise below, a ragged part) would carry them through space the
-                // sensors saw empty.
-                SupportPlane own = support;
-                if (base.value("kind", std::string()) != "ground") {
-                    const std::vector<Eigen::Vector3d> points = loop_points(mesh, h);
-                    const SupportPlane mine = support_plane(points, *up);
-                    const LoopPlane plane = fit_loop_plane(points);
-                    const double below = (support.point - mine.point).dot(mine.down);
-                    if (below > std::max(0.002, 3.0 * plane.robust_rms)) {
-                        own = mine;
-                        ++own_rim;
-                    }
-                }
-                h = extrude_to_support(mesh, h, own, *up);
-            }
+            if (up)
+                h = cut_walls(mesh, h, support, *up, on_ground, seen_empty, carve_steps, own_rim,
+                              feet_moved);
             PMP::triangulate_and_refine_hole(mesh, h, std::back_inserter(faces),
                                              std::back_inserter(vertices), np);
             ok = !faces.empty();
@@ -321,7 +337,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
             // A base at the rim's own height (not on the detected ground) is a guess like a
             // faired patch: carved alike where the sensors saw through it (a rounded underside,
             // the bear's). A base on the ground rests on measured support: it stays.
-            if (ok && base.value("kind", std::string()) != "ground") {
+            if (ok && !on_ground) {
                 patches.push_back({std::move(faces), std::move(vertices)});
                 ++carvable_cuts;
             }
@@ -384,6 +400,7 @@ Report close_holes(Mesh& mesh, const std::optional<Eigen::Vector3d>& up_in,
     r["seen_through"] = left_open;
     r["carved_patches"] = carved;
     r["carved_vertices"] = carved_vertices;
+    r["carved_wall_feet"] = feet_moved;
     r["components_reversed"] = reversed;
     r["largest_hole_edges"] = largest;
     if (up)

@@ -48,11 +48,13 @@ std::size_t drop_small_components(Mesh& mesh, double min_fraction);
 /// `seen_empty` (whether a sensor saw the point with that outward normal as empty space), every
 /// faired or refined patch, and the flat base of a cut that does not rest on the ground (report:
 /// flat_cuts_carvable), is carved back out of that space, for at most `carve_steps` steps (0 = not
-/// carved; report: carved_patches, carved_vertices): displaced inward along its normals where it
-/// was seen empty, smoothly, no deeper than half a vertex's distance to the rim; then the patches
-/// with more than `seen_through_max` of their face centres still seen empty are counted (report:
-/// seen_through): surface the sensors contradict. They are kept. The result is closed
-/// (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans, faces_added,
+/// carved; report: carved_patches, carved_vertices; the walls of a base that rests on the ground
+/// are carved before it is capped, their feet moved inward on the base plane while the sensors saw
+/// through them: closure_carving.hpp carve_walls, report carved_wall_feet): displaced inward along
+/// its normals where it was seen empty, smoothly, no deeper than half a vertex's distance to the
+/// rim; then the patches with more than `seen_through_max` of their face centres still seen empty
+/// are counted (report: seen_through): surface the sensors contradict. They are kept. The result is
+/// closed (CGAL::is_closed). Report: holes, faired, refined, flat_cuts, fans, faces_added,
 /// largest_hole_edges, up (null when unknown), base ("ground" or "rim", with rim_above_ground_m,
 /// reach_m and rim_tilt_deg, the cut's tilt to the ground, when a ground is known), time_s. `added`
 /// (optional) receives the faces created.

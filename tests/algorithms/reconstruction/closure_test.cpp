@@ -265,3 +265,53 @@ TEST(ReconstructSurface, AnObliqueCutRestsOnTheGroundInItsOwnPlane) {
     ASSERT_TRUE(rgbd::internal::fit_plane(base, -up, normal, offset));
     EXPECT_NEAR(std::acos(std::abs(normal.z())) * 180.0 / M_PI, 10.0, 1.0);
 }
+
+// A bottom that curves inward below the last rim the sensors kept (a seated bear, a bevelled
+// plinth) stands on the ground: straight walls from the rim down to it are a skirt through space
+// the sensors saw empty (they saw the floor through it). The walls' feet move inward until the
+// walls are no longer seen through; where the truth goes straight down, they stay.
+TEST(ReconstructSurface, TheWallsOfAGroundBaseAreCarvedToTheSpaceTheSensorsSawEmpty) {
+    const Eigen::Vector3d up(0, 0, -1);
+    const double rim_polar = 42.0 * M_PI / 180.0;  // the first ring kept below a 40 deg hole
+    const double rim_z = kRadius * std::cos(rim_polar), rim_r = kRadius * std::sin(rim_polar);
+    const double ground_z = rim_z + 0.014;  // 2 rim edges below the rim: the base is on it
+    const double truth_r = std::sqrt(kRadius * kRadius - ground_z * ground_z);  // 46.9 mm
+    const Eigen::Vector4d ground(up.x(), up.y(), up.z(), ground_z);
+    // The feet: the closure's vertices on the ground, at the base's rim (largest radius).
+    auto base_radius = [&](const Mesh& mesh, std::size_t before) {
+        double r = 0;
+        for (auto v : mesh.vertices()) {
+            const auto& p = mesh.point(v);
+            if (std::size_t(v) >= before && std::abs(p.z() - ground_z) < 1e-4)
+                r = std::max(r, std::hypot(p.x(), p.y()));
+        }
+        return r;
+    };
+    // The truth is the sphere: outside it (above the ground) the sensors saw empty space.
+    const rgbd::reconstruction::internal::SeenEmpty sphere = [&](const Eigen::Vector3d& p,
+                                                                 const Eigen::Vector3d&) {
+        return p.norm() > kRadius + 0.001 && p.z() < ground_z - 0.001;
+    };
+    Mesh carved = sphere_with_crown_hole(40, false);
+    const std::size_t before = carved.number_of_vertices();
+    const rgbd::Report report = rgbd::reconstruction::internal::close_holes(
+        carved, up, 1000, nullptr, ground, 0.003, sphere, 0.5, 40);
+    ASSERT_TRUE(CGAL::is_closed(carved));
+    EXPECT_EQ(report["base"]["kind"], "ground") << report.dump();
+    EXPECT_GT(report["carved_wall_feet"].get<int>(), 50) << report.dump();
+    // From the rim's 66.9 mm to within a step (3.5 mm) of where the sphere's chord from the rim
+    // stops being seen through (about 50 mm), never inside the truth's own footprint.
+    EXPECT_LT(base_radius(carved, before), 54e-3) << report.dump();
+    EXPECT_GT(base_radius(carved, before), truth_r - 0.002) << report.dump();
+    // The truth goes straight down from the rim (a cylinder): the walls stay where they are.
+    const rgbd::reconstruction::internal::SeenEmpty cylinder = [&](const Eigen::Vector3d& p,
+                                                                   const Eigen::Vector3d&) {
+        return std::hypot(p.x(), p.y()) > rim_r + 0.001 && p.z() < ground_z - 0.001;
+    };
+    Mesh straight = sphere_with_crown_hole(40, false);
+    const rgbd::Report kept = rgbd::reconstruction::internal::close_holes(
+        straight, up, 1000, nullptr, ground, 0.003, cylinder, 0.5, 40);
+    ASSERT_TRUE(CGAL::is_closed(straight));
+    EXPECT_EQ(kept["carved_wall_feet"].get<int>(), 0) << kept.dump();
+    EXPECT_NEAR(base_radius(straight, before), rim_r, 1e-3) << kept.dump();
+}
