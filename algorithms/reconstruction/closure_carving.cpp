@@ -125,19 +125,21 @@ double ray_to_polygon(const std::vector<Eigen::Vector2d>& loop, std::size_t i,
         const double den = d.x() * e.y() - d.y() * e.x();
         if (std::abs(den) < 1e-15) continue;
         const Eigen::Vector2d w = loop[k] - a;
-        const double t = (w.x() * e.y() - w.y() * e.x()) / den;  // along d
-        const double u = (w.x() * d.y() - w.y() * d.x()) / den;  // along e
-        if (t > 0 && u >= 0 && u <= 1) best = std::min(best, t);
+        const double t = (w.x() * e.y() - w.y() * e.x()) / den;              // along d
+        const double u = (w.x() * d.y() - w.y() * d.x()) / den;              // along e
+        if (t > 0 && u >= -1e-9 && u <= 1 + 1e-9) best = std::min(best, t);  // vertices too
     }
     return best;
 }
 
-/// Whether the closed polygon `loop` (2D) is simple: no two edges that do not share a vertex
-/// cross or touch.
-bool is_simple(const std::vector<Eigen::Vector2d>& loop) {
+/// The pairs (i, j) of edges (edge k joins vertices k and k + 1) of the closed polygon `loop`
+/// (2D) that do not share a vertex and cross properly (each edge's ends strictly on both sides of
+/// the other's line), into `out`.
+void crossing_edges(const std::vector<Eigen::Vector2d>& loop,
+                    std::vector<std::pair<std::size_t, std::size_t>>& out) {
     const std::size_t n = loop.size();
-    const auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                          const Eigen::Vector2d& c) {
+    const auto side = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                         const Eigen::Vector2d& c) {
         return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
     };
     for (std::size_t i = 0; i < n; ++i) {
@@ -145,14 +147,10 @@ bool is_simple(const std::vector<Eigen::Vector2d>& loop) {
         for (std::size_t j = i + 2; j < n; ++j) {
             if (i == 0 && j == n - 1) continue;  // neighbours through the first vertex
             const Eigen::Vector2d &c = loop[j], &d = loop[(j + 1) % n];
-            const double d1 = cross(a, b, c), d2 = cross(a, b, d);
-            const double d3 = cross(c, d, a), d4 = cross(c, d, b);
-            if (((d1 <= 0 && d2 >= 0) || (d1 >= 0 && d2 <= 0)) &&
-                ((d3 <= 0 && d4 >= 0) || (d3 >= 0 && d4 <= 0)))
-                return false;
+            if (side(a, b, c) * side(a, b, d) < 0 && side(c, d, a) * side(c, d, b) < 0)
+                out.emplace_back(i, j);
         }
     }
-    return true;
 }
 
 }  // namespace
@@ -184,19 +182,32 @@ std::size_t carve_walls(Mesh& mesh,
     const double step = 0.5 * length / static_cast<double>(n);
     if (!(step > 0) || area == 0) return 0;
     // Outward in the plane: the loop's edges turned a right angle away from its inside (the
-    // sign of its area about u), averaged at each vertex.
+    // sign of its area about u), summed over the w edges on each side of a vertex (the chord
+    // from w vertices before it to w after, turned): a ragged rim's own edges point every way,
+    // and feet moved along them crossed each other (the bear in a room: 140 crossings, the rim
+    // 4).
     const double side = area > 0 ? 1.0 : -1.0;
-    std::vector<Eigen::Vector3d> outward(n);
+    const std::size_t w = std::clamp<std::size_t>(n / 16, 2, 8);
+    std::vector<Eigen::Vector3d> outward(n, Eigen::Vector3d::Zero());
     std::vector<double> deepest(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector2d e0 = loop[i] - loop[(i + n - 1) % n],
-                              e1 = loop[(i + 1) % n] - loop[i];
-        Eigen::Vector2d o = Eigen::Vector2d(e0.y(), -e0.x()) + Eigen::Vector2d(e1.y(), -e1.x());
+        const Eigen::Vector2d chord = loop[(i + w) % n] - loop[(i + n - w) % n];
+        Eigen::Vector2d o(chord.y(), -chord.x());
         if (o.squaredNorm() < 1e-24) continue;
         o = side * o.normalized();
         outward[i] = o.x() * a + o.y() * b;
         const double across = ray_to_polygon(loop, i, loop[i], -o);
         deepest[i] = std::isfinite(across) ? 0.4 * across : 0.0;
+    }
+    // Round a convex bend the feet moved inward converge: those w vertices apart meet after a
+    // displacement of about their distance over their normals' difference (the bend's radius);
+    // no foot goes beyond 0.7 of it (a leg's rounded end).
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t j0 = (i + n - w) % n, j1 = (i + w) % n;
+        const Eigen::Vector3d apart = (top[j1] - top[j0]) - (top[j1] - top[j0]).dot(u) * u;
+        const Eigen::Vector3d turn = outward[j1] - outward[j0];
+        if (apart.dot(turn) > 0 && turn.norm() > 1e-9)
+            deepest[i] = std::min(deepest[i], 0.7 * apart.norm() / turn.norm());
     }
     std::vector<double> depth(n, 0.0), smoothed(n);
     std::vector<char> empty(n, 0);
@@ -225,17 +236,36 @@ std::size_t carve_walls(Mesh& mesh,
                 deepest[i], 0.5 * depth[i] + 0.25 * (depth[(i + n - 1) % n] + depth[(i + 1) % n]));
         depth.swap(smoothed);
     }
-    // The base must stay a simple polygon to be capped: where feet moved in from opposite sides
-    // of a narrow part cross, every displacement is halved until they do not (none at the last).
+    // The base is capped as a polygon: where feet cross (moved in from both sides of a narrow
+    // part, or round a concave bend of the rim), the displacements of the crossing edges' feet
+    // and of their w neighbours are halved, round after round, until the feet cross no more
+    // often than the rim's own ragged loop did (every displacement dropped after 8 rounds).
     std::vector<Eigen::Vector2d> feet(n);
-    for (int halving = 0;; ++halving) {
+    std::vector<std::pair<std::size_t, std::size_t>> crossed;
+    const auto feet_cross = [&] {
         for (std::size_t i = 0; i < n; ++i) {
             const Eigen::Vector3d f = foot_at(i, depth[i]) - point;
             feet[i] = {f.dot(a), f.dot(b)};
         }
-        if (is_simple(feet)) break;
-        for (double& d : depth) d = halving < 4 ? 0.5 * d : 0.0;
-        if (halving >= 4) break;
+        crossed.clear();
+        crossing_edges(feet, crossed);
+        return crossed.size();
+    };
+    std::vector<double> moved_depth = depth;
+    std::fill(depth.begin(), depth.end(), 0.0);
+    const std::size_t allowed = feet_cross();
+    depth = moved_depth;
+    for (int round = 0; feet_cross() > allowed; ++round) {
+        if (round == 8) {
+            std::fill(depth.begin(), depth.end(), 0.0);
+            break;
+        }
+        std::vector<char> halve(n, 0);
+        for (const auto& [i, j] : crossed)
+            for (const std::size_t e : {i, j})
+                for (std::size_t k = 0; k <= 2 * w + 1; ++k) halve[(e + n - w + k) % n] = 1;
+        for (std::size_t i = 0; i < n; ++i)
+            if (halve[i]) depth[i] *= 0.5;
     }
     std::size_t count = 0;
     for (std::size_t i = 0; i < n; ++i)

@@ -45,12 +45,16 @@ std::size_t carve_patch(Mesh& mesh, const std::vector<Mesh::Face_index>& faces,
 /// with downward unit normal `down`). A straight wall is a skirt round a bottom that curves inward
 /// below the last rim the sensors kept (a seated bear, a bevelled plinth): the sensors saw the
 /// floor through it. Each step moves the feet the wall was seen empty at (`seen_empty` at a third
-/// and two thirds of the way down, with the wall's outward normal) inward in the base plane, along
-/// the rim's outward normal there, by half the rim's mean edge length, then smooths the feet's
-/// displacements once along the loop; until no wall is seen empty or after `max_steps` steps. No
-/// foot goes further in than 0.4 of the way across the base (along its inward direction to the
-/// loop's far side), so that the base keeps its extent where the evidence is noisy, and the feet
-/// stay a simple polygon (all displacements halved until they do; none after 4 halvings).
+/// and two thirds of the way down, with the wall's outward normal) inward in the base plane by
+/// half the rim's mean edge length, along the rim's outward direction there (the chord between
+/// the loop's vertices w = n/16, 2 to 8, before and after it, turned a right angle: a ragged
+/// rim's own edges point every way), then smooths the feet's displacements once along the loop;
+/// until no wall is seen empty or after `max_steps` steps. No foot goes further in than 0.4 of the
+/// way across the base (along its inward direction to the loop's far side), nor than 0.7 of the
+/// radius of a convex bend (where feet moved inward converge), so that the base keeps its extent
+/// where the evidence is noisy. The base is capped as a polygon: where the feet still cross, the
+/// displacements round the crossing edges are halved, round after round, until they cross no more
+/// often than the rim's own ragged loop does (all dropped after 8 rounds).
 /// Returns the number of feet moved.
 std::size_t carve_walls(Mesh& mesh,
                         const std::vector<std::pair<Mesh::Vertex_index, Mesh::Vertex_index>>& walls,
