@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "algorithms/internal/plane_fit.hpp"
@@ -314,4 +315,68 @@ TEST(ReconstructSurface, TheWallsOfAGroundBaseAreCarvedToTheSpaceTheSensorsSawEm
     ASSERT_TRUE(CGAL::is_closed(straight));
     EXPECT_EQ(kept["carved_wall_feet"].get<int>(), 0) << kept.dump();
     EXPECT_NEAR(base_radius(straight, before), rim_r, 1e-3) << kept.dump();
+}
+
+// Feet carved inward on a ragged star-shaped base (convex tips where they converge, concave
+// notches where they spread) as far as they may go, everything above the ground seen empty: the
+// cap stays a polygon (a folded cap overlaps itself in the base plane, and its faces' unsigned
+// area exceeds the signed one). Here the limits (0.7 of a bend's radius, 0.4 across) keep the feet
+// apart by themselves; the bear's crossings, which the untangling removes, are measured in
+// validation/results/2026-12-08-skirts-carved-by-the-floor.md.
+TEST(ReconstructSurface, FeetCarvedAsFarAsTheyMayGoLeaveACapThatDoesNotOverlapItself) {
+    const Eigen::Vector3d up(0, 0, -1);
+    const double ground_z = 0.01;  // the rim lies at z = 0, 1 cm above the ground
+    Mesh mesh;
+    constexpr int kTips = 12, kPerEdge = 4, kRings = 6;
+    constexpr int kAround = 2 * kTips * kPerEdge;
+    std::vector<Eigen::Vector2d> star;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> jitter(-1.0, 1.0);
+    for (int k = 0; k < 2 * kTips; ++k) {
+        const double r0 = k % 2 ? 0.03 : 0.06, r1 = k % 2 ? 0.06 : 0.03;
+        const double t0 = k * M_PI / kTips, t1 = (k + 1) * M_PI / kTips;
+        for (int s = 0; s < kPerEdge; ++s) {
+            const double f = double(s) / kPerEdge;
+            // A ragged rim, as the sensors leave it: each vertex off by up to 2 mm.
+            star.push_back((1 - f) * r0 * Eigen::Vector2d(std::cos(t0), std::sin(t0)) +
+                           f * r1 * Eigen::Vector2d(std::cos(t1), std::sin(t1)) +
+                           0.002 * Eigen::Vector2d(jitter(rng), jitter(rng)));
+        }
+    }
+    std::vector<std::vector<Mesh::Vertex_index>> rings(kRings);
+    for (int r = 0; r < kRings; ++r)
+        for (const auto& p : star) rings[r].push_back(mesh.add_vertex({p.x(), p.y(), -0.02 * r}));
+    for (int r = 0; r + 1 < kRings; ++r)
+        for (int i = 0; i < kAround; ++i) {
+            const int j = (i + 1) % kAround;
+            mesh.add_face(rings[r][i], rings[r][j], rings[r + 1][j]);
+            mesh.add_face(rings[r][i], rings[r + 1][j], rings[r + 1][i]);
+        }
+    const std::size_t before = mesh.number_of_vertices();
+    const rgbd::reconstruction::internal::SeenEmpty everywhere =
+        [&](const Eigen::Vector3d& p, const Eigen::Vector3d&) { return p.z() < ground_z - 0.001; };
+    const rgbd::Report report = rgbd::reconstruction::internal::close_holes(
+        mesh, up, 1000, nullptr, Eigen::Vector4d(up.x(), up.y(), up.z(), ground_z), 0.003,
+        everywhere, 0.5, 40);
+    ASSERT_TRUE(CGAL::is_closed(mesh));
+    ASSERT_EQ(report["base"]["kind"], "ground") << report.dump();
+    EXPECT_GT(report["carved_wall_feet"].get<int>(), kAround / 2) << report.dump();
+    // The cap: the faces with all corners on the ground.
+    double signed_area = 0, unsigned_area = 0;
+    for (auto f : mesh.faces()) {
+        std::array<Eigen::Vector3d, 3> q;
+        int k = 0;
+        bool on = true;
+        for (auto v : CGAL::vertices_around_face(mesh.halfedge(f), mesh)) {
+            const auto& p = mesh.point(v);
+            on = on && std::size_t(v) >= before && std::abs(p.z() - ground_z) < 1e-6;
+            q[k++] = Eigen::Vector3d(p.x(), p.y(), p.z());
+        }
+        if (!on) continue;
+        const double a = 0.5 * (q[1] - q[0]).cross(q[2] - q[0]).z();
+        signed_area += a;
+        unsigned_area += std::abs(a);
+    }
+    ASSERT_GT(unsigned_area, 1e-4) << report.dump();
+    EXPECT_NEAR(std::abs(signed_area), unsigned_area, 0.01 * unsigned_area) << report.dump();
 }
