@@ -153,6 +153,82 @@ void crossing_edges(const std::vector<Eigen::Vector2d>& loop,
     }
 }
 
+/// The feet of carve_walls (`foot` moved inward by `depth` along `outward`), made to cross each
+/// other no more often than the unmoved feet do (the plane through `point` with axes `a`, `b`; `w`
+/// the chord's reach, `step` the carving step).
+std::vector<Eigen::Vector3d> untangled_feet(const std::vector<Eigen::Vector3d>& foot,
+                                            const std::vector<Eigen::Vector3d>& outward,
+                                            std::vector<double> depth, const Eigen::Vector3d& point,
+                                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                            std::size_t w, double step) {
+    // The base is capped as a polygon. Feet moved inward round a convex bend converge and cross,
+    // leaving a small loop (a swallowtail, as on any inward offset curve): the feet of its
+    // shorter side (at most a quarter of the loop) are put on the chord that cuts it off, round
+    // after round, until the feet cross no more often than the rim's own ragged loop did. If that
+    // fails within 8 rounds, the displacements round the crossing edges are halved instead,
+    // round after round (every displacement dropped after 8 more).
+    const std::size_t n = foot.size();
+    const auto foot_at = [&](std::size_t i, double d) { return foot[i] - d * outward[i]; };
+    std::vector<Eigen::Vector3d> placed(n);
+    std::vector<Eigen::Vector2d> flat(n);
+    std::vector<std::pair<std::size_t, std::size_t>> crossed;
+    const auto cross_count = [&] {
+        for (std::size_t i = 0; i < n; ++i) {
+            const Eigen::Vector3d f = placed[i] - point;
+            flat[i] = {f.dot(a), f.dot(b)};
+        }
+        crossed.clear();
+        crossing_edges(flat, crossed);
+        return crossed.size();
+    };
+    const auto place = [&](const std::vector<double>& d) {
+        for (std::size_t i = 0; i < n; ++i) placed[i] = foot_at(i, d[i]);
+    };
+    place(std::vector<double>(n, 0.0));
+    const std::size_t allowed = cross_count();
+    place(depth);
+    bool untangled = cross_count() <= allowed;
+    for (int round = 0; !untangled && round < 8; ++round) {
+        std::vector<char> taken(n, 0);
+        for (const auto& [i, j] : crossed) {
+            // Edges i and j cross: the feet i+1..j form one side, j+1..i the other.
+            const std::size_t inner = j - i, outer = n - inner;
+            const bool first = inner <= outer;
+            const std::size_t from = first ? i : j, count = first ? inner : outer;
+            if (count > n / 4) continue;  // not a swallowtail
+            bool free = true;
+            for (std::size_t k = 0; k <= count + 1 && free; ++k) free = !taken[(from + k) % n];
+            if (!free) continue;
+            const Eigen::Vector3d start = placed[from], end = placed[(from + count + 1) % n];
+            if ((end - start).norm() < 1e-3 * step) continue;  // no chord: feet would coincide
+            for (std::size_t k = 1; k <= count; ++k)
+                placed[(from + k) % n] = start + (double(k) / double(count + 1)) * (end - start);
+            for (std::size_t k = 0; k <= count + 1; ++k) taken[(from + k) % n] = 1;
+        }
+        untangled = cross_count() <= allowed;
+    }
+    for (int round = 0; !untangled; ++round) {
+        if (round == 0) {
+            place(depth);
+            cross_count();
+        }
+        if (round == 8) {
+            std::fill(depth.begin(), depth.end(), 0.0);
+            place(depth);
+            break;
+        }
+        std::vector<char> halve(n, 0);
+        for (const auto& [i, j] : crossed)
+            for (const std::size_t e : {i, j})
+                for (std::size_t k = 0; k <= 2 * w + 1; ++k) halve[(e + n - w + k) % n] = 1;
+        for (std::size_t i = 0; i < n; ++i)
+            if (halve[i]) depth[i] *= 0.5;
+        place(depth);
+        untangled = cross_count() <= allowed;
+    }
+    return placed;
+}
+
 }  // namespace
 
 std::size_t carve_walls(Mesh& mesh,
@@ -236,69 +312,8 @@ std::size_t carve_walls(Mesh& mesh,
                 deepest[i], 0.5 * depth[i] + 0.25 * (depth[(i + n - 1) % n] + depth[(i + 1) % n]));
         depth.swap(smoothed);
     }
-    // The base is capped as a polygon. Feet moved inward round a convex bend converge and cross,
-    // leaving a small loop (a swallowtail, as on any inward offset curve): the feet of its
-    // shorter side (at most a quarter of the loop) are put on the chord that cuts it off, round
-    // after round, until the feet cross no more often than the rim's own ragged loop did. If that
-    // fails within 8 rounds, the displacements round the crossing edges are halved instead,
-    // round after round (every displacement dropped after 8 more).
-    std::vector<Eigen::Vector3d> placed(n);
-    std::vector<Eigen::Vector2d> flat(n);
-    std::vector<std::pair<std::size_t, std::size_t>> crossed;
-    const auto cross_count = [&] {
-        for (std::size_t i = 0; i < n; ++i) {
-            const Eigen::Vector3d f = placed[i] - point;
-            flat[i] = {f.dot(a), f.dot(b)};
-        }
-        crossed.clear();
-        crossing_edges(flat, crossed);
-        return crossed.size();
-    };
-    const auto place = [&](const std::vector<double>& d) {
-        for (std::size_t i = 0; i < n; ++i) placed[i] = foot_at(i, d[i]);
-    };
-    place(std::vector<double>(n, 0.0));
-    const std::size_t allowed = cross_count();
-    place(depth);
-    bool untangled = cross_count() <= allowed;
-    for (int round = 0; !untangled && round < 8; ++round) {
-        std::vector<char> taken(n, 0);
-        for (const auto& [i, j] : crossed) {
-            // Edges i and j cross: the feet i+1..j form one side, j+1..i the other.
-            const std::size_t inner = j - i, outer = n - inner;
-            const bool first = inner <= outer;
-            const std::size_t from = first ? i : j, count = first ? inner : outer;
-            if (count > n / 4) continue;  // not a swallowtail
-            bool free = true;
-            for (std::size_t k = 0; k <= count + 1 && free; ++k) free = !taken[(from + k) % n];
-            if (!free) continue;
-            const Eigen::Vector3d start = placed[from], end = placed[(from + count + 1) % n];
-            if ((end - start).norm() < 1e-3 * step) continue;  // no chord: feet would coincide
-            for (std::size_t k = 1; k <= count; ++k)
-                placed[(from + k) % n] = start + (double(k) / double(count + 1)) * (end - start);
-            for (std::size_t k = 0; k <= count + 1; ++k) taken[(from + k) % n] = 1;
-        }
-        untangled = cross_count() <= allowed;
-    }
-    for (int round = 0; !untangled; ++round) {
-        if (round == 0) {
-            place(depth);
-            cross_count();
-        }
-        if (round == 8) {
-            std::fill(depth.begin(), depth.end(), 0.0);
-            place(depth);
-            break;
-        }
-        std::vector<char> halve(n, 0);
-        for (const auto& [i, j] : crossed)
-            for (const std::size_t e : {i, j})
-                for (std::size_t k = 0; k <= 2 * w + 1; ++k) halve[(e + n - w + k) % n] = 1;
-        for (std::size_t i = 0; i < n; ++i)
-            if (halve[i]) depth[i] *= 0.5;
-        place(depth);
-        untangled = cross_count() <= allowed;
-    }
+    const std::vector<Eigen::Vector3d> placed =
+        untangled_feet(foot, outward, depth, point, a, b, w, step);
     std::size_t count = 0;
     for (std::size_t i = 0; i < n; ++i)
         if ((placed[i] - foot[i]).squaredNorm() > 1e-18) {
