@@ -23,24 +23,26 @@ Report SourceMeasurements::to_json() const {
     return r;
 }
 
-std::string capture_root_of(const std::string& source, const std::string& sensor_id) {
-    if (source.empty() || sensor_id.empty()) return {};
+namespace {
+
+/// The capture folder a depth frame's path lies in, opened (capture_root_of), or null.
+std::shared_ptr<const io::Capture> capture_of(const std::string& source,
+                                              const std::string& sensor_id) {
+    if (source.empty() || sensor_id.empty()) return nullptr;
     fs::path dir = fs::path(source).parent_path();
     for (int level = 0; level < 4 && !dir.empty(); ++level, dir = dir.parent_path()) {
         std::error_code ec;
         if (!fs::is_directory(dir, ec)) continue;
         try {
-            const io::Capture capture = io::open_capture(dir);
-            if (capture.frames.count(sensor_id)) return dir.string();
+            auto capture = std::make_shared<const io::Capture>(io::open_capture(dir));
+            if (capture->frames.count(sensor_id)) return capture;
         } catch (const std::exception&) {
             // not a capture folder: one level up
         }
         if (dir == dir.parent_path()) break;
     }
-    return {};
+    return nullptr;
 }
-
-namespace {
 
 /// The frame of `view` in `capture`: its position in the sensor's frame list, or none.
 std::optional<std::size_t> frame_position(const io::Capture& capture, const ViewInfo& view) {
@@ -73,24 +75,36 @@ void back_project(const RgbdFrame& frame, const Pose& world_from_sensor,
 
 }  // namespace
 
+std::string capture_root_of(const std::string& source, const std::string& sensor_id) {
+    const auto capture = capture_of(source, sensor_id);
+    return capture ? capture->root.string() : std::string();
+}
+
 SourceMeasurements source_measurements(const std::vector<PointCloud>& views,
                                        const Eigen::AlignedBox3d& box, double ground_band) {
     SourceMeasurements result;
     // The captures the views come from, opened once (by the folder of their first source).
     std::map<std::string, std::shared_ptr<const io::Capture>> captures;
-    std::vector<std::pair<std::shared_ptr<const io::Capture>, std::size_t>> jobs(views.size());
+    struct Job {
+        std::shared_ptr<const io::Capture> capture;  ///< null: nothing to read
+        std::size_t position = 0;
+        std::optional<Eigen::Vector4d> ground;  ///< the view's plane, with ground_band
+        double band = 0;                        ///< metres
+    };
+    std::vector<Job> jobs(views.size());
     for (std::size_t i = 0; i < views.size(); ++i) {
         const ViewInfo& v = views[i].view;
         if (v.source.empty() || v.sensor.empty() || !v.world_from_sensor || !v.intrinsics) continue;
-        if (ground_band > 0 && !segment::view_ground(views[i])) continue;
+        Job job;
+        if (ground_band > 0) {
+            const auto g = segment::view_ground(views[i]);
+            if (!g) continue;
+            job.ground = Eigen::Vector4d(g->normal.x(), g->normal.y(), g->normal.z(), g->offset);
+            job.band = ground_band * g->margin_m;
+        }
         const std::string key = fs::path(v.source).parent_path().string() + "|" + v.sensor;
         auto it = captures.find(key);
-        if (it == captures.end()) {
-            std::shared_ptr<const io::Capture> capture;
-            const std::string root = capture_root_of(v.source, v.sensor);
-            if (!root.empty()) capture = std::make_shared<io::Capture>(io::open_capture(root));
-            it = captures.emplace(key, capture).first;
-        }
+        if (it == captures.end()) it = captures.emplace(key, capture_of(v.source, v.sensor)).first;
         const auto position = it->second ? frame_position(*it->second, v) : std::nullopt;
         if (!position) {
             ++result.frames_missing;
@@ -99,29 +113,26 @@ SourceMeasurements source_measurements(const std::vector<PointCloud>& views,
                               v.sensor + "; the free-space evidence is the views' own points";
             continue;
         }
-        jobs[i] = {it->second, *position};
+        job.capture = it->second;
+        job.position = *position;
+        jobs[i] = std::move(job);
     }
     std::vector<std::vector<Eigen::Vector3d>> per_view(views.size());
     std::vector<std::string> errors(views.size());
     tbb::parallel_for(std::size_t(0), views.size(), [&](std::size_t i) {
-        if (!jobs[i].first) return;
+        const Job& job = jobs[i];
+        if (!job.capture) return;
         try {
             const RgbdFrame frame =
-                io::load_frame(*jobs[i].first, views[i].view.sensor, jobs[i].second);
-            std::optional<Eigen::Vector4d> plane;
-            double band = 0;
-            if (ground_band > 0) {
-                const segment::ViewGround g = *segment::view_ground(views[i]);
-                plane = Eigen::Vector4d(g.normal.x(), g.normal.y(), g.normal.z(), g.offset);
-                band = ground_band * g.margin_m;
-            }
-            back_project(frame, *views[i].view.world_from_sensor, box, plane, band, per_view[i]);
+                io::load_frame(*job.capture, views[i].view.sensor, job.position);
+            back_project(frame, *views[i].view.world_from_sensor, box, job.ground, job.band,
+                         per_view[i]);
         } catch (const std::exception& e) {
             errors[i] = e.what();
         }
     });
     for (std::size_t i = 0; i < views.size(); ++i) {
-        if (!jobs[i].first) continue;
+        if (!jobs[i].capture) continue;
         if (!errors[i].empty()) {
             ++result.frames_missing;
             if (result.note.empty()) result.note = errors[i];
